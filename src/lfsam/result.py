@@ -1,0 +1,208 @@
+"""Segmentation results: N light-field masks, their label field, flags, timings and metadata.
+
+A result holds N masks over all views, ``M[n, s, t, u, v]``, bit-packed (never dense for large N:
+200 masks x 81 views x 480 x 640 is 5 GB as bool, 0.6 GB packed), and the derived label field
+``labels[s, t, u, v]`` (int32, 0 = unlabeled, mask ``n`` has label ``n + 1``). It is saved as one
+``.npz`` written atomically, with a JSON ``meta`` (DESIGN.md section 1), and read back by
+:func:`load_result`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lfsam.errors import LfsamError
+from lfsam.fileutil import atomic_output
+
+__all__ = ["PackedMasks", "SegmentationResult", "load_result", "save_result"]
+
+FORMAT_VERSION = 1
+
+
+class PackedMasks:
+    """N boolean masks over an ``S x T`` grid of ``U x V`` views, one bit per pixel.
+
+    Parameters
+    ----------
+    shape : (N, S, T, U, V)
+        Logical shape.
+    data : (N, S, T, ceil(U * V / 8)) uint8 ndarray, optional
+        Packed bits (``numpy.packbits`` of each flattened view mask); zeros if omitted.
+    """
+
+    def __init__(self, shape: tuple[int, int, int, int, int], data: np.ndarray | None = None):
+        self.shape = tuple(int(x) for x in shape)
+        n, s, t, u, v = self.shape
+        nbytes = (u * v + 7) // 8
+        if data is None:
+            data = np.zeros((n, s, t, nbytes), dtype=np.uint8)
+        if data.shape != (n, s, t, nbytes) or data.dtype != np.uint8:
+            raise LfsamError(
+                f"packed masks have shape {data.shape} {data.dtype}, "
+                f"expected {(n, s, t, nbytes)} uint8 for masks of shape {self.shape}"
+            )
+        self.data = data
+
+    @property
+    def num_masks(self) -> int:
+        """N."""
+        return self.shape[0]
+
+    def set_view(self, s: int, t: int, masks: np.ndarray) -> None:
+        """Store the N masks of view ``(s, t)``, given as ``(N, U, V)`` bool."""
+        n, _, _, u, v = self.shape
+        masks = np.asarray(masks, dtype=bool).reshape(n, u * v)
+        self.data[:, s, t] = np.packbits(masks, axis=1)
+
+    def view(self, s: int, t: int) -> np.ndarray:
+        """The N masks of view ``(s, t)``, ``(N, U, V)`` bool."""
+        n, _, _, u, v = self.shape
+        bits = np.unpackbits(self.data[:, s, t], axis=1, count=u * v)
+        return bits.reshape(n, u, v).astype(bool)
+
+    def mask(self, index: int) -> np.ndarray:
+        """Mask ``index`` over all views, ``(S, T, U, V)`` bool."""
+        _, s, t, u, v = self.shape
+        bits = np.unpackbits(self.data[index], axis=-1, count=u * v)
+        return bits.reshape(s, t, u, v).astype(bool)
+
+    def areas(self) -> np.ndarray:
+        """Pixel count of every mask in every view, ``(N, S, T)`` int64."""
+        table = np.unpackbits(np.arange(256, dtype=np.uint8)[:, None], axis=1).sum(1)
+        return table[self.data].sum(axis=-1, dtype=np.int64)
+
+
+@dataclass
+class SegmentationResult:
+    """Light-field masks and everything needed to trust and reuse them.
+
+    Parameters
+    ----------
+    labels : (S, T, U, V) int32 ndarray
+        Label field, 0 = unlabeled, mask ``n`` is label ``n + 1`` (larger masks written first,
+        smaller on top; DESIGN.md section 3.6).
+    masks : PackedMasks or None
+        The N masks before label fusion (overlaps kept).
+    scores : (N,) float32 ndarray
+        Score of each source mask in the prompted view (SAM 2's predicted IoU, or 1.0).
+    fallback : (N, S, T) bool ndarray
+        True where a view kept the coarse mask because refinement failed (paper section 3.4).
+    refine_iou : (N, S, T) float32 ndarray
+        IoU of the chosen refined mask with the coarse mask (NaN where not refined).
+    timings : dict of str to float
+        Seconds per stage (e.g. ``encode``, ``propagate``, ``occlude``, ``refine``) and ``total``.
+    meta : dict
+        JSON-serialisable: method, model, random-weights flag, thresholds, disparity source,
+        input path, package version.
+    """
+
+    labels: np.ndarray
+    masks: PackedMasks | None = None
+    scores: np.ndarray | None = None
+    fallback: np.ndarray | None = None
+    refine_iou: np.ndarray | None = None
+    timings: dict[str, float] = field(default_factory=dict)
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def num_masks(self) -> int:
+        """N, the number of masks (the largest label when masks are not stored)."""
+        if self.masks is not None:
+            return self.masks.num_masks
+        return int(self.labels.max()) if self.labels.size else 0
+
+    @property
+    def grid_shape(self) -> tuple[int, int]:
+        """``(S, T)``."""
+        return self.labels.shape[0], self.labels.shape[1]
+
+    @property
+    def ms_per_mask_view(self) -> float | None:
+        """Paper metric T: total wall-clock milliseconds / (N x S x T); None without timings."""
+        total = self.timings.get("total")
+        n = self.num_masks
+        if total is None or n == 0:
+            return None
+        s, t = self.grid_shape
+        return 1000.0 * total / (n * s * t)
+
+
+def save_result(result: SegmentationResult, path: str | os.PathLike) -> Path:
+    """Write ``result`` to ``path`` (``.npz``, compressed) atomically.
+
+    Returns
+    -------
+    path : Path
+        The written file.
+    """
+    arrays: dict[str, np.ndarray] = {
+        "format_version": np.array(FORMAT_VERSION),
+        "labels": np.asarray(result.labels, dtype=np.int32),
+        "timings": np.array(json.dumps(result.timings)),
+        "meta": np.array(json.dumps(result.meta, default=_json_default)),
+    }
+    if result.masks is not None:
+        arrays["masks_packed"] = result.masks.data
+        arrays["masks_shape"] = np.array(result.masks.shape, dtype=np.int64)
+    for name in ("scores", "fallback", "refine_iou"):
+        value = getattr(result, name)
+        if value is not None:
+            arrays[name] = np.asarray(value)
+    with atomic_output(path) as tmp:
+        with open(tmp, "wb") as handle:
+            np.savez_compressed(handle, **arrays)
+    return Path(path)
+
+
+def load_result(path: str | os.PathLike) -> SegmentationResult:
+    """Read a result written by :func:`save_result`, or any ``.npz`` with a ``labels`` array.
+
+    Raises
+    ------
+    LfsamError
+        If the file is missing, unreadable or has no ``labels`` of shape ``(S, T, U, V)``.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise LfsamError(f"result file {str(path)!r} not found; give the .npz written by --out")
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            contents = {key: npz[key] for key in npz.files}
+    except Exception as exc:  # zipfile/np errors vary
+        raise LfsamError(f"cannot read {str(path)!r} as .npz: {exc}") from exc
+    if "labels" not in contents:
+        raise LfsamError(
+            f"{str(path)!r} holds no 'labels' array (keys: {sorted(contents)}); "
+            "a result needs labels of shape (S, T, U, V)"
+        )
+    labels = contents["labels"]
+    if labels.ndim != 4:
+        raise LfsamError(f"'labels' in {str(path)!r} has shape {labels.shape}, need (S, T, U, V)")
+    masks = None
+    if "masks_packed" in contents and "masks_shape" in contents:
+        masks = PackedMasks(tuple(contents["masks_shape"].tolist()), contents["masks_packed"])
+    return SegmentationResult(
+        labels=labels.astype(np.int32),
+        masks=masks,
+        scores=contents.get("scores"),
+        fallback=contents.get("fallback"),
+        refine_iou=contents.get("refine_iou"),
+        timings=json.loads(str(contents["timings"])) if "timings" in contents else {},
+        meta=json.loads(str(contents["meta"])) if "meta" in contents else {},
+    )
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (np.ndarray, tuple)):
+        return np.asarray(value).tolist()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")

@@ -1,0 +1,212 @@
+"""The promptable-segmenter interface the pipeline talks to.
+
+Its life cycle follows Meta's ``SAM2ImagePredictor`` (``set_image`` then ``predict``), split so a
+view is encoded once and its embedding serves every later step (DESIGN.md section 3, "efficiency
+facts"): :meth:`Segmenter.encode` a batch of views once, then for each
+:class:`ViewEmbedding` :meth:`Segmenter.predict` a batch of N prompts in one call,
+:meth:`Segmenter.generate` masks automatically, or :meth:`Segmenter.sample_features` per-pixel
+features for semantic occluding (paper section 3.3).
+
+Coordinates: prompt points and boxes are ``(x, y)`` = (pixel column, pixel row) in the view's own
+pixels, as in ``sam2``; boxes are ``(x0, y0, x1, y1)``. Masks are ``(..., U, V)`` boolean tensors.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+
+__all__ = [
+    "AutoMasks",
+    "MaskPrediction",
+    "Prompts",
+    "Segmenter",
+    "ViewEmbedding",
+]
+
+
+@dataclass
+class Prompts:
+    """A batch of N prompts for one view; each prompt asks for one object.
+
+    Parameters
+    ----------
+    points : (N, P, 2) float array, optional
+        Point coordinates ``(x, y)`` in view pixels.
+    point_labels : (N, P) int array, optional
+        1 = positive (object), 0 = negative (background); required with ``points``.
+    boxes : (N, 4) float array, optional
+        Boxes ``(x0, y0, x1, y1)`` in view pixels.
+    """
+
+    points: np.ndarray | None = None
+    point_labels: np.ndarray | None = None
+    boxes: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.points is None and self.boxes is None:
+            raise ValueError("a prompt needs points, a box, or both")
+        if self.points is not None:
+            self.points = np.asarray(self.points, dtype=np.float32).reshape(
+                len(self.points), -1, 2
+            )
+            if self.point_labels is None:
+                raise ValueError("points need point_labels (1 = positive, 0 = negative)")
+            self.point_labels = np.asarray(self.point_labels, dtype=np.int64).reshape(
+                self.points.shape[:2]
+            )
+        if self.boxes is not None:
+            self.boxes = np.asarray(self.boxes, dtype=np.float32).reshape(-1, 4)
+        if self.points is not None and self.boxes is not None:
+            if len(self.points) != len(self.boxes):
+                raise ValueError("points and boxes must describe the same number of prompts")
+
+    def __len__(self) -> int:
+        return len(self.points) if self.points is not None else len(self.boxes)
+
+    def subset(self, index: slice | np.ndarray) -> Prompts:
+        """The prompts selected by ``index`` (for chunked decoding)."""
+        return Prompts(
+            points=None if self.points is None else self.points[index],
+            point_labels=None if self.point_labels is None else self.point_labels[index],
+            boxes=None if self.boxes is None else self.boxes[index],
+        )
+
+
+@dataclass
+class ViewEmbedding:
+    """One encoded view: what a backend needs to answer prompts without re-encoding.
+
+    Parameters
+    ----------
+    image_size : (U, V)
+        The view's size in pixels.
+    key : (s, t) or None
+        Which view of the light field this is (the oracle needs it; SAM 2 ignores it).
+    data : Any
+        Backend-specific state (for SAM 2: the image embedding and high-resolution features).
+    """
+
+    image_size: tuple[int, int]
+    key: tuple[int, int] | None = None
+    data: Any = field(default=None, repr=False)
+
+
+@dataclass
+class MaskPrediction:
+    """Masks for a batch of N prompts, K candidates each (K = 3 multimask, 1 single).
+
+    Parameters
+    ----------
+    masks : (N, K, U, V) bool tensor
+    iou_predictions : (N, K) float tensor
+        The model's own quality estimate of each mask.
+    low_res_logits : (N, K, h, w) float tensor
+        Mask logits at the decoder's resolution (256 x 256 for SAM 2), or an empty tensor.
+    """
+
+    masks: torch.Tensor
+    iou_predictions: torch.Tensor
+    low_res_logits: torch.Tensor
+
+
+@dataclass
+class AutoMasks:
+    """Masks from automatic generation on one view.
+
+    Parameters
+    ----------
+    masks : (M, U, V) bool ndarray
+    scores : (M,) float ndarray
+        Predicted IoU (SAM 2) or 1.0 (oracle).
+    """
+
+    masks: np.ndarray
+    scores: np.ndarray
+
+
+class Segmenter(abc.ABC):
+    """A promptable segmenter: encode views once, then prompt, generate and probe features.
+
+    Subclasses set :attr:`name` and :attr:`device` and implement the abstract methods.
+    :attr:`encode_calls` counts views encoded, so tests can check each view is encoded once.
+    """
+
+    name: str = "segmenter"
+    device: torch.device = torch.device("cpu")
+
+    def __init__(self) -> None:
+        self.encode_calls = 0
+
+    @abc.abstractmethod
+    def encode(
+        self, images: np.ndarray, keys: list[tuple[int, int]] | None = None
+    ) -> list[ViewEmbedding]:
+        """Encode a batch of views once.
+
+        Parameters
+        ----------
+        images : (B, U, V, 3) uint8 ndarray
+            The views (all the same size).
+        keys : list of (s, t), optional
+            Which views these are (required by the oracle).
+
+        Returns
+        -------
+        embeddings : list of ViewEmbedding, length B
+        """
+
+    @abc.abstractmethod
+    def predict(
+        self, embedding: ViewEmbedding, prompts: Prompts, multimask_output: bool = True
+    ) -> MaskPrediction:
+        """Decode N prompts on one encoded view in one batch.
+
+        Parameters
+        ----------
+        embedding : ViewEmbedding
+            From :meth:`encode`.
+        prompts : Prompts
+            N prompts (points and/or boxes).
+        multimask_output : bool
+            Return three candidate masks per prompt (True) or one (False).
+
+        Returns
+        -------
+        MaskPrediction
+        """
+
+    @abc.abstractmethod
+    def generate(self, embedding: ViewEmbedding, image: np.ndarray) -> AutoMasks:
+        """Automatic mask generation on one encoded view (paper section 4, implementation details).
+
+        Parameters
+        ----------
+        embedding : ViewEmbedding
+            From :meth:`encode`; backends reuse it instead of encoding the view again.
+        image : (U, V, 3) uint8 ndarray
+            The same view (some backends need the pixels, e.g. for crops).
+        """
+
+    @abc.abstractmethod
+    def sample_features(self, embedding: ViewEmbedding, rows_cols: torch.Tensor) -> torch.Tensor:
+        """Per-pixel features at given pixel positions, for semantic occluding (paper 3.3).
+
+        The backend's feature map (for SAM 2 the 256-channel image embedding at 1/16 resolution)
+        is brought to image resolution only at the requested pixels, by bilinear interpolation,
+        never stored at full size.
+
+        Parameters
+        ----------
+        embedding : ViewEmbedding
+        rows_cols : (P, 2) float tensor
+            Pixel ``(row, column)`` positions in the view.
+
+        Returns
+        -------
+        features : (P, C) float32 tensor on :attr:`device`
+        """
