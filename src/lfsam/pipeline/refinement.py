@@ -1,0 +1,173 @@
+"""Step 4 of the pipeline: segmentation refinement by re-prompting SAM 2 in each view.
+
+Paper section 3.4 with the details of DESIGN.md section 3.5: in view ``(s, t)`` each mask is
+prompted with the box around its surviving coarse pixels and one positive point, the surviving
+pixel nearest to their similarity-weighted centroid (a plain centroid can fall outside a
+non-convex mask). Of the three multimask outputs the one with the highest IoU against the coarse
+mask is kept, and only if that IoU exceeds ``t_iou`` (0.1 in the paper); otherwise the view falls
+back to the coarse mask. All N prompts of a view go through the decoder in one batch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from lfsam.pipeline.occlusion import OcclusionWeights
+from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
+
+__all__ = ["RefinementOutcome", "mask_iou", "refine_masks", "refinement_prompts"]
+
+
+@dataclass
+class RefinementOutcome:
+    """Refined masks of one view.
+
+    Attributes
+    ----------
+    masks : (N, U, V) bool tensor
+        Refined mask, or the coarse mask where refinement fell back.
+    fallback : (N,) bool tensor
+        True where the coarse mask was kept (IoU not above ``t_iou``, or nothing to prompt).
+    iou : (N,) float tensor
+        IoU of the chosen refined candidate with the coarse mask (NaN where not prompted).
+    """
+
+    masks: torch.Tensor
+    fallback: torch.Tensor
+    iou: torch.Tensor
+
+
+def refinement_prompts(weights: OcclusionWeights) -> tuple[Prompts | None, torch.Tensor]:
+    """Box and point prompt of each mask from its weighted surviving pixels (paper 3.4).
+
+    Parameters
+    ----------
+    weights : OcclusionWeights
+        Surviving coarse pixels (weight > 0) and their weights.
+
+    Returns
+    -------
+    prompts : Prompts or None
+        One prompt per mask that has surviving pixels (None if no mask has any).
+    prompted : (N,) bool tensor
+        Which masks got a prompt (rows of ``prompts`` are these masks, in order).
+    """
+    n = weights.num_masks
+    width = weights.view_size[1]
+    device = weights.weight.device
+    keep = weights.weight > 0
+    mask_index = weights.mask_index[keep]
+    pixel_index = weights.pixel_index[keep]
+    w = weights.weight[keep].to(torch.float64)
+    rows = (pixel_index // width).to(torch.float64)
+    cols = (pixel_index % width).to(torch.float64)
+
+    total = torch.zeros(n, dtype=torch.float64, device=device).index_add_(0, mask_index, w)
+    prompted = total > 0
+    if not bool(prompted.any()):
+        return None, prompted
+    safe_total = total.clamp(min=1e-12)
+    centroid_r = torch.zeros_like(total).index_add_(0, mask_index, w * rows) / safe_total
+    centroid_c = torch.zeros_like(total).index_add_(0, mask_index, w * cols) / safe_total
+
+    # Nearest surviving pixel to the weighted centroid: per-mask argmin over the pairs.
+    dist = (rows - centroid_r[mask_index]) ** 2 + (cols - centroid_c[mask_index]) ** 2
+    best = torch.full((n,), float("inf"), dtype=torch.float64, device=device)
+    best.scatter_reduce_(0, mask_index, dist, reduce="amin", include_self=True)
+    is_best = dist <= best[mask_index]
+    # First pair reaching the minimum of each mask (pairs are sorted by mask index).
+    candidates = torch.nonzero(is_best, as_tuple=True)[0]
+    first = torch.full((n,), mask_index.numel(), dtype=torch.long, device=device)
+    first.scatter_reduce_(0, mask_index[candidates], candidates, reduce="amin", include_self=True)
+    chosen = first[prompted]
+    point_rc = torch.stack([rows[chosen], cols[chosen]], dim=1)
+
+    def _reduce(values: torch.Tensor, how: str, init: float) -> torch.Tensor:
+        out = torch.full((n,), init, dtype=torch.float64, device=device)
+        return out.scatter_reduce_(0, mask_index, values, reduce=how, include_self=True)
+
+    boxes = torch.stack(
+        [
+            _reduce(cols, "amin", float("inf")),
+            _reduce(rows, "amin", float("inf")),
+            _reduce(cols, "amax", float("-inf")),
+            _reduce(rows, "amax", float("-inf")),
+        ],
+        dim=1,
+    )[prompted]
+    points_xy = point_rc.flip(1)[:, None, :].cpu().numpy()
+    return (
+        Prompts(
+            points=points_xy,
+            point_labels=np.ones(points_xy.shape[:2], dtype=np.int64),
+            boxes=boxes.cpu().numpy(),
+        ),
+        prompted,
+    )
+
+
+def mask_iou(candidates: torch.Tensor, reference: torch.Tensor) -> torch.Tensor:
+    """IoU of each candidate mask with its reference mask.
+
+    Parameters
+    ----------
+    candidates : (N, K, U, V) bool tensor
+    reference : (N, U, V) bool tensor
+
+    Returns
+    -------
+    (N, K) float tensor (0 where both are empty)
+    """
+    ref = reference[:, None].to(candidates.device)
+    inter = (candidates & ref).flatten(2).sum(-1).to(torch.float32)
+    union = (candidates | ref).flatten(2).sum(-1).to(torch.float32)
+    return inter / union.clamp(min=1.0)
+
+
+def refine_masks(
+    segmenter: Segmenter,
+    embedding: ViewEmbedding,
+    coarse: torch.Tensor,
+    weights: OcclusionWeights,
+    t_iou: float = 0.1,
+) -> RefinementOutcome:
+    """Re-prompt the segmenter in one view and keep refined masks that agree with the coarse ones.
+
+    Parameters
+    ----------
+    segmenter : Segmenter
+    embedding : ViewEmbedding
+        The encoded view (encoded once; the same embedding served semantic occluding).
+    coarse : (N, U, V) bool tensor
+        Coarse masks of the view (after occluding): the IoU reference and the fallback.
+    weights : OcclusionWeights
+        Surviving pixels and weights for the prompts.
+    t_iou : float
+        A refined mask is kept only if its IoU with the coarse mask exceeds this.
+
+    Returns
+    -------
+    RefinementOutcome
+    """
+    n = coarse.shape[0]
+    device = coarse.device
+    masks = coarse.clone()
+    fallback = torch.ones(n, dtype=torch.bool, device=device)
+    iou = torch.full((n,), float("nan"), device=device)
+    prompts, prompted = refinement_prompts(weights)
+    if prompts is None:
+        return RefinementOutcome(masks, fallback, iou)
+    index = torch.nonzero(prompted, as_tuple=True)[0].to(device)
+    prediction = segmenter.predict(embedding, prompts, multimask_output=True)
+    candidates = prediction.masks.to(device)
+    ious = mask_iou(candidates, coarse[index])
+    best_iou, best_k = ious.max(dim=1)
+    chosen = candidates[torch.arange(len(index), device=device), best_k]
+    accept = best_iou > t_iou
+    masks[index[accept]] = chosen[accept]
+    fallback[index] = ~accept
+    iou[index] = best_iou
+    return RefinementOutcome(masks, fallback, iou)

@@ -1,0 +1,48 @@
+"""Refinement prompts: box of surviving pixels and the nearest pixel to the weighted centroid."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from lfsam.pipeline.occlusion import OcclusionWeights, uniform_weights
+from lfsam.pipeline.refinement import mask_iou, refinement_prompts
+
+
+def test_box_and_point_of_a_ring_lie_on_the_ring():
+    # A ring's centroid is its hole; the point must be a ring pixel nearest to it.
+    mask = torch.zeros((1, 11, 11), dtype=torch.bool)
+    mask[0, 2:9, 2:9] = True
+    mask[0, 4:7, 4:7] = False
+    prompts, prompted = refinement_prompts(uniform_weights(mask))
+    assert prompted.tolist() == [True]
+    np.testing.assert_array_equal(prompts.boxes[0], [2, 2, 8, 8])  # x0, y0, x1, y1
+    x, y = prompts.points[0, 0]
+    assert mask[0, int(y), int(x)]
+    assert (x - 5) ** 2 + (y - 5) ** 2 == 4.0  # nearest ring pixels are 2 px from (5, 5)
+    assert prompts.point_labels.tolist() == [[1]]
+
+
+def test_weights_pull_the_point_and_dropped_pixels_leave_the_box():
+    # Two blobs; the right one has weight 0.9, the left 0.75, a far pixel is dropped (0).
+    pixel = torch.tensor([0 * 20 + 2, 0 * 20 + 3, 0 * 20 + 15, 0 * 20 + 16, 0 * 20 + 19])
+    weight = torch.tensor([0.75, 0.75, 0.9, 0.9, 0.0])
+    w = OcclusionWeights(
+        mask_index=torch.zeros(5, dtype=torch.long), pixel_index=pixel, weight=weight,
+        num_masks=2, view_size=(1, 20),
+    )
+    prompts, prompted = refinement_prompts(w)
+    assert prompted.tolist() == [True, False]  # mask 1 has no pixels: no prompt
+    assert prompts.boxes[0].tolist() == [2, 0, 16, 0]
+    # Weighted centroid column = (0.75*5 + 0.9*31) / 3.3 = 9.59; nearest pixel is column 15.
+    assert prompts.points[0, 0].tolist() == [15.0, 0.0]
+
+
+def test_mask_iou():
+    a = torch.zeros((1, 2, 4, 4), dtype=torch.bool)
+    a[0, 0, :2] = True  # 8 px
+    ref = torch.zeros((1, 4, 4), dtype=torch.bool)
+    ref[0, 1:3] = True  # 8 px, 4 shared
+    iou = mask_iou(a, ref)
+    assert abs(iou[0, 0].item() - 4 / 12) < 1e-6
+    assert iou[0, 1].item() == 0.0
