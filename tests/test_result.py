@@ -79,3 +79,15 @@ def test_foreign_npz_with_labels_only(tmp_path):
         load_result(tmp_path / "y.npz")
     with pytest.raises(LfsamError, match="not found"):
         load_result(tmp_path / "z.npz")
+
+
+def test_saved_file_has_ordinary_permissions(tmp_path):
+    import os
+    import stat
+
+    rng = np.random.default_rng(5)
+    result, _ = _result(rng)
+    path = save_result(result, tmp_path / "r.npz")
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o666 & ~umask

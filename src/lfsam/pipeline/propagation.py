@@ -52,6 +52,32 @@ class ForwardWarp:
     valid: torch.Tensor
     zbuffer: torch.Tensor
 
+    def seen(self, view_size: tuple[int, int]) -> torch.Tensor:
+        """View pixels some center pixel lands on (closed 3 x 3), ``(U, V)`` bool.
+
+        The rest of the view shows content the center view does not see (mostly a strip
+        entering at the frame border), about which a propagated mask knows nothing.
+        """
+        landed = torch.isfinite(self.zbuffer).reshape(view_size)
+        return close_masks(landed[None])[0]
+
+    def frame_margins(self, view_size: tuple[int, int]) -> tuple[int, int, int, int]:
+        """Widths of the unseen strips at the frame border: ``(top, bottom, left, right)``.
+
+        Each is the largest run of unseen pixels (see :meth:`seen`) from that frame edge.
+        """
+        unseen = (~self.seen(view_size)).to(torch.int32)
+
+        def run(edge_first: torch.Tensor) -> int:
+            return int(torch.cumprod(edge_first, dim=1).sum(dim=1).max())
+
+        return (
+            run(unseen.T),
+            run(unseen.flip(0).T),
+            run(unseen),
+            run(unseen.flip(1)),
+        )
+
     def visible(self, disparity: torch.Tensor, tolerance: float) -> torch.Tensor:
         """Center pixels not hidden in this view by a closer center pixel (z-buffer test).
 

@@ -40,13 +40,20 @@ class RefinementOutcome:
     iou: torch.Tensor
 
 
-def refinement_prompts(weights: OcclusionWeights) -> tuple[Prompts | None, torch.Tensor]:
+def refinement_prompts(
+    weights: OcclusionWeights, frame_margins: tuple[int, int, int, int] | None = None
+) -> tuple[Prompts | None, torch.Tensor]:
     """Box and point prompt of each mask from its weighted surviving pixels (paper 3.4).
 
     Parameters
     ----------
     weights : OcclusionWeights
         Surviving coarse pixels (weight > 0) and their weights.
+    frame_margins : (top, bottom, left, right), optional
+        Widths of the strips at the view's frame border that the center view does not see
+        (:meth:`lfsam.pipeline.propagation.ForwardWarp.frame_margins`). A box edge reaching
+        such a strip is extended to the frame edge: the object may continue into content that
+        was outside the center view's frame, which no propagated pixel can reach.
 
     Returns
     -------
@@ -98,6 +105,19 @@ def refinement_prompts(weights: OcclusionWeights) -> tuple[Prompts | None, torch
         ],
         dim=1,
     )[prompted]
+    if frame_margins is not None:
+        height = weights.view_size[0]
+        top, bottom, left, right = frame_margins
+        if left:
+            boxes[:, 0] = torch.where(boxes[:, 0] <= left, 0.0, boxes[:, 0])
+        if top:
+            boxes[:, 1] = torch.where(boxes[:, 1] <= top, 0.0, boxes[:, 1])
+        if right:
+            boxes[:, 2] = torch.where(boxes[:, 2] >= width - 1 - right, width - 1.0, boxes[:, 2])
+        if bottom:
+            boxes[:, 3] = torch.where(
+                boxes[:, 3] >= height - 1 - bottom, height - 1.0, boxes[:, 3]
+            )
     points_xy = point_rc.flip(1)[:, None, :].cpu().numpy()
     return (
         Prompts(
@@ -109,19 +129,27 @@ def refinement_prompts(weights: OcclusionWeights) -> tuple[Prompts | None, torch
     )
 
 
-def mask_iou(candidates: torch.Tensor, reference: torch.Tensor) -> torch.Tensor:
-    """IoU of each candidate mask with its reference mask.
+def mask_iou(
+    candidates: torch.Tensor, reference: torch.Tensor, region: torch.Tensor | None = None
+) -> torch.Tensor:
+    """IoU of each candidate mask with its reference mask, optionally within a region.
 
     Parameters
     ----------
     candidates : (N, K, U, V) bool tensor
     reference : (N, U, V) bool tensor
+    region : (U, V) bool tensor, optional
+        Count only these pixels.
 
     Returns
     -------
     (N, K) float tensor (0 where both are empty)
     """
     ref = reference[:, None].to(candidates.device)
+    if region is not None:
+        region = region.to(candidates.device)
+        candidates = candidates & region
+        ref = ref & region
     inter = (candidates & ref).flatten(2).sum(-1).to(torch.float32)
     union = (candidates | ref).flatten(2).sum(-1).to(torch.float32)
     return inter / union.clamp(min=1.0)
@@ -133,6 +161,8 @@ def refine_masks(
     coarse: torch.Tensor,
     weights: OcclusionWeights,
     t_iou: float = 0.1,
+    seen: torch.Tensor | None = None,
+    frame_margins: tuple[int, int, int, int] | None = None,
 ) -> RefinementOutcome:
     """Re-prompt the segmenter in one view and keep refined masks that agree with the coarse ones.
 
@@ -147,6 +177,11 @@ def refine_masks(
         Surviving pixels and weights for the prompts.
     t_iou : float
         A refined mask is kept only if its IoU with the coarse mask exceeds this.
+    seen : (U, V) bool tensor, optional
+        View pixels the propagation reaches; the IoU with the coarse mask is measured there
+        only (the coarse mask knows nothing of content the center view does not see).
+    frame_margins : (top, bottom, left, right), optional
+        Unseen strips at the frame border; see :func:`refinement_prompts`.
 
     Returns
     -------
@@ -157,13 +192,13 @@ def refine_masks(
     masks = coarse.clone()
     fallback = torch.ones(n, dtype=torch.bool, device=device)
     iou = torch.full((n,), float("nan"), device=device)
-    prompts, prompted = refinement_prompts(weights)
+    prompts, prompted = refinement_prompts(weights, frame_margins)
     if prompts is None:
         return RefinementOutcome(masks, fallback, iou)
     index = torch.nonzero(prompted, as_tuple=True)[0].to(device)
     prediction = segmenter.predict(embedding, prompts, multimask_output=True)
     candidates = prediction.masks.to(device)
-    ious = mask_iou(candidates, coarse[index])
+    ious = mask_iou(candidates, coarse[index], seen)
     best_iou, best_k = ious.max(dim=1)
     chosen = candidates[torch.arange(len(index), device=device), best_k]
     accept = best_iou > t_iou

@@ -140,11 +140,7 @@ def segment_lightfield(
             ds, dt = float(ds_grid[s, t]), float(dt_grid[s, t])
             # (2) Disparity propagation (+ geometric occluding by z-buffer).
             with timer("propagate"):
-                warp = (
-                    forward_warp(disp, ds, dt)
-                    if config.propagation == "pixel" or config.geometric
-                    else None
-                )
+                warp = forward_warp(disp, ds, dt)
                 keep = None
                 if config.geometric and config.propagation == "pixel":
                     keep = warp.visible(disp, config.zbuffer_tolerance)
@@ -170,7 +166,11 @@ def segment_lightfield(
             # (4) Refinement.
             if config.refine:
                 with timer("refine"):
-                    outcome = refine_masks(segmenter, embedding, coarse, weights, config.t_iou)
+                    outcome = refine_masks(
+                        segmenter, embedding, coarse, weights, config.t_iou,
+                        seen=warp.seen((height, width)),
+                        frame_margins=warp.frame_margins((height, width)),
+                    )
                     view_masks = outcome.masks
                     fallback[:, s, t] = outcome.fallback.cpu().numpy()
                     refine_iou[:, s, t] = outcome.iou.cpu().numpy()
