@@ -102,3 +102,14 @@ def test_subpixel_shift_rounds_half_pixel_consistently():
     expected = torch.zeros_like(mask)
     expected[0, 8:14, 8:14] = True  # 0.25 rounds to 0 rows, -1.75 to -2 columns
     assert torch.equal(out, expected)
+
+
+def test_hole_filling_does_not_claim_pixels_a_closer_surface_lands_on():
+    # Background (d=0) with a one-pixel-wide closer bar (d=1) in column 10. In the center view
+    # the background mask has a 1-px gap there; closing would fill it, but the bar lands there.
+    disp = torch.zeros((12, 20))
+    disp[:, 10] = 1.0
+    background = torch.ones((1, 12, 20), dtype=torch.bool)
+    background[0, :, 10] = False
+    same_view = propagate_masks(background, disp, 0, 0, "pixel")
+    assert torch.equal(same_view, background)

@@ -24,6 +24,7 @@ from lfsam.geometry import project_pixels
 
 __all__ = [
     "ForwardWarp",
+    "FrameRuns",
     "close_masks",
     "forward_warp",
     "mask_disparities",
@@ -32,6 +33,24 @@ __all__ = [
 ]
 
 PROPAGATION_MODES = ("pixel", "mean", "median")
+
+
+@dataclass
+class FrameRuns:
+    """Widths of the strips at a view's frame border that the center view does not see.
+
+    Attributes
+    ----------
+    top, bottom : (V,) int tensor
+        Unseen pixels from the top / bottom edge, per column.
+    left, right : (U,) int tensor
+        Unseen pixels from the left / right edge, per row.
+    """
+
+    top: torch.Tensor
+    bottom: torch.Tensor
+    left: torch.Tensor
+    right: torch.Tensor
 
 
 @dataclass
@@ -61,21 +80,25 @@ class ForwardWarp:
         landed = torch.isfinite(self.zbuffer).reshape(view_size)
         return close_masks(landed[None])[0]
 
-    def frame_margins(self, view_size: tuple[int, int]) -> tuple[int, int, int, int]:
-        """Widths of the unseen strips at the frame border: ``(top, bottom, left, right)``.
+    def frame_runs(self, view_size: tuple[int, int]) -> FrameRuns:
+        """Unseen runs from each frame edge (see :meth:`seen`), per row or column.
 
-        Each is the largest run of unseen pixels (see :meth:`seen`) from that frame edge.
+        Returns
+        -------
+        FrameRuns
+            ``top`` and ``bottom`` per column ``(V,)``, ``left`` and ``right`` per row ``(U,)``:
+            the number of unseen pixels from that edge inwards.
         """
         unseen = (~self.seen(view_size)).to(torch.int32)
 
-        def run(edge_first: torch.Tensor) -> int:
-            return int(torch.cumprod(edge_first, dim=1).sum(dim=1).max())
+        def run(edge_first: torch.Tensor) -> torch.Tensor:
+            return torch.cumprod(edge_first, dim=1).sum(dim=1)
 
-        return (
-            run(unseen.T),
-            run(unseen.flip(0).T),
-            run(unseen),
-            run(unseen.flip(1)),
+        return FrameRuns(
+            top=run(unseen.T),
+            bottom=run(unseen.flip(0).T),
+            left=run(unseen),
+            right=run(unseen.flip(1)),
         )
 
     def visible(self, disparity: torch.Tensor, tolerance: float) -> torch.Tensor:
@@ -258,7 +281,12 @@ def propagate_masks(
         if warp is None:
             warp = forward_warp(disparity, ds, dt)
         coarse = splat_masks(masks, warp, keep)
-        return close_masks(coarse) if fill_holes else coarse
+        if not fill_holes:
+            return coarse
+        # Forward-warping holes are pixels nothing lands on; pixels a (closer) surface lands on
+        # are not holes, so the closing may not claim them.
+        unlanded = ~torch.isfinite(warp.zbuffer).reshape(coarse.shape[1:])
+        return close_masks(coarse) & (coarse | unlanded)
     if mode in ("mean", "median"):
         d = mask_disparities(masks, disparity, mode)
         shifts = torch.stack([-d * ds, -d * dt], dim=1)

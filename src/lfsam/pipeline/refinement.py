@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from lfsam.pipeline.occlusion import OcclusionWeights
+from lfsam.pipeline.propagation import FrameRuns
 from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
 
 __all__ = ["RefinementOutcome", "mask_iou", "refine_masks", "refinement_prompts"]
@@ -41,7 +42,7 @@ class RefinementOutcome:
 
 
 def refinement_prompts(
-    weights: OcclusionWeights, frame_margins: tuple[int, int, int, int] | None = None
+    weights: OcclusionWeights, frame_runs: FrameRuns | None = None
 ) -> tuple[Prompts | None, torch.Tensor]:
     """Box and point prompt of each mask from its weighted surviving pixels (paper 3.4).
 
@@ -49,11 +50,12 @@ def refinement_prompts(
     ----------
     weights : OcclusionWeights
         Surviving coarse pixels (weight > 0) and their weights.
-    frame_margins : (top, bottom, left, right), optional
-        Widths of the strips at the view's frame border that the center view does not see
-        (:meth:`lfsam.pipeline.propagation.ForwardWarp.frame_margins`). A box edge reaching
-        such a strip is extended to the frame edge: the object may continue into content that
-        was outside the center view's frame, which no propagated pixel can reach.
+    frame_runs : FrameRuns, optional
+        Strips at the view's frame border that the center view does not see
+        (:meth:`lfsam.pipeline.propagation.ForwardWarp.frame_runs`). A box edge reaching such
+        a strip within the box's extent is moved to the frame edge: the object may continue
+        into content that was outside the center view's frame, which no propagated pixel can
+        reach (beyond the paper, which leaves the frame border implicit).
 
     Returns
     -------
@@ -105,19 +107,8 @@ def refinement_prompts(
         ],
         dim=1,
     )[prompted]
-    if frame_margins is not None:
-        height = weights.view_size[0]
-        top, bottom, left, right = frame_margins
-        if left:
-            boxes[:, 0] = torch.where(boxes[:, 0] <= left, 0.0, boxes[:, 0])
-        if top:
-            boxes[:, 1] = torch.where(boxes[:, 1] <= top, 0.0, boxes[:, 1])
-        if right:
-            boxes[:, 2] = torch.where(boxes[:, 2] >= width - 1 - right, width - 1.0, boxes[:, 2])
-        if bottom:
-            boxes[:, 3] = torch.where(
-                boxes[:, 3] >= height - 1 - bottom, height - 1.0, boxes[:, 3]
-            )
+    if frame_runs is not None:
+        boxes = _extend_to_unseen_edges(boxes, frame_runs, weights.view_size)
     points_xy = point_rc.flip(1)[:, None, :].cpu().numpy()
     return (
         Prompts(
@@ -127,6 +118,34 @@ def refinement_prompts(
         ),
         prompted,
     )
+
+
+def _extend_to_unseen_edges(
+    boxes: torch.Tensor, runs: FrameRuns, view_size: tuple[int, int]
+) -> torch.Tensor:
+    """Move each box edge that reaches an unseen frame strip to the frame edge."""
+    height, width = view_size
+    device = boxes.device
+    rows = torch.arange(height, device=device, dtype=boxes.dtype)[None]
+    cols = torch.arange(width, device=device, dtype=boxes.dtype)[None]
+    in_rows = (rows >= boxes[:, 1:2]) & (rows <= boxes[:, 3:4])  # (N, U)
+    in_cols = (cols >= boxes[:, 0:1]) & (cols <= boxes[:, 2:3])  # (N, V)
+
+    def reach(run: torch.Tensor, inside: torch.Tensor) -> torch.Tensor:
+        return (run.to(device=device, dtype=boxes.dtype)[None] * inside).amax(dim=1)
+
+    left, right = reach(runs.left, in_rows), reach(runs.right, in_rows)
+    top, bottom = reach(runs.top, in_cols), reach(runs.bottom, in_cols)
+    out = boxes.clone()
+    out[:, 0] = torch.where((left > 0) & (boxes[:, 0] <= left), 0.0, boxes[:, 0])
+    out[:, 2] = torch.where(
+        (right > 0) & (boxes[:, 2] >= width - 1 - right), width - 1.0, boxes[:, 2]
+    )
+    out[:, 1] = torch.where((top > 0) & (boxes[:, 1] <= top), 0.0, boxes[:, 1])
+    out[:, 3] = torch.where(
+        (bottom > 0) & (boxes[:, 3] >= height - 1 - bottom), height - 1.0, boxes[:, 3]
+    )
+    return out
 
 
 def mask_iou(
@@ -162,7 +181,7 @@ def refine_masks(
     weights: OcclusionWeights,
     t_iou: float = 0.1,
     seen: torch.Tensor | None = None,
-    frame_margins: tuple[int, int, int, int] | None = None,
+    frame_runs: FrameRuns | None = None,
 ) -> RefinementOutcome:
     """Re-prompt the segmenter in one view and keep refined masks that agree with the coarse ones.
 
@@ -180,7 +199,7 @@ def refine_masks(
     seen : (U, V) bool tensor, optional
         View pixels the propagation reaches; the IoU with the coarse mask is measured there
         only (the coarse mask knows nothing of content the center view does not see).
-    frame_margins : (top, bottom, left, right), optional
+    frame_runs : FrameRuns, optional
         Unseen strips at the frame border; see :func:`refinement_prompts`.
 
     Returns
@@ -192,7 +211,7 @@ def refine_masks(
     masks = coarse.clone()
     fallback = torch.ones(n, dtype=torch.bool, device=device)
     iou = torch.full((n,), float("nan"), device=device)
-    prompts, prompted = refinement_prompts(weights, frame_margins)
+    prompts, prompted = refinement_prompts(weights, frame_runs)
     if prompts is None:
         return RefinementOutcome(masks, fallback, iou)
     index = torch.nonzero(prompted, as_tuple=True)[0].to(device)

@@ -169,7 +169,7 @@ def segment_lightfield(
                     outcome = refine_masks(
                         segmenter, embedding, coarse, weights, config.t_iou,
                         seen=warp.seen((height, width)),
-                        frame_margins=warp.frame_margins((height, width)),
+                        frame_runs=warp.frame_runs((height, width)),
                     )
                     view_masks = outcome.masks
                     fallback[:, s, t] = outcome.fallback.cpu().numpy()

@@ -1,0 +1,112 @@
+"""``lfsam synth``: write a synthetic light field with exact ground truth."""
+
+from __future__ import annotations
+
+import argparse
+
+from lfsam.cli.common import HelpFormatter, parse_pair
+from lfsam.io import WRITE_FORMATS, resolve_output, write_lightfield
+from lfsam.synth import generate_scene
+
+__all__ = ["register", "run"]
+
+DESCRIPTION = """\
+Generate a synthetic light field with exact ground truth: a textured background plane and
+textured planar objects at different depths (some slanted), overlapping so that they occlude
+and disocclude each other, seen by a grid of cameras. Every view gets its exact disparity (in
+lfsam's convention, pixels per view step, larger = closer) and instance labels (background = 1,
+objects = 2, 3, ...). Textures come from scikit-image's sample photographs and procedural
+patterns; the RGB is anti-aliased. The same seed always gives the same bytes.
+
+The disparity range sets the baseline: with 9x9 views and --disparity-range=-2,2 the extreme
+views see points up to 8 pixels away from where the center view sees them.
+"""
+
+EPILOG = """\
+examples:
+  lfsam synth scene                                    # 9x9 views of 240x320, seed 0
+  lfsam synth small.npz --grid 5x5 --size 64x96 --seed 3 --objects 4
+  lfsam synth wide --disparity-range=-4,4              # note the '=' for negative numbers
+"""
+
+
+def _disparity_range(text: str) -> tuple[float, float]:
+    low, high = parse_pair(text, sep=",", kind=float)
+    if not low < high:
+        raise argparse.ArgumentTypeError(f"expected LO,HI with LO < HI, got {text!r}")
+    return low, high
+
+
+def _positive_pair(text: str) -> tuple[int, int]:
+    pair = parse_pair(text)
+    if min(pair) < 1:
+        raise argparse.ArgumentTypeError(f"expected two positive numbers AxB, got {text!r}")
+    return pair
+
+
+def run(args: argparse.Namespace) -> int:
+    """Generate the scene and write it."""
+    resolve_output(args.out, args.format)  # fail before the work, not after
+    lf = generate_scene(
+        grid=args.grid,
+        size=args.size,
+        seed=args.seed,
+        num_objects=args.objects,
+        disparity_range=args.disparity_range,
+        supersample=args.supersample,
+    )
+    out = write_lightfield(lf, args.out, format=args.format)
+    print(
+        f"wrote {out}: {args.grid[0]}x{args.grid[1]} views of {args.size[0]}x{args.size[1]}, "
+        f"seed {args.seed}, {args.objects} objects, disparity "
+        f"{lf.describe()['disparity_range'][0]:.2f}..{lf.describe()['disparity_range'][1]:.2f}"
+    )
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add the ``synth`` subcommand."""
+    parser = subparsers.add_parser(
+        "synth",
+        help="generate a synthetic light field with exact disparity and labels",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=HelpFormatter,
+    )
+    parser.add_argument("out", help="output: a new scene folder, or a name ending in .npz")
+    parser.add_argument(
+        "--grid",
+        type=_positive_pair,
+        default="9x9",
+        metavar="SxT",
+        help="views per column x views per row",
+    )
+    parser.add_argument(
+        "--size",
+        type=_positive_pair,
+        default="240x320",
+        metavar="UxV",
+        help="pixel rows x columns of each view",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="random seed")
+    parser.add_argument("--objects", type=int, default=6, help="objects in front of the background")
+    parser.add_argument(
+        "--disparity-range",
+        type=_disparity_range,
+        default="-2,2",
+        metavar="LO,HI",
+        help="disparity range in pixels per view step",
+    )
+    parser.add_argument(
+        "--supersample",
+        type=int,
+        default=2,
+        help="RGB samples per pixel along each axis (anti-aliasing)",
+    )
+    parser.add_argument(
+        "--format",
+        choices=WRITE_FORMATS,
+        default=None,
+        help="output format; unset: npz if OUT ends in .npz, else lfsam",
+    )
+    parser.set_defaults(func=run)

@@ -1,0 +1,80 @@
+"""Object outlines for the synthetic scenes, as inside-tests in the object's own coordinates.
+
+Each object has local coordinates ``(y, x)`` (local row, local column) in which its outline fits
+the square ``[-1, 1]^2``: an ellipse ``x^2 + y^2 <= 1``, a rounded rectangle (signed-distance
+test of a box with rounded corners, Quilez, "2D distance functions"), or a star-shaped polygon
+(even-odd crossing test, Shimrat 1962). The tests are vectorised over any tensor shape.
+"""
+
+from __future__ import annotations
+
+import torch
+
+__all__ = ["SHAPES", "inside"]
+
+#: Bounded outlines (``"plane"`` is the unbounded background).
+SHAPES = ("ellipse", "rounded_rect", "polygon")
+
+
+def _ellipse(x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+    return x * x + y * y <= 1.0
+
+
+def _rounded_rect(x: torch.Tensor, y: torch.Tensor, radius: float) -> torch.Tensor:
+    # Box [-1, 1]^2 with corners rounded by `radius`: distance of (|x|, |y|) to the inner box.
+    qx = x.abs() - (1.0 - radius)
+    qy = y.abs() - (1.0 - radius)
+    outside = torch.sqrt(qx.clamp(min=0) ** 2 + qy.clamp(min=0) ** 2)
+    inner = torch.maximum(qx, qy).clamp(max=0)
+    return outside + inner <= radius
+
+
+def _polygon(
+    x: torch.Tensor, y: torch.Tensor, vertices: tuple[tuple[float, float], ...]
+) -> torch.Tensor:
+    result = torch.zeros_like(x, dtype=torch.bool)
+    count = len(vertices)
+    for i in range(count):
+        yi, xi = vertices[i]
+        yj, xj = vertices[(i + 1) % count]
+        if yi == yj:
+            continue
+        crosses = (yi > y) != (yj > y)
+        x_cross = (xj - xi) * (y - yi) / (yj - yi) + xi
+        result ^= crosses & (x < x_cross)
+    return result
+
+
+def inside(
+    shape: str,
+    x: torch.Tensor,
+    y: torch.Tensor,
+    vertices: tuple[tuple[float, float], ...] = (),
+    corner: float = 0.3,
+) -> torch.Tensor:
+    """Whether local points ``(y, x)`` lie inside an outline.
+
+    Parameters
+    ----------
+    shape : {"plane", "ellipse", "rounded_rect", "polygon"}
+        ``"plane"`` is everywhere inside.
+    x, y : Tensor
+        Local column and row coordinates (same shape).
+    vertices : tuple of (y, x)
+        Polygon vertices in order, inside ``[-1, 1]^2``.
+    corner : float
+        Corner radius of the rounded rectangle, in local units (0..1).
+
+    Returns
+    -------
+    Tensor of bool, the shape of ``x``
+    """
+    if shape == "plane":
+        return torch.ones_like(x, dtype=torch.bool)
+    if shape == "ellipse":
+        return _ellipse(x, y)
+    if shape == "rounded_rect":
+        return _rounded_rect(x, y, corner)
+    if shape == "polygon":
+        return _polygon(x, y, vertices)
+    raise ValueError(f"unknown shape {shape!r}")
