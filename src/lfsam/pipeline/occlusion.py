@@ -66,6 +66,15 @@ def _pairs(masks: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return mask_index, pixel_index
 
 
+def _covered_pixels(
+    masks: torch.Tensor, pixel_index: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Pixels covered by any mask, and each pair's position among them (a sort-free unique)."""
+    covered = masks.reshape(masks.shape[0], -1).any(dim=0)
+    position = torch.cumsum(covered, dim=0) - 1
+    return torch.nonzero(covered, as_tuple=True)[0], position[pixel_index]
+
+
 def _features_at(
     segmenter: Segmenter, embedding: ViewEmbedding, pixel_index: torch.Tensor, width: int
 ) -> torch.Tensor:
@@ -101,7 +110,7 @@ def source_features(
     """
     n, _, width = masks.shape
     mask_index, pixel_index = _pairs(masks)
-    unique_pixels, inverse = torch.unique(pixel_index, return_inverse=True)
+    unique_pixels, inverse = _covered_pixels(masks, pixel_index)
     # The paper averages the upscaled embedding over the mask (not unit vectors), then the
     # cosine similarity normalises; the sum has the direction of the mean.
     feats = _features_at(segmenter, embedding, unique_pixels, width)
@@ -137,7 +146,7 @@ def semantic_occlusion(
     """
     n, height, width = coarse.shape
     mask_index, pixel_index = _pairs(coarse)
-    unique_pixels, inverse = torch.unique(pixel_index, return_inverse=True)
+    unique_pixels, inverse = _covered_pixels(coarse, pixel_index)
     feats = F.normalize(_features_at(segmenter, embedding, unique_pixels, width), dim=1)
     device = feats.device
     mask_index_d, inverse_d = mask_index.to(device), inverse.to(device)

@@ -80,8 +80,12 @@ class ForwardWarp:
         landed = torch.isfinite(self.zbuffer).reshape(view_size)
         return close_masks(landed[None])[0]
 
-    def frame_runs(self, view_size: tuple[int, int]) -> FrameRuns:
+    def frame_runs(
+        self, view_size: tuple[int, int], seen: torch.Tensor | None = None
+    ) -> FrameRuns:
         """Unseen runs from each frame edge (see :meth:`seen`), per row or column.
+
+        ``seen`` may be passed when already computed.
 
         Returns
         -------
@@ -89,7 +93,9 @@ class ForwardWarp:
             ``top`` and ``bottom`` per column ``(V,)``, ``left`` and ``right`` per row ``(U,)``:
             the number of unseen pixels from that edge inwards.
         """
-        unseen = (~self.seen(view_size)).to(torch.int32)
+        if seen is None:
+            seen = self.seen(view_size)
+        unseen = (~seen).to(torch.int32)
 
         def run(edge_first: torch.Tensor) -> torch.Tensor:
             return torch.cumprod(edge_first, dim=1).sum(dim=1)

@@ -166,10 +166,10 @@ def segment_lightfield(
             # (4) Refinement.
             if config.refine:
                 with timer("refine"):
+                    seen = warp.seen((height, width))
                     outcome = refine_masks(
                         segmenter, embedding, coarse, weights, config.t_iou,
-                        seen=warp.seen((height, width)),
-                        frame_runs=warp.frame_runs((height, width)),
+                        seen=seen, frame_runs=warp.frame_runs((height, width), seen),
                     )
                     view_masks = outcome.masks
                     fallback[:, s, t] = outcome.fallback.cpu().numpy()

@@ -1,0 +1,71 @@
+"""``lfsam metrics``: score a segmentation result against ground truth (paper section 4.1)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+
+from lfsam.cli.common import HelpFormatter
+
+DESCRIPTION = """\
+Score a segmentation result with the paper's metrics (section 4.1) and print them as JSON.
+
+Every view's masks are projected into the center view with the ground-truth disparity of that
+view (rounded to the nearest pixel; pixels landing outside the frame are dropped), then:
+  siou              self IoU: per mask, the mean IoU between its projection from each other view
+                    and its center-view mask; mean over masks (higher is better, <= 1)
+  lpp               labels per pixel (Khan et al. 2019): distinct labels one center pixel receives
+                    from all views, averaged over labeled pixels (lower is better, >= 1)
+  aa                achievable accuracy: each label mapped to the ground-truth label it overlaps
+                    most; accuracy over pixels labeled in both (higher is better)
+  ue                undersegmentation error (Neubert & Protzel 2012; lower is better)
+  coverage          fraction of all light-field pixels that carry a label (C)
+  ms_per_mask_view  milliseconds per mask per view from the result's timings (T; null without)
+  num_masks         N used for T: the stored masks, or the distinct labels of a labels-only file
+Undefined values (e.g. of an empty result) are null.
+
+RESULT is any .npz holding labels [S, T, U, V] (0 = unlabeled), e.g. from `lfsam segment`. The
+ground truth must have disparity and labels for every view (UrbanLF-Syn, `lfsam synth` scenes).
+"""
+
+EPILOG = """\
+examples:
+  lfsam metrics result.npz --gt scene
+  lfsam metrics result.npz --gt UrbanLF_Syn/val/Image001 --device cpu
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``metrics`` subcommand."""
+    parser = subparsers.add_parser(
+        "metrics",
+        help="the paper's metrics of a result against ground truth (JSON)",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=HelpFormatter,
+    )
+    parser.add_argument("result", metavar="RESULT.npz", help="result with labels [S, T, U, V]")
+    parser.add_argument(
+        "--gt", required=True, metavar="PATH",
+        help="the light field with per-view ground-truth disparity and labels",
+    )
+    parser.add_argument("--device", choices=["cuda", "cpu"], help="default: CUDA when available")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Load the result and the ground truth, print the metrics as one JSON object."""
+    from lfsam.io import read_lightfield
+    from lfsam.metrics import evaluate_result
+    from lfsam.result import load_result
+
+    result = load_result(args.result)
+    gt = read_lightfield(args.gt)
+    metrics = evaluate_result(result, gt, device=args.device)
+    clean = {
+        key: value if key == "num_masks" or value is None or not math.isnan(value) else None
+        for key, value in metrics.items()
+    }
+    print(json.dumps(clean, indent=2))
+    return 0

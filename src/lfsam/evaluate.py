@@ -1,0 +1,485 @@
+"""The data-set harness behind the paper's Tables 1 and 2 (paper section 4; DESIGN.md section 5).
+
+:func:`evaluate_dataset` runs one segmentation method on every scene of a folder, saves each
+result, scores it with :func:`lfsam.metrics.evaluate_result`, and writes ``metrics.csv`` (a row
+per scene and a ``mean`` row) and ``table.md`` (the layout of paper Table 1). It is resumable:
+a scene whose result and metrics are both on disk is not run again unless ``force``. A scene that
+fails gets a row with its error and does not stop the others. :func:`compare_runs` puts the mean
+rows of several runs in one table with the best value of each column in bold (paper Tables 1
+and 2).
+
+Files in ``out_dir``: ``<scene>.npz`` (the result), ``<scene>.metrics.json`` (its scores, or its
+error), ``metrics.csv`` and ``table.md``, each written atomically.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from lfsam.errors import LfsamError
+from lfsam.fileutil import atomic_output
+from lfsam.lightfield import LightField
+from lfsam.metrics import METRICS, check_ground_truth, evaluate_result
+from lfsam.metrics.report import format_metrics_table
+from lfsam.result import SegmentationResult, save_result
+
+__all__ = [
+    "CSV_COLUMNS",
+    "EvaluationTable",
+    "SceneRow",
+    "compare_runs",
+    "discover_scenes",
+    "evaluate_dataset",
+    "read_metrics_csv",
+]
+
+SegmentFn = Callable[[LightField], SegmentationResult]
+Reader = Callable[[Path], LightField]
+
+METRIC_KEYS = tuple(m.key for m in METRICS)
+#: Columns of ``metrics.csv``.
+CSV_COLUMNS = ("scene", "method", *METRIC_KEYS, "num_masks", "seconds", "error")
+MEAN_ROW = "mean"
+_RECORD_SUFFIX = ".metrics.json"
+
+
+@dataclass
+class SceneRow:
+    """The outcome of one scene.
+
+    Attributes
+    ----------
+    scene : str
+        Scene name (folder name or file stem).
+    method : str
+        Method label of the run.
+    metrics : dict
+        ``siou``, ``lpp``, ``aa``, ``ue``, ``coverage``, ``ms_per_mask_view`` (None when undefined
+        or when the scene failed).
+    num_masks : int or None
+        N of the result.
+    seconds : float or None
+        Wall-clock seconds of the segmentation call.
+    error : str or None
+        Why the scene failed; None on success.
+    """
+
+    scene: str
+    method: str
+    metrics: dict[str, float | None] = field(default_factory=dict)
+    num_masks: int | None = None
+    seconds: float | None = None
+    error: str | None = None
+
+    def to_record(self) -> dict[str, Any]:
+        """JSON-ready dictionary (the ``<scene>.metrics.json`` file; NaN written as null)."""
+        return {
+            "scene": self.scene,
+            "method": self.method,
+            **{key: _finite_or_none(self.metrics.get(key)) for key in METRIC_KEYS},
+            "num_masks": self.num_masks,
+            "seconds": self.seconds,
+            "error": self.error,
+        }
+
+    @classmethod
+    def from_record(cls, record: dict[str, Any]) -> SceneRow:
+        """Inverse of :meth:`to_record`."""
+        return cls(
+            scene=str(record["scene"]),
+            method=str(record["method"]),
+            metrics={key: record.get(key) for key in METRIC_KEYS},
+            num_masks=record.get("num_masks"),
+            seconds=record.get("seconds"),
+            error=record.get("error"),
+        )
+
+
+@dataclass
+class EvaluationTable:
+    """Everything one :func:`evaluate_dataset` run produced (a pandas-free table).
+
+    Attributes
+    ----------
+    method : str
+        Method label.
+    rows : list of SceneRow
+        One per scene, in name order.
+    mean : dict
+        Mean of each metric over the scenes that succeeded (NaN-free means; None if none).
+    skipped : list of (name, reason)
+        Entries of the data-set folder that are not light fields.
+    ran, resumed : list of str
+        Scenes computed in this run and scenes whose earlier results were reused.
+    out_dir : Path
+        Where the files are.
+    """
+
+    method: str
+    rows: list[SceneRow]
+    mean: dict[str, float | None]
+    skipped: list[tuple[str, str]] = field(default_factory=list)
+    ran: list[str] = field(default_factory=list)
+    resumed: list[str] = field(default_factory=list)
+    out_dir: Path = Path(".")
+
+    @property
+    def failed(self) -> list[SceneRow]:
+        """Rows of scenes that failed."""
+        return [row for row in self.rows if row.error is not None]
+
+    def summary_markdown(self) -> str:
+        """One-row table of the mean, in the layout of paper Table 1."""
+        return format_metrics_table([(self.method, self.mean)], mark_best=False)
+
+    def to_markdown(self, title: str | None = None) -> str:
+        """The ``table.md`` text: the mean (paper Table 1 layout), each scene, failures, skips."""
+        ok = len(self.rows) - len(self.failed)
+        parts = [
+            f"# {title or self.method}\n",
+            self.summary_markdown(),
+            f"Mean over {ok} scene(s)" + (f"; {len(self.failed)} failed." if self.failed else "."),
+            "",
+            "## Per scene\n",
+        ]
+        scored = [(row.scene, row.metrics) for row in self.rows if row.error is None]
+        if scored:
+            parts.append(format_metrics_table(scored, first_column="Scene", mark_best=False))
+        else:
+            parts.append("(no scene was scored)\n")
+        if self.failed:
+            parts += ["## Failed scenes\n"]
+            parts += [f"- `{row.scene}`: {row.error}" for row in self.failed]
+            parts += [""]
+        if self.skipped:
+            parts += ["## Skipped (not light fields)\n"]
+            parts += [f"- `{name}`: {reason}" for name, reason in self.skipped]
+            parts += [""]
+        return "\n".join(parts)
+
+    def to_csv(self) -> str:
+        """The ``metrics.csv`` text: one row per scene, then the ``mean`` row."""
+        buffer = io.StringIO()
+        writer = csv.DictWriter(buffer, fieldnames=CSV_COLUMNS, lineterminator="\n")
+        writer.writeheader()
+        for row in self.rows:
+            writer.writerow({k: _csv_cell(v) for k, v in row.to_record().items()})
+        ok = [row for row in self.rows if row.error is None]
+        writer.writerow(
+            {
+                "scene": MEAN_ROW,
+                "method": self.method,
+                **{key: _csv_cell(self.mean.get(key)) for key in METRIC_KEYS},
+                "num_masks": _csv_cell(_mean([row.num_masks for row in ok])),
+                "seconds": _csv_cell(_mean([row.seconds for row in ok])),
+                "error": "",
+            }
+        )
+        return buffer.getvalue()
+
+
+def discover_scenes(
+    dataset_dir: str | os.PathLike, exclude: Sequence[str | os.PathLike] = ()
+) -> list[tuple[str, Path]]:
+    """Candidate scenes of a data-set folder: every sub-folder and file, hidden ones excepted.
+
+    Parameters
+    ----------
+    dataset_dir : path
+        The folder holding one scene per sub-folder or file.
+    exclude : sequence of paths
+        Entries to leave out (e.g. the output folder when it lies inside the data set).
+
+    Returns
+    -------
+    list of (name, path)
+        Sorted by name. The name is the folder name or the file's stem (the full file name when
+        two files share a stem).
+
+    Raises
+    ------
+    LfsamError
+        If ``dataset_dir`` is not a folder.
+    """
+    root = Path(dataset_dir)
+    if not root.is_dir():
+        raise LfsamError(
+            f"data set {str(root)!r} is not a folder; give a folder with one scene per "
+            "sub-folder or file"
+        )
+    skip = {Path(p).resolve() for p in exclude}
+    entries = [
+        p
+        for p in sorted(root.iterdir())
+        if not p.name.startswith((".", "_")) and p.resolve() not in skip
+    ]
+    stems = [p.stem if p.is_file() else p.name for p in entries]
+    names = [
+        stem if stems.count(stem) == 1 else entry.name
+        for stem, entry in zip(stems, entries, strict=True)
+    ]
+    return sorted(zip(names, entries, strict=True))
+
+
+def evaluate_dataset(
+    dataset_dir: str | os.PathLike,
+    out_dir: str | os.PathLike,
+    segment_fn: SegmentFn,
+    *,
+    method_label: str,
+    force: bool = False,
+    reader: Reader | None = None,
+    detect: Callable[[Path], object] | None = None,
+    device: str | None = None,
+) -> EvaluationTable:
+    """Segment and score every scene of a data set; write ``metrics.csv`` and ``table.md``.
+
+    Parameters
+    ----------
+    dataset_dir : path
+        A folder with one scene per sub-folder or file, each with per-view ground-truth
+        disparity and labels (e.g. UrbanLF-Syn ``val``; scenes from ``lfsam synth``).
+    out_dir : path
+        Output folder (created if missing).
+    segment_fn : callable(LightField) -> SegmentationResult
+        The method, e.g. ``functools.partial(lfsam.api.run_segmentation, method="lfsam")``.
+        When its result has no ``timings["total"]``, the harness's own wall-clock time of the
+        call is stored there, so T is always the time of the whole segmentation.
+    method_label : str
+        Name of the method in the tables (recorded in every row).
+    force : bool
+        Recompute scenes whose result and metrics already exist.
+    reader : callable(Path) -> LightField, optional
+        Reads one scene; default :func:`lfsam.io.read_lightfield`. A scene it cannot read is a
+        failed scene (a row with the error).
+    detect : callable(Path), optional
+        Raises :class:`LfsamError` for an entry that is not a light field at all (a README, an
+        empty folder): such entries are skipped with a note. Default
+        :func:`lfsam.io.detect_format`.
+    device : str, optional
+        Where the metrics are computed (default: CUDA when available).
+
+    Returns
+    -------
+    EvaluationTable
+
+    Raises
+    ------
+    LfsamError
+        If ``dataset_dir`` is not a folder, or ``out_dir`` holds results of another method
+        (without ``force``).
+    """
+    if reader is None or detect is None:
+        from lfsam.io import detect_format, read_lightfield
+
+        reader = reader or read_lightfield
+        detect = detect or detect_format
+    out = Path(out_dir)
+    scenes = discover_scenes(dataset_dir, exclude=[out])
+    out.mkdir(parents=True, exist_ok=True)
+    finished = {} if force else _finished_records(out, [name for name, _ in scenes])
+    for record in finished.values():
+        if record.method != method_label:
+            raise LfsamError(
+                f"{str(out)!r} holds results of method {record.method!r}, not {method_label!r}; "
+                "choose another --out or pass --force to overwrite them"
+            )
+
+    rows: list[SceneRow] = []
+    table = EvaluationTable(method=method_label, rows=rows, mean={}, out_dir=out)
+    bar = tqdm(scenes, desc=f"evaluate {method_label}", unit="scene", disable=None, file=sys.stderr)
+    for name, path in bar:
+        bar.set_postfix_str(name)
+        if name in finished:
+            rows.append(finished[name])
+            table.resumed.append(name)
+            continue
+        try:
+            detect(path)
+        except LfsamError as exc:
+            table.skipped.append((path.name, str(exc)))
+            note = f"lfsam evaluate: skipping {path.name}: not a light field ({exc})"
+            tqdm.write(note, file=sys.stderr)
+            continue
+        try:
+            lightfield = reader(path)
+        except Exception as exc:  # an unreadable scene is a failed scene, not the end of the run
+            row = SceneRow(scene=name, method=method_label, error=_describe(exc))
+        else:
+            row = _run_scene(name, lightfield, segment_fn, method_label, out, device)
+        if row.error is not None:
+            tqdm.write(f"lfsam evaluate: scene {name} failed: {row.error}", file=sys.stderr)
+        _write_text(out / f"{name}{_RECORD_SUFFIX}", json.dumps(row.to_record(), indent=1))
+        rows.append(row)
+        table.ran.append(name)
+    bar.close()
+
+    ok = [row for row in rows if row.error is None]
+    table.mean = {key: _mean([row.metrics.get(key) for row in ok]) for key in METRIC_KEYS}
+    _write_text(out / "metrics.csv", table.to_csv())
+    _write_text(out / "table.md", table.to_markdown(f"{method_label} on {Path(dataset_dir).name}"))
+    return table
+
+
+def read_metrics_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
+    """Read a ``metrics.csv`` written by :func:`evaluate_dataset`.
+
+    Returns
+    -------
+    list of dict
+        One per row (scenes, then ``mean``); metric values as float or None.
+
+    Raises
+    ------
+    LfsamError
+        If the file is missing or lacks the expected columns.
+    """
+    path = Path(path)
+    if path.is_dir():
+        path = path / "metrics.csv"
+    if not path.is_file():
+        raise LfsamError(
+            f"{str(path)!r} not found; give a folder written by `lfsam evaluate ... --out DIR`"
+        )
+    with open(path, newline="", encoding="utf-8") as handle:
+        reader = csv.DictReader(handle)
+        missing = set(CSV_COLUMNS) - set(reader.fieldnames or ())
+        if missing:
+            raise LfsamError(
+                f"{str(path)!r} is not a metrics.csv of lfsam evaluate (missing {sorted(missing)})"
+            )
+        rows = []
+        for raw in reader:
+            row: dict[str, Any] = dict(raw)
+            for key in (*METRIC_KEYS, "num_masks", "seconds"):
+                row[key] = float(raw[key]) if raw[key] not in ("", None) else None
+            row["error"] = raw["error"] or None
+            rows.append(row)
+    return rows
+
+
+def compare_runs(dirs: Sequence[str | os.PathLike]) -> str:
+    """One markdown table of several runs' mean rows, best value per column in bold.
+
+    This is how the paper's Table 1 (baseline vs ours) and Table 2 (ablations) are laid out.
+
+    Parameters
+    ----------
+    dirs : sequence of paths
+        Output folders of :func:`evaluate_dataset` (or their ``metrics.csv`` files).
+
+    Returns
+    -------
+    str
+        The markdown table.
+
+    Raises
+    ------
+    LfsamError
+        If a folder has no ``metrics.csv`` or no ``mean`` row.
+    """
+    if not dirs:
+        raise LfsamError("nothing to compare; give the --out folders of two or more runs")
+    rows = []
+    labels: list[str] = []
+    for folder in dirs:
+        mean = [row for row in read_metrics_csv(folder) if row["scene"] == MEAN_ROW]
+        if not mean:
+            raise LfsamError(f"{str(folder)!r} has no mean row; rerun lfsam evaluate there")
+        label = mean[-1]["method"] or Path(folder).name
+        if label in labels:
+            label = f"{label} [{Path(folder).name}]"
+        labels.append(label)
+        rows.append((label, mean[-1]))
+    return format_metrics_table(rows)
+
+
+# --- internals ------------------------------------------------------------------------------
+
+
+def _run_scene(
+    name: str,
+    lightfield: LightField,
+    segment_fn: SegmentFn,
+    method_label: str,
+    out: Path,
+    device: str | None,
+) -> SceneRow:
+    """Segment, save and score one scene; any exception becomes the row's error."""
+    row = SceneRow(scene=name, method=method_label)
+    try:
+        check_ground_truth(lightfield.views.shape[:4], lightfield)
+        start = time.perf_counter()
+        result = segment_fn(lightfield)
+        row.seconds = time.perf_counter() - start
+        if result.timings.get("total") is None:
+            result.timings["total"] = row.seconds
+        result.meta.setdefault("evaluation_method", method_label)
+        metrics = evaluate_result(result, lightfield, device=device)
+        row.num_masks = int(metrics.pop("num_masks"))
+        row.metrics = metrics
+        save_result(result, out / f"{name}.npz")
+    except Exception as exc:  # one broken scene must not stop the data set
+        row.metrics = {}
+        row.error = _describe(exc)
+    return row
+
+
+def _finished_records(out: Path, names: Sequence[str]) -> dict[str, SceneRow]:
+    """Scenes whose result and error-free metrics record are both in ``out``."""
+    done = {}
+    for name in names:
+        record_path = out / f"{name}{_RECORD_SUFFIX}"
+        if not (record_path.is_file() and (out / f"{name}.npz").is_file()):
+            continue
+        try:
+            row = SceneRow.from_record(json.loads(record_path.read_text(encoding="utf-8")))
+        except (ValueError, KeyError, TypeError):
+            continue  # unreadable record: run the scene again
+        if row.error is None:
+            done[name] = row
+    return done
+
+
+def _describe(exc: BaseException) -> str:
+    """One line naming an exception: the message of an LfsamError, else type and message."""
+    text = str(exc) if isinstance(exc, LfsamError) else f"{type(exc).__name__}: {exc}"
+    return " ".join(text.split())
+
+
+def _write_text(path: Path, text: str) -> None:
+    with atomic_output(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def _finite_or_none(value: Any) -> float | None:
+    if value is None:
+        return None
+    value = float(value)
+    return None if math.isnan(value) else value
+
+
+def _mean(values: Sequence[float | None]) -> float | None:
+    finite = [float(v) for v in values if v is not None and not math.isnan(float(v))]
+    return sum(finite) / len(finite) if finite else None
+
+
+def _csv_cell(value: Any) -> Any:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return "" if math.isnan(value) else repr(value)
+    return value
+

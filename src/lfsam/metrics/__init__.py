@@ -1,0 +1,197 @@
+"""The paper's evaluation metrics (section 4.1): SIoU, LPP, AA, UE, coverage C and time T.
+
+:func:`evaluate_labels` scores a predicted label field ``[S, T, U, V]`` (0 = unlabeled) against a
+ground-truth :class:`~lfsam.lightfield.LightField` with per-view disparity and labels;
+:func:`evaluate_result` does the same for a :class:`~lfsam.result.SegmentationResult`, taking T
+from its timings. The definitions, and the choices the paper leaves open, are documented in
+:mod:`lfsam.metrics.consistency` (SIoU, LPP), :mod:`lfsam.metrics.segmentation` (AA, UE) and
+:mod:`lfsam.metrics.performance` (C, T). The work runs on torch tensors, on CUDA when present.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from lfsam.errors import LfsamError
+from lfsam.lightfield import LightField
+from lfsam.metrics.consistency import ConsistencyScores, consistency_metrics
+from lfsam.metrics.labelmap import compact_labels, to_tensor
+from lfsam.metrics.performance import coverage, ms_per_mask_view
+from lfsam.metrics.segmentation import (
+    achievable_accuracy,
+    contingency_table,
+    undersegmentation_error,
+)
+from lfsam.result import SegmentationResult
+
+__all__ = [
+    "METRICS",
+    "ConsistencyScores",
+    "Metric",
+    "achievable_accuracy",
+    "check_ground_truth",
+    "consistency_metrics",
+    "contingency_table",
+    "coverage",
+    "evaluate_labels",
+    "evaluate_result",
+    "ms_per_mask_view",
+    "undersegmentation_error",
+]
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One column of the paper's Tables 1 and 2.
+
+    Attributes
+    ----------
+    key : str
+        Key in the dictionaries returned by :func:`evaluate_labels`.
+    title : str
+        Column title with its direction arrow, as in the paper.
+    higher_is_better : bool
+        Direction used to mark the best value.
+    digits : int
+        Decimals shown in tables.
+    """
+
+    key: str
+    title: str
+    higher_is_better: bool
+    digits: int = 3
+
+
+#: The columns of paper Table 1, in order.
+METRICS: tuple[Metric, ...] = (
+    Metric("siou", "SIoU↑", True),
+    Metric("lpp", "LPP↓", False),
+    Metric("aa", "AA↑", True),
+    Metric("ue", "UE↓", False),
+    Metric("coverage", "C↑", True),
+    Metric("ms_per_mask_view", "T↓", False, digits=1),
+)
+
+
+def check_ground_truth(shape: tuple[int, ...], gt: LightField) -> None:
+    """Check that ``gt`` can score a label field of ``shape``.
+
+    Raises
+    ------
+    LfsamError
+        If ``gt`` lacks per-view disparity or labels, or its grid differs from ``shape``.
+    """
+    source = gt.meta.get("source", "the ground truth")
+    if tuple(shape) != tuple(gt.views.shape[:4]):
+        raise LfsamError(
+            f"labels have shape {tuple(shape)} but {source} has {tuple(gt.views.shape[:4])} "
+            "(S, T, U, V); score a result against the light field it was computed on"
+        )
+    if not gt.has_full_disparity:
+        have = "center-view disparity only" if gt.disparity is not None else "no disparity"
+        raise LfsamError(
+            f"{source} has {have}; the metrics need ground-truth disparity for every view "
+            "(e.g. UrbanLF-Syn or a scene from `lfsam synth`)"
+        )
+    if not gt.has_full_labels:
+        have = "center-view labels only" if gt.labels is not None else "no labels"
+        raise LfsamError(
+            f"{source} has {have}; the metrics need ground-truth labels for every view "
+            "(e.g. UrbanLF-Syn or a scene from `lfsam synth`)"
+        )
+
+
+def _default_device(device: str | torch.device | None) -> torch.device:
+    if device is not None:
+        return torch.device(device)
+    return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+
+
+def evaluate_labels(
+    labels: np.ndarray | torch.Tensor,
+    gt: LightField,
+    timings: Mapping[str, float] | None = None,
+    *,
+    num_masks: int | None = None,
+    device: str | torch.device | None = None,
+) -> dict[str, float | int | None]:
+    """All metrics of paper Table 1 for one predicted label field.
+
+    Parameters
+    ----------
+    labels : (S, T, U, V) integer array or tensor
+        Predicted labels, 0 = unlabeled; ids are arbitrary (any renumbering scores the same).
+    gt : LightField
+        Ground truth with per-view ``disparity`` and ``labels`` of the same shape.
+    timings : mapping, optional
+        Seconds per stage with ``"total"``, for T; without it T is None.
+    num_masks : int, optional
+        N for T; defaults to the number of distinct non-zero labels.
+    device : str or torch.device, optional
+        Where to compute; CUDA when available, else CPU.
+
+    Returns
+    -------
+    dict
+        ``siou``, ``lpp``, ``aa``, ``ue``, ``coverage`` (floats; NaN where undefined, e.g. SIoU,
+        LPP and AA of an empty prediction), ``ms_per_mask_view`` (float or None), and
+        ``num_masks``, the N used for T.
+
+    Raises
+    ------
+    LfsamError
+        If the ground truth is incomplete or the shapes differ (:func:`check_ground_truth`).
+    """
+    shape = tuple(labels.shape)
+    if len(shape) != 4:
+        raise LfsamError(f"labels must have shape (S, T, U, V), got {shape}")
+    check_ground_truth(shape, gt)
+    dev = _default_device(device)
+    predicted, predicted_ids = compact_labels(to_tensor(labels, dev), "predicted labels")
+    truth, truth_ids = compact_labels(to_tensor(gt.labels, dev), "ground-truth labels")
+    disparity = to_tensor(gt.disparity, dev)
+
+    consistency = consistency_metrics(predicted, disparity, len(predicted_ids))
+    table = contingency_table(predicted, truth, len(predicted_ids), len(truth_ids))
+    if num_masks is None:
+        num_masks = len(predicted_ids) - 1
+    return {
+        "siou": consistency.siou,
+        "lpp": consistency.lpp,
+        "aa": achievable_accuracy(table),
+        "ue": undersegmentation_error(table),
+        "coverage": coverage(predicted),
+        "ms_per_mask_view": ms_per_mask_view(timings, num_masks, shape[:2]),
+        "num_masks": num_masks,
+    }
+
+
+def evaluate_result(
+    result: SegmentationResult, gt: LightField, *, device: str | torch.device | None = None
+) -> dict[str, float | int | None]:
+    """:func:`evaluate_labels` for a result, with T from its own timings and mask count.
+
+    Parameters
+    ----------
+    result : SegmentationResult
+        Labels ``[S, T, U, V]`` and timings (``total`` seconds).
+    gt : LightField
+        Ground truth with per-view disparity and labels.
+    device : str or torch.device, optional
+        Where to compute.
+
+    Returns
+    -------
+    dict
+        As :func:`evaluate_labels`. For T, N is the number of stored masks
+        (:attr:`SegmentationResult.ms_per_mask_view`), or, for a file holding only ``labels``, the
+        number of distinct non-zero labels (ids need not be ``1 .. N``).
+    """
+    num_masks = result.masks.num_masks if result.masks is not None else None
+    return evaluate_labels(
+        result.labels, gt, result.timings, num_masks=num_masks, device=device
+    )
