@@ -1,5 +1,20 @@
 """Promptable segmenters behind one interface: SAM 2 and a ground-truth oracle."""
 
 from lfsam.segmenters.base import AutoMasks, MaskPrediction, Prompts, Segmenter, ViewEmbedding
+from lfsam.segmenters.factory import available_models, load_segmenter
+from lfsam.segmenters.registry import DEFAULT_MODEL, MODELS, ORACLE, TINY_TEST_MODEL, ModelSpec
 
-__all__ = ["AutoMasks", "MaskPrediction", "Prompts", "Segmenter", "ViewEmbedding"]
+__all__ = [
+    "DEFAULT_MODEL",
+    "MODELS",
+    "ORACLE",
+    "TINY_TEST_MODEL",
+    "AutoMasks",
+    "MaskPrediction",
+    "ModelSpec",
+    "Prompts",
+    "Segmenter",
+    "ViewEmbedding",
+    "available_models",
+    "load_segmenter",
+]

@@ -1,0 +1,220 @@
+"""``lfsam models``: which segmenters exist, how big they are, whether their weights are here.
+
+Also the shared ``--model`` / ``--checkpoint`` / ``--random-weights`` / ``--device`` / ``--amg``
+options of the commands that segment (:func:`add_model_arguments`) and the one call that turns
+them into a segmenter (:func:`segmenter_from_args`), so every command reports missing weights the
+same way.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+from typing import Any
+
+from lfsam.cli.common import HelpFormatter
+from lfsam.errors import LfsamError
+from lfsam.lightfield import LightField
+from lfsam.segmenters.base import Segmenter
+from lfsam.segmenters.factory import available_models, load_segmenter
+from lfsam.segmenters.registry import DEFAULT_MODEL, MODELS, ORACLE
+
+__all__ = [
+    "add_model_arguments",
+    "list_models",
+    "parse_option",
+    "register",
+    "run",
+    "segmenter_from_args",
+]
+
+DESCRIPTION = """\
+List the segmenters lfsam can use with --model: the SAM 2 image models (SAM 2.1 and 2.0 in four
+sizes; the paper uses sam2.1-hiera-small, the default), the tiny random-weight model for tests,
+and the ground-truth oracle. For each SAM 2 model: its parameter count, the size of its float32
+weights, and whether the weights are already in the Hugging Face cache (looked up on disk, no
+network). Weights not cached are downloaded on first use; without network, download the .pt file
+from the model hub by hand and pass it with --checkpoint FILE.
+"""
+
+EPILOG = """\
+examples:
+  lfsam models                                  # table of models, cache state and device
+  lfsam models --json                           # the same as JSON
+  lfsam models --download sam2.1-hiera-small    # fetch the paper's weights into the cache now
+"""
+
+
+def parse_option(text: str) -> tuple[str, Any]:
+    """Parse ``KEY=VALUE`` (VALUE a Python literal such as ``32``, ``0.9`` or ``True``)."""
+    key, sep, value = text.partition("=")
+    if not sep or not key.strip():
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    try:
+        parsed = ast.literal_eval(value.strip())
+    except (ValueError, SyntaxError):
+        parsed = value.strip()
+    return key.strip(), parsed
+
+
+def add_model_arguments(parser: argparse.ArgumentParser, default: str = DEFAULT_MODEL) -> None:
+    """Add ``--model``, ``--checkpoint``, ``--random-weights``, ``--device`` and ``--amg``."""
+    group = parser.add_argument_group("segmenter")
+    group.add_argument(
+        "--model",
+        default=default,
+        choices=available_models(),
+        metavar="NAME",
+        help="SAM 2 model or 'oracle' (ground-truth labels); see `lfsam models`",
+    )
+    group.add_argument(
+        "--checkpoint",
+        metavar="FILE",
+        help="SAM 2 weights file (.pt); default: the Hugging Face cache, downloaded once",
+    )
+    group.add_argument(
+        "--random-weights",
+        action="store_true",
+        help="untrained SAM 2 of the same architecture (speed tests only: masks are meaningless)",
+    )
+    group.add_argument(
+        "--device", default="auto", help="auto (CUDA, then MPS, then CPU), cpu, cuda, cuda:N, mps"
+    )
+    group.add_argument(
+        "--amg",
+        action="append",
+        type=parse_option,
+        default=[],
+        metavar="KEY=VALUE",
+        help="override an automatic-mask-generation setting of the paper, e.g. "
+        "points_per_side=32 (repeatable)",
+    )
+
+
+def segmenter_from_args(
+    args: argparse.Namespace, lightfield: LightField | None = None
+) -> Segmenter:
+    """The segmenter the options of :func:`add_model_arguments` ask for.
+
+    Raises
+    ------
+    LfsamError
+        With a one-line message, e.g. when weights are not cached and cannot be downloaded.
+    """
+    model = getattr(args, "model", DEFAULT_MODEL)
+    amg = dict(getattr(args, "amg", None) or [])
+    return load_segmenter(
+        model,
+        checkpoint=getattr(args, "checkpoint", None),
+        random_weights=bool(getattr(args, "random_weights", False)),
+        device=getattr(args, "device", None),
+        lightfield=lightfield,
+        amg_options=amg or None,
+        seed=int(getattr(args, "seed", 0) or 0),
+    )
+
+
+def list_models() -> dict[str, Any]:
+    """What ``lfsam models`` shows, as a JSON-ready dict (no network, no model built)."""
+    from lfsam.segmenters.sam2_build import (
+        autocast_dtype,
+        cached_checkpoint,
+        hub_cache_dir,
+        resolve_device,
+    )
+
+    device = resolve_device(None)
+    rows = []
+    for spec in MODELS.values():
+        cached = cached_checkpoint(spec.name)
+        rows.append(
+            {
+                "name": spec.name,
+                "default": spec.name == DEFAULT_MODEL,
+                "description": spec.description,
+                "params": spec.params,
+                "size_mb": round(spec.params * 4 / 1e6, 1),
+                "image_size": spec.image_size,
+                "hub_id": spec.hub_id,
+                "checkpoint_file": spec.checkpoint_file,
+                "cached": None if cached is None else str(cached),
+                "weights": "random only"
+                if spec.random_only
+                else ("cached" if cached else "not cached"),
+            }
+        )
+    rows.append(
+        {
+            "name": ORACLE,
+            "default": False,
+            "description": "ground-truth labels of the light field (upper bound)",
+            "params": 0,
+            "size_mb": 0.0,
+            "image_size": None,
+            "hub_id": None,
+            "checkpoint_file": None,
+            "cached": None,
+            "weights": "needs labels",
+        }
+    )
+    dtype = autocast_dtype(device)
+    return {
+        "device": str(device),
+        "precision": "bfloat16 autocast" if dtype is not None else "float32",
+        "cache": str(hub_cache_dir()),
+        "models": rows,
+    }
+
+
+def _table(info: dict[str, Any]) -> str:
+    lines = [f"{'model':<24} {'params':>8} {'fp32':>8}  {'weights':<12} description"]
+    for row in info["models"]:
+        name = row["name"] + (" *" if row["default"] else "")
+        params = f"{row['params'] / 1e6:.1f} M" if row["params"] else "-"
+        mb = row["size_mb"]
+        size = "-" if not mb else (f"{mb:.0f} MB" if mb >= 10 else f"{mb:.1f} MB")
+        lines.append(f"{name:<24} {params:>8} {size:>8}  {row['weights']:<12} {row['description']}")
+    lines += [
+        "",
+        f"* default (the paper's model). Device: {info['device']} ({info['precision']}).",
+        f"Hugging Face cache: {info['cache']} (--json shows each cached file).",
+        "Weights not cached download on first use or with `lfsam models --download NAME`;",
+        "offline, fetch the .pt file from https://huggingface.co/facebook/NAME and pass "
+        "--checkpoint FILE.",
+    ]
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print the model table (or JSON), or download one model's weights."""
+    if args.download:
+        from lfsam.segmenters.sam2_build import resolve_checkpoint
+
+        if args.download == ORACLE:
+            raise LfsamError("the oracle has no weights; choose a SAM 2 model to download")
+        path = resolve_checkpoint(args.download)
+        print(f"{args.download}: {path}")
+        return 0
+    info = list_models()
+    print(json.dumps(info, indent=2) if args.json else _table(info))
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``models`` subcommand."""
+    parser = subparsers.add_parser(
+        "models",
+        help="list segmenters, their sizes and cached weights",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=HelpFormatter,
+    )
+    parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    parser.add_argument(
+        "--download",
+        metavar="NAME",
+        choices=[name for name, spec in MODELS.items() if not spec.random_only],
+        help="download the weights of model NAME into the Hugging Face cache and print the path",
+    )
+    parser.set_defaults(func=run)

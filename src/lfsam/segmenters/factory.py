@@ -1,0 +1,99 @@
+"""One entry point for every backend: ``load_segmenter(model=...)`` (the CLI's ``--model``).
+
+SAM 2 models are built by :mod:`lfsam.segmenters.sam2_build` and wrapped by
+:class:`~lfsam.segmenters.sam2_backend.Sam2Segmenter`; ``"oracle"`` gives an
+:class:`~lfsam.segmenters.oracle.OracleSegmenter` on a light field's ground-truth labels.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import torch
+
+from lfsam.errors import LfsamError
+from lfsam.lightfield import LightField
+from lfsam.segmenters.base import Segmenter
+from lfsam.segmenters.registry import DEFAULT_MODEL, MODELS, ORACLE, get_model_spec
+
+__all__ = ["available_models", "load_segmenter"]
+
+
+def available_models() -> list[str]:
+    """Every name ``load_segmenter`` accepts: the SAM 2 models, then ``"oracle"``."""
+    return [*MODELS, ORACLE]
+
+
+def load_segmenter(
+    model: str = DEFAULT_MODEL,
+    *,
+    checkpoint: str | os.PathLike | None = None,
+    random_weights: bool = False,
+    device: str | torch.device | None = None,
+    lightfield: LightField | None = None,
+    amg_options: dict[str, Any] | None = None,
+    seed: int = 0,
+    oracle_options: dict[str, Any] | None = None,
+    **sam2_options: Any,
+) -> Segmenter:
+    """Build the segmenter called ``model``.
+
+    Parameters
+    ----------
+    model : str
+        A SAM 2 model name (default the paper's ``sam2.1-hiera-small``) or ``"oracle"``; see
+        :func:`available_models`.
+    checkpoint : path, optional
+        SAM 2 weights file; default: the hub cache, downloaded once.
+    random_weights : bool
+        SAM 2 architecture without trained weights (tests and speed measurements only).
+    device : str or torch.device, optional
+        Default: CUDA, then MPS, then CPU.
+    lightfield : LightField, optional
+        Required for ``"oracle"`` (it must carry ground-truth labels).
+    amg_options : dict, optional
+        Overrides of the paper's automatic-mask-generation settings (SAM 2 only).
+    seed : int
+        Seed of random weights (SAM 2) or of the oracle's imperfections.
+    oracle_options : dict, optional
+        ``min_area``, ``boundary_jitter``, ``merge_prob`` of
+        :class:`~lfsam.segmenters.oracle.OracleSegmenter`.
+    **sam2_options
+        Further keywords of :class:`~lfsam.segmenters.sam2_backend.Sam2Segmenter`
+        (``max_prompts_per_batch``, ``encode_batch_size``, ``mask_threshold``).
+
+    Raises
+    ------
+    LfsamError
+        Unknown model, oracle without a labelled light field, options that do not apply to the
+        backend, or SAM 2 weights that cannot be had (one line that says how to provide them).
+    """
+    if model == ORACLE:
+        if checkpoint is not None or random_weights or amg_options or sam2_options:
+            raise LfsamError(
+                "--checkpoint, --random-weights and SAM 2 options do not apply to the oracle; "
+                "drop them or choose a SAM 2 --model"
+            )
+        if lightfield is None or lightfield.labels is None:
+            raise LfsamError(
+                "--model oracle needs a light field with ground-truth labels (e.g. made by "
+                "`lfsam synth`); give one or choose a SAM 2 --model"
+            )
+        from lfsam.segmenters.oracle import OracleSegmenter
+
+        return OracleSegmenter(lightfield, seed=seed, device=device, **(oracle_options or {}))
+    get_model_spec(model)  # unknown names fail before anything is imported or downloaded
+    if oracle_options:
+        raise LfsamError("oracle options apply only to --model oracle; drop them")
+    from lfsam.segmenters.sam2_backend import Sam2Segmenter
+
+    return Sam2Segmenter.from_name(
+        model,
+        checkpoint=checkpoint,
+        random_weights=random_weights,
+        device=device,
+        seed=seed,
+        amg_options=amg_options,
+        **sam2_options,
+    )

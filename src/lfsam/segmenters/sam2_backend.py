@@ -1,0 +1,436 @@
+"""The SAM 2 backend: Meta's image model behind lfsam's :class:`Segmenter` interface.
+
+Each view is encoded once (:meth:`Sam2Segmenter.encode`: SAM 2's transforms, image encoder,
+``_prepare_backbone_features`` and ``no_mem_embed``, exactly as ``SAM2ImagePredictor.set_image``),
+and its embedding then serves every prompt batch (:meth:`~Sam2Segmenter.predict`, through
+``SAM2ImagePredictor._predict``: prompt encoder + mask decoder, all N prompts in one call),
+automatic mask generation (:meth:`~Sam2Segmenter.generate`: ``SAM2AutomaticMaskGenerator`` fed
+the cached embedding instead of re-encoding) and feature probing for semantic occluding
+(:meth:`~Sam2Segmenter.sample_features`, paper section 3.3) (DESIGN.md section 3, "efficiency
+facts").
+"""
+
+from __future__ import annotations
+
+import inspect
+import os
+import warnings
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from sam2.sam2_image_predictor import SAM2ImagePredictor
+
+from lfsam.errors import LfsamError
+from lfsam.segmenters.base import AutoMasks, MaskPrediction, Prompts, Segmenter, ViewEmbedding
+from lfsam.segmenters.registry import DEFAULT_MODEL
+from lfsam.segmenters.sam2_build import (
+    autocast_dtype,
+    build_sam2,
+    inference_context,
+    make_image_predictor,
+)
+
+__all__ = ["PAPER_AMG_OPTIONS", "CachedFeaturePredictor", "Sam2Features", "Sam2Segmenter"]
+
+PAPER_AMG_OPTIONS: dict[str, Any] = {
+    "points_per_side": 64,
+    "pred_iou_thresh": 0.88,
+    "stability_score_thresh": 0.95,
+    "stability_score_offset": 1.0,
+    "box_nms_thresh": 0.7,
+    "min_mask_region_area": 0,
+}
+"""Automatic mask generation settings of the paper (section 4; DESIGN.md section 3, step 1)."""
+
+
+@dataclass
+class Sam2Features:
+    """SAM 2's encoding of one view, as ``SAM2ImagePredictor`` keeps it in ``_features``.
+
+    Parameters
+    ----------
+    image_embed : (1, C, H/16, W/16) tensor
+        The image embedding after the neck, plus ``no_mem_embed`` (C = 256, 64 x 64 for a 1024
+        input); what the mask decoder and semantic occluding use.
+    high_res_feats : list of two tensors
+        ``(1, C/8, H/4, W/4)`` and ``(1, C/4, H/8, W/8)`` (after the decoder's 1x1 convolutions).
+    """
+
+    image_embed: torch.Tensor
+    high_res_feats: list[torch.Tensor]
+
+    def as_predictor_features(self) -> dict[str, Any]:
+        """The ``_features`` dict of ``SAM2ImagePredictor``."""
+        return {"image_embed": self.image_embed, "high_res_feats": list(self.high_res_feats)}
+
+
+class CachedFeaturePredictor(SAM2ImagePredictor):
+    """``SAM2ImagePredictor`` whose ``set_image`` reuses a cached embedding for the whole view.
+
+    ``SAM2AutomaticMaskGenerator`` calls ``set_image`` on each crop; the first crop is the whole
+    view, whose embedding :meth:`Sam2Segmenter.encode` already made. Other crops
+    (``crop_n_layers > 0``) are encoded here and counted in :attr:`encoder_passes`.
+    """
+
+    cached: tuple[Sam2Features, tuple[int, int]] | None = None
+    encoder_passes: int = 0
+
+    def set_image(self, image: Any) -> None:
+        """Take the cached features if ``image`` is the cached view, else encode it."""
+        hw = tuple(np.asarray(image).shape[:2])
+        if self.cached is not None and hw == self.cached[1]:
+            self.reset_predictor()
+            self._orig_hw = [hw]
+            self._features = self.cached[0].as_predictor_features()
+            self._is_image_set = True
+            return
+        self.encoder_passes += 1
+        super().set_image(image)
+
+
+class Sam2Segmenter(Segmenter):
+    """Meta's SAM 2 image model as an lfsam :class:`Segmenter`.
+
+    Parameters
+    ----------
+    model : SAM2Base
+        From :func:`lfsam.segmenters.sam2_build.build_sam2` (any ``SAM2Base`` works; models not
+        built there are described as far as known).
+    amg_options : dict, optional
+        Overrides of :data:`PAPER_AMG_OPTIONS` for :meth:`generate`; any keyword of
+        ``sam2.automatic_mask_generator.SAM2AutomaticMaskGenerator`` (e.g. ``points_per_side``,
+        ``points_per_batch``, ``crop_n_layers``, ``multimask_output``).
+    max_prompts_per_batch : int
+        Prompts decoded together in :meth:`predict`; bounds memory (N x 3 x U x V logits).
+    encode_batch_size : int, optional
+        Views run through the image encoder together in :meth:`encode`; default 4 on CUDA
+        (batching pays off there) and 1 elsewhere (it saves nothing on a CPU, only memory).
+    mask_threshold : float
+        Logit threshold of the masks (SAM 2's default 0).
+
+    Examples
+    --------
+    >>> seg = Sam2Segmenter.from_name("sam2-tiny-test", device="cpu")  # doctest: +SKIP
+    >>> emb = seg.encode(views[None])[0]  # doctest: +SKIP
+    >>> pred = seg.predict(emb, Prompts(points=[[[40, 30]]], point_labels=[[1]]))  # doctest: +SKIP
+    """
+
+    def __init__(
+        self,
+        model: torch.nn.Module,
+        *,
+        amg_options: dict[str, Any] | None = None,
+        max_prompts_per_batch: int = 64,
+        encode_batch_size: int | None = None,
+        mask_threshold: float = 0.0,
+    ) -> None:
+        super().__init__()
+        if encode_batch_size is None:
+            encode_batch_size = 4 if model.device.type == "cuda" else 1
+        if max_prompts_per_batch < 1 or encode_batch_size < 1:
+            raise LfsamError("max_prompts_per_batch and encode_batch_size must be at least 1")
+        self.model = model.eval()
+        info = dict(getattr(model, "lfsam_info", {}) or {})
+        self.name = str(info.get("name", type(model).__name__))
+        self.info = info
+        self.device = model.device
+        self.max_prompts_per_batch = int(max_prompts_per_batch)
+        self.encode_batch_size = int(encode_batch_size)
+        self.mask_threshold = float(mask_threshold)
+        self.amg_options = self._check_amg_options(amg_options or {})
+        self._predictor = make_image_predictor(
+            model, CachedFeaturePredictor, mask_threshold=self.mask_threshold
+        )
+        self._generator: Any = None
+        self.crop_encode_calls = 0
+        """Image-encoder passes on generation crops (only with ``crop_n_layers > 0``)."""
+
+    # --- construction -------------------------------------------------------------------------
+    @classmethod
+    def from_name(
+        cls,
+        name: str = DEFAULT_MODEL,
+        *,
+        checkpoint: str | os.PathLike | None = None,
+        random_weights: bool = False,
+        device: str | torch.device | None = None,
+        seed: int = 0,
+        **kwargs: Any,
+    ) -> Sam2Segmenter:
+        """Build the model with :func:`~lfsam.segmenters.sam2_build.build_sam2` and wrap it.
+
+        Keyword arguments beyond those of ``build_sam2`` go to :class:`Sam2Segmenter`.
+        """
+        model = build_sam2(
+            name, checkpoint=checkpoint, random_weights=random_weights, device=device, seed=seed
+        )
+        return cls(model, **kwargs)
+
+    @staticmethod
+    def _check_amg_options(options: dict[str, Any]) -> dict[str, Any]:
+        from sam2.automatic_mask_generator import SAM2AutomaticMaskGenerator
+
+        allowed = set(inspect.signature(SAM2AutomaticMaskGenerator.__init__).parameters)
+        allowed -= {"self", "model", "kwargs", "output_mode"}
+        unknown = sorted(set(options) - allowed)
+        if unknown:
+            raise LfsamError(
+                f"unknown automatic-mask-generation option(s) {', '.join(unknown)}; "
+                f"valid: {', '.join(sorted(allowed))}"
+            )
+        return {**PAPER_AMG_OPTIONS, **options}
+
+    @property
+    def random_weights(self) -> bool:
+        """True if the model is untrained (its masks are meaningless; for tests and timing)."""
+        return bool(self.info.get("random_weights", False))
+
+    def describe(self) -> dict[str, Any]:
+        """A JSON-ready description for result metadata (random weights are flagged)."""
+        dtype = autocast_dtype(self.device)
+        return {
+            "backend": "sam2",
+            "name": self.name,
+            "hub_id": self.info.get("hub_id"),
+            "checkpoint": self.info.get("checkpoint"),
+            "random_weights": self.random_weights,
+            "seed": self.info.get("seed"),
+            "device": str(self.device),
+            "precision": "bfloat16 autocast" if dtype is not None else "float32",
+            "params": int(sum(p.numel() for p in self.model.parameters())),
+            "image_size": int(self.model.image_size),
+            "amg_options": dict(self.amg_options),
+            "max_prompts_per_batch": self.max_prompts_per_batch,
+        }
+
+    # --- encoding -----------------------------------------------------------------------------
+    def encode(
+        self, images: np.ndarray, keys: list[tuple[int, int]] | None = None
+    ) -> list[ViewEmbedding]:
+        """Run the image encoder once per view, in batches of :attr:`encode_batch_size`.
+
+        Same transforms and features as ``SAM2ImagePredictor.set_image``: resize to the model's
+        square input (no padding), ImageNet normalisation, backbone, ``_prepare_backbone_features``,
+        ``no_mem_embed`` added to the lowest-resolution level.
+        """
+        images = _check_images(images)
+        if keys is not None and len(keys) != len(images):
+            raise LfsamError(f"got {len(images)} views but {len(keys)} keys; give one key per view")
+        size = (int(images.shape[1]), int(images.shape[2]))
+        out: list[ViewEmbedding] = []
+        for start in range(0, len(images), self.encode_batch_size):
+            chunk = images[start : start + self.encode_batch_size]
+            for i, feats in enumerate(self._encode_batch(chunk)):
+                key = None if keys is None else tuple(int(k) for k in keys[start + i])
+                out.append(ViewEmbedding(image_size=size, key=key, data=feats))
+            self.encode_calls += len(chunk)
+        return out
+
+    def _encode_batch(self, chunk: np.ndarray) -> list[Sam2Features]:
+        model = self.model
+        with inference_context(self.device):
+            x = torch.from_numpy(np.ascontiguousarray(chunk)).to(self.device)
+            x = x.permute(0, 3, 1, 2).float().div_(255.0)
+            x = self._predictor._transforms.transforms(x)  # resize + normalise, as set_image
+            backbone_out = model.forward_image(x)
+            _, vision_feats, _, feat_sizes = model._prepare_backbone_features(backbone_out)
+            if model.directly_add_no_mem_embed:
+                vision_feats[-1] = vision_feats[-1] + model.no_mem_embed
+            batch = len(chunk)
+            levels = [
+                feat.permute(1, 2, 0).reshape(batch, -1, *size)
+                for feat, size in zip(vision_feats, feat_sizes, strict=True)
+            ]
+            views = []
+            for i in range(batch):
+                per_view = [level[i : i + 1] for level in levels]
+                if batch > 1:  # do not keep the whole batch alive through one view
+                    per_view = [level.clone() for level in per_view]
+                views.append(Sam2Features(image_embed=per_view[-1], high_res_feats=per_view[:-1]))
+        return views
+
+    @staticmethod
+    def _features(embedding: ViewEmbedding) -> Sam2Features:
+        if not isinstance(embedding.data, Sam2Features):
+            raise LfsamError(
+                "this embedding was not made by the SAM 2 backend; encode the view with the "
+                "same segmenter that decodes it"
+            )
+        return embedding.data
+
+    def _set_predictor(self, predictor: Any, embedding: ViewEmbedding) -> None:
+        feats = self._features(embedding)
+        predictor.reset_predictor()
+        predictor._orig_hw = [tuple(embedding.image_size)]
+        predictor._features = feats.as_predictor_features()
+        predictor._is_image_set = True
+
+    # --- prompting ----------------------------------------------------------------------------
+    def predict(
+        self, embedding: ViewEmbedding, prompts: Prompts, multimask_output: bool = True
+    ) -> MaskPrediction:
+        """Decode N prompts on one view: prompt encoder + mask decoder, batched.
+
+        Prompts are decoded in chunks of :attr:`max_prompts_per_batch` through
+        ``SAM2ImagePredictor._predict`` (points and boxes merged as there: box corners first);
+        a point label of -1 marks padding (prompts with fewer points than others).
+
+        Returns
+        -------
+        MaskPrediction
+            ``masks`` (N, K, U, V) bool (logits > threshold after bilinear upsampling to the
+            view), ``iou_predictions`` (N, K), ``low_res_logits`` (N, K, image_size/4,
+            image_size/4) float32; K = 3 with ``multimask_output`` else 1.
+        """
+        u_size, v_size = embedding.image_size
+        k = 3 if multimask_output else 1
+        n = len(prompts)
+        low = int(self.model.image_size) // 4
+        if n == 0:
+            return MaskPrediction(
+                masks=torch.zeros((0, k, u_size, v_size), dtype=torch.bool, device=self.device),
+                iou_predictions=torch.zeros((0, k), device=self.device),
+                low_res_logits=torch.zeros((0, k, low, low), device=self.device),
+            )
+        predictor = self._predictor
+        self._set_predictor(predictor, embedding)
+        masks, ious, logits = [], [], []
+        try:
+            with inference_context(self.device, inference_mode=False):
+                for start in range(0, n, self.max_prompts_per_batch):
+                    sub = prompts.subset(slice(start, start + self.max_prompts_per_batch))
+                    coords, labels, boxes = self._prompt_tensors(sub, (u_size, v_size))
+                    m, iou, lr = predictor._predict(
+                        coords, labels, boxes, multimask_output=multimask_output
+                    )
+                    masks.append(m)
+                    ious.append(iou.float())
+                    logits.append(lr.float())
+        finally:
+            predictor.reset_predictor()
+        return MaskPrediction(
+            masks=torch.cat(masks),
+            iou_predictions=torch.cat(ious),
+            low_res_logits=torch.cat(logits),
+        )
+
+    def _prompt_tensors(
+        self, prompts: Prompts, hw: tuple[int, int]
+    ) -> tuple[torch.Tensor | None, torch.Tensor | None, torch.Tensor | None]:
+        """Prompts in model-input pixels, as ``SAM2ImagePredictor._prep_prompts`` makes them."""
+        transforms = self._predictor._transforms
+        coords = labels = boxes = None
+        if prompts.points is not None:
+            pts = torch.as_tensor(prompts.points, dtype=torch.float32, device=self.device)
+            coords = transforms.transform_coords(pts, normalize=True, orig_hw=hw)
+            labels = torch.as_tensor(prompts.point_labels, dtype=torch.int, device=self.device)
+        if prompts.boxes is not None:
+            box = torch.as_tensor(prompts.boxes, dtype=torch.float32, device=self.device)
+            boxes = transforms.transform_boxes(box, normalize=True, orig_hw=hw)
+        return coords, labels, boxes
+
+    # --- automatic generation -----------------------------------------------------------------
+    def _mask_generator(self) -> Any:
+        if self._generator is None:
+            from sam2.automatic_mask_generator import SAM2AutomaticMaskGenerator
+
+            with warnings.catch_warnings():  # its own predictor uses torch.jit.script
+                warnings.filterwarnings("ignore", ".*torch.jit.script.*", FutureWarning)
+                generator = SAM2AutomaticMaskGenerator(self.model, **self.amg_options)
+            area = self.amg_options.get("min_mask_region_area", 0)
+            predictor = make_image_predictor(
+                self.model,
+                CachedFeaturePredictor,
+                mask_threshold=generator.mask_threshold,
+                max_hole_area=area,
+                max_sprinkle_area=area,
+            )
+            generator.predictor = predictor
+            self._generator = generator
+        return self._generator
+
+    def generate(self, embedding: ViewEmbedding, image: np.ndarray) -> AutoMasks:
+        """SAM 2 automatic mask generation on an encoded view, reusing its embedding.
+
+        Runs ``SAM2AutomaticMaskGenerator`` with :attr:`amg_options` (the paper's settings by
+        default); the whole-view crop takes the cached embedding, so with the default
+        ``crop_n_layers=0`` the image encoder does not run again.
+
+        Returns
+        -------
+        AutoMasks
+            ``masks`` (M, U, V) bool in the generator's order, ``scores`` = predicted IoU.
+        """
+        image = np.asarray(image)
+        if image.shape != (*embedding.image_size, 3) or image.dtype != np.uint8:
+            raise LfsamError(
+                f"generate() needs the encoded view as a (U, V, 3) uint8 image of size "
+                f"{tuple(embedding.image_size)}, got {image.shape} {image.dtype}"
+            )
+        generator = self._mask_generator()
+        predictor = generator.predictor
+        predictor.cached = (self._features(embedding), tuple(embedding.image_size))
+        before = predictor.encoder_passes
+        try:
+            with inference_context(self.device, inference_mode=False):
+                records = generator.generate(image)
+        finally:
+            predictor.cached = None
+            self.crop_encode_calls += predictor.encoder_passes - before
+        u_size, v_size = embedding.image_size
+        if not records:
+            return AutoMasks(
+                masks=np.zeros((0, u_size, v_size), dtype=bool), scores=np.zeros(0, np.float32)
+            )
+        masks = np.stack([np.asarray(r["segmentation"], dtype=bool) for r in records])
+        scores = np.array([r["predicted_iou"] for r in records], dtype=np.float32)
+        return AutoMasks(masks=masks, scores=scores)
+
+    # --- features -----------------------------------------------------------------------------
+    def sample_features(self, embedding: ViewEmbedding, rows_cols: torch.Tensor) -> torch.Tensor:
+        """Bilinearly sample the image embedding at pixel positions (paper section 3.3).
+
+        The view is resized to the model's square input without padding, so each axis maps
+        separately: pixel row ``r`` of a ``U``-row view lies at normalised coordinate
+        ``2 (r + 0.5) / U - 1`` of the embedding grid (half-pixel centres, as
+        ``F.interpolate(..., mode="bilinear", align_corners=False)``). Positions beyond the
+        outermost feature centres take the border value.
+
+        Returns
+        -------
+        features : (P, C) float32 tensor on :attr:`device` (C = 256 for the real models)
+        """
+        feats = self._features(embedding)
+        u_size, v_size = embedding.image_size
+        rc = torch.as_tensor(rows_cols, dtype=torch.float32, device=self.device).reshape(-1, 2)
+        with torch.no_grad():
+            emb = feats.image_embed.float()
+            grid = torch.stack(
+                [(rc[:, 1] + 0.5) * (2.0 / v_size) - 1.0, (rc[:, 0] + 0.5) * (2.0 / u_size) - 1.0],
+                dim=-1,
+            )
+            sampled = F.grid_sample(
+                emb,
+                grid.view(1, 1, -1, 2),
+                mode="bilinear",
+                padding_mode="border",
+                align_corners=False,
+            )
+        return sampled[0, :, 0, :].transpose(0, 1).contiguous()
+
+
+def _check_images(images: np.ndarray) -> np.ndarray:
+    """Validate a batch of views ``(B, U, V, 3)`` uint8 (a single ``(U, V, 3)`` view is allowed)."""
+    images = np.asarray(images)
+    if images.ndim == 3:
+        images = images[None]
+    if images.ndim != 4 or images.shape[-1] != 3 or images.dtype != np.uint8:
+        raise LfsamError(
+            f"views to encode must be a (B, U, V, 3) uint8 array, got {images.shape} {images.dtype}"
+        )
+    if min(images.shape[:3]) < 1:
+        raise LfsamError(f"views to encode are empty: shape {images.shape}")
+    return images
