@@ -47,8 +47,10 @@ def test_pixel_propagation_moves_each_pixel_to_its_rounded_target(d, ds, dt):
     disp = torch.full((20, 20), float(d))
     out = propagate_masks(mask, disp, ds, dt, "pixel", fill_holes=False)
     n, u, v = np.nonzero(mask.numpy())
-    tu = np.round(u - d * ds).astype(int)
-    tv = np.round(v - d * dt).astype(int)
+    # Same float32 arithmetic as the tensors, so ties at .5 round alike.
+    d32 = np.float32(d)
+    tu = np.round(u.astype(np.float32) - d32 * np.float32(ds)).astype(int)
+    tv = np.round(v.astype(np.float32) - d32 * np.float32(dt)).astype(int)
     inside = (tu >= 0) & (tu < 20) & (tv >= 0) & (tv < 20)
     expected = np.zeros((2, 20, 20), dtype=bool)
     expected[n[inside], tu[inside], tv[inside]] = True

@@ -46,3 +46,41 @@ def test_mask_iou():
     iou = mask_iou(a, ref)
     assert abs(iou[0, 0].item() - 4 / 12) < 1e-6
     assert iou[0, 1].item() == 0.0
+
+
+def test_box_reaching_an_unseen_frame_strip_extends_to_the_frame_edge():
+    from lfsam.pipeline.propagation import forward_warp
+
+    # Constant disparity 2, view one step right (dt = 1): everything moves 2 px left, so the
+    # two rightmost columns show content the center view never saw.
+    disp = torch.full((10, 20), 2.0)
+    warp = forward_warp(disp, 0, 1)
+    runs = warp.frame_runs((10, 20))
+    assert runs.right.tolist() == [2] * 10 and runs.left.tolist() == [0] * 10
+    assert runs.top.tolist() == [0] * 18 + [10, 10]
+    seen = warp.seen((10, 20))
+    assert not bool(seen[:, 18:].any()) and bool(seen[:, :18].all())
+    mask = torch.zeros((2, 10, 20), dtype=torch.bool)
+    mask[0, 2:6, 10:18] = True  # reaches the unseen strip: extended to column 19
+    mask[1, 2:6, 3:9] = True  # far from it: unchanged
+    prompts, _ = refinement_prompts(uniform_weights(mask), runs)
+    assert prompts.boxes.tolist() == [[10, 2, 19, 5], [3, 2, 8, 5]]
+    # IoU is measured where the propagation reaches: the strip does not count.
+    candidate = torch.zeros((1, 1, 10, 20), dtype=torch.bool)
+    candidate[0, 0, 2:6, 10:20] = True
+    assert mask_iou(candidate, mask[:1], seen)[0, 0].item() == 1.0
+    assert mask_iou(candidate, mask[:1])[0, 0].item() < 1.0
+
+
+def test_mask_iou_matches_a_dense_reference_computation():
+    rng = np.random.default_rng(7)
+    cand = torch.as_tensor(rng.random((5, 3, 9, 11)) > 0.5)
+    ref = torch.as_tensor(rng.random((5, 9, 11)) > 0.6)
+    region = torch.as_tensor(rng.random((9, 11)) > 0.2)
+    for reg in (None, region):
+        c = cand if reg is None else cand & reg
+        r = ref if reg is None else ref & reg
+        inter = (c & r[:, None]).sum((-1, -2)).float()
+        union = (c | r[:, None]).sum((-1, -2)).float()
+        expected = inter / union.clamp(min=1)
+        assert torch.allclose(mask_iou(cand, ref, reg), expected)

@@ -26,6 +26,7 @@ __all__ = [
     "ForwardWarp",
     "FrameRuns",
     "close_masks",
+    "fill_warp_holes",
     "forward_warp",
     "mask_disparities",
     "propagate_masks",
@@ -65,20 +66,68 @@ class ForwardWarp:
         The center pixel lands inside the view.
     zbuffer : (U * V,) float tensor
         Largest (closest) center disparity landing on each target pixel; ``-inf`` where none.
+    ds, dt : float
+        Offset of the view from the center view.
     """
 
     target: torch.Tensor
     valid: torch.Tensor
     zbuffer: torch.Tensor
+    ds: float = 0.0
+    dt: float = 0.0
+
+    def hole_disparity(self, view_size: tuple[int, int]) -> torch.Tensor:
+        """Disparity at each view pixel: the z-buffer, with holes filled from neighbours.
+
+        Forward-warping holes (pixels no center pixel lands on) next to landed pixels take the
+        smallest (farthest) disparity of their landed 3 x 3 neighbours: a hole opened by a
+        stretched surface has that surface around it, and one opened by a disocclusion shows
+        what lies behind, i.e. the farther side. Pixels with no landed neighbour stay ``-inf``.
+
+        Returns
+        -------
+        (U, V) float tensor
+        """
+        zbuffer = self.zbuffer.reshape(view_size)
+        landed = torch.isfinite(zbuffer)
+        # Min over landed neighbours = -max over -z, with unlanded pixels at -inf (ignored).
+        negated = torch.where(landed, -zbuffer, torch.full_like(zbuffer, float("-inf")))
+        neighbour_min = -F.max_pool2d(negated[None, None], 3, stride=1, padding=1)[0, 0]
+        return torch.where(landed, zbuffer, neighbour_min.nan_to_num(neginf=float("-inf")))
+
+    def hole_sources(
+        self, view_size: tuple[int, int]
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Fillable holes and the center pixel each one shows.
+
+        A hole ``q`` with disparity ``d`` (:meth:`hole_disparity`) shows center pixel
+        ``q + d (ds, dt)`` under the convention of :mod:`lfsam.geometry`; holes whose source
+        lies outside the center view are not fillable.
+
+        Returns
+        -------
+        hole_u, hole_v, source_u, source_v : (K,) int64 tensors
+        """
+        height, width = view_size
+        filled = self.hole_disparity(view_size)
+        landed = torch.isfinite(self.zbuffer).reshape(view_size)
+        hole_u, hole_v = torch.nonzero(~landed & torch.isfinite(filled), as_tuple=True)
+        d = filled[hole_u, hole_v]
+        src_u = torch.round(hole_u + d * self.ds).long()
+        src_v = torch.round(hole_v + d * self.dt).long()
+        ok = (src_u >= 0) & (src_u < height) & (src_v >= 0) & (src_v < width)
+        return hole_u[ok], hole_v[ok], src_u[ok], src_v[ok]
 
     def seen(self, view_size: tuple[int, int]) -> torch.Tensor:
-        """View pixels some center pixel lands on (closed 3 x 3), ``(U, V)`` bool.
+        """View pixels that propagation reaches: landed on or fillable holes, ``(U, V)`` bool.
 
         The rest of the view shows content the center view does not see (mostly a strip
         entering at the frame border), about which a propagated mask knows nothing.
         """
-        landed = torch.isfinite(self.zbuffer).reshape(view_size)
-        return close_masks(landed[None])[0]
+        seen = torch.isfinite(self.zbuffer).reshape(view_size).clone()
+        hole_u, hole_v, _, _ = self.hole_sources(view_size)
+        seen[hole_u, hole_v] = True
+        return seen
 
     def frame_runs(
         self, view_size: tuple[int, int], seen: torch.Tensor | None = None
@@ -149,7 +198,7 @@ def forward_warp(disparity: torch.Tensor, ds: float, dt: float) -> ForwardWarp:
     zbuffer.scatter_reduce_(
         0, target[valid], disparity.reshape(-1)[valid], reduce="amax", include_self=True
     )
-    return ForwardWarp(target=target, valid=valid, zbuffer=zbuffer)
+    return ForwardWarp(target=target, valid=valid, zbuffer=zbuffer, ds=float(ds), dt=float(dt))
 
 
 def close_masks(masks: torch.Tensor, size: int = 3) -> torch.Tensor:
@@ -195,6 +244,45 @@ def splat_masks(masks: torch.Tensor, warp: ForwardWarp, keep: torch.Tensor | Non
     out = torch.zeros((n, height * width), dtype=torch.bool, device=masks.device)
     out[mask_idx, warp.target[pix_idx]] = True
     return out.reshape(n, height, width)
+
+
+def fill_warp_holes(
+    coarse: torch.Tensor,
+    masks: torch.Tensor,
+    warp: ForwardWarp,
+    keep: torch.Tensor | None = None,
+) -> torch.Tensor:
+    """Fill forward-warping holes by looking their source up in the center masks.
+
+    A hole pixel ``q`` gets the disparity ``d`` of :meth:`ForwardWarp.hole_disparity`; under the
+    convention of :mod:`lfsam.geometry` it shows center pixel ``q + d (ds, dt)``
+    (:meth:`ForwardWarp.hole_sources`), and takes that pixel's mask memberships (forward-warp
+    the depth, backward-warp the masks). Cost is O(N x holes); no N x U x V filtering.
+
+    Parameters
+    ----------
+    coarse : (N, U, V) bool tensor
+        Splatted masks of the view (modified copy returned).
+    masks : (N, U, V) bool tensor
+        Center-view masks.
+    warp : ForwardWarp
+    keep : (U * V,) bool tensor, optional
+        Center pixels allowed to contribute (e.g. visible ones).
+
+    Returns
+    -------
+    (N, U, V) bool tensor
+    """
+    n, height, width = coarse.shape
+    hole_u, hole_v, src_u, src_v = warp.hole_sources((height, width))
+    if hole_u.numel() == 0 or n == 0:
+        return coarse
+    values = masks[:, src_u, src_v]
+    if keep is not None:
+        values = values & keep.reshape(height, width)[src_u, src_v][None]
+    out = coarse.clone()
+    out[:, hole_u, hole_v] = values
+    return out
 
 
 def mask_disparities(
@@ -277,7 +365,7 @@ def propagate_masks(
     keep : (U * V,) bool tensor, optional
         ``"pixel"`` mode only: move only these center pixels (e.g. those visible in the view).
     fill_holes : bool
-        ``"pixel"`` mode only: close forward-warping gaps with a 3 x 3 closing.
+        ``"pixel"`` mode only: fill forward-warping gaps (:func:`fill_warp_holes`).
 
     Returns
     -------
@@ -287,12 +375,7 @@ def propagate_masks(
         if warp is None:
             warp = forward_warp(disparity, ds, dt)
         coarse = splat_masks(masks, warp, keep)
-        if not fill_holes:
-            return coarse
-        # Forward-warping holes are pixels nothing lands on; pixels a (closer) surface lands on
-        # are not holes, so the closing may not claim them.
-        unlanded = ~torch.isfinite(warp.zbuffer).reshape(coarse.shape[1:])
-        return close_masks(coarse) & (coarse | unlanded)
+        return fill_warp_holes(coarse, masks, warp, keep) if fill_holes else coarse
     if mode in ("mean", "median"):
         d = mask_disparities(masks, disparity, mode)
         shifts = torch.stack([-d * ds, -d * dt], dim=1)

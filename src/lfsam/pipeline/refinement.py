@@ -164,14 +164,30 @@ def mask_iou(
     -------
     (N, K) float tensor (0 where both are empty)
     """
-    ref = reference[:, None].to(candidates.device)
+    device = candidates.device
+    n, k = candidates.shape[:2]
+    flat = candidates.reshape(n, k, -1)
+
+    def count(bits: torch.Tensor) -> torch.Tensor:
+        # Summing bytes into int32 is about twice as fast as counting bools on CPU.
+        return bits.view(torch.uint8).sum(dim=-1, dtype=torch.int32)
+
+    cand_area = count(flat)
+    ref = reference.to(device).reshape(n, -1)
     if region is not None:
-        region = region.to(candidates.device)
-        candidates = candidates & region
+        # Only pixels inside the region count; outside it is usually a thin strip, so remove
+        # its pixels from the candidate areas by a gather instead of masking everything.
+        region = region.to(device).reshape(-1)
+        outside = torch.nonzero(~region, as_tuple=True)[0]
+        cand_area = cand_area - count(flat[:, :, outside])
         ref = ref & region
-    inter = (candidates & ref).flatten(2).sum(-1).to(torch.float32)
-    union = (candidates | ref).flatten(2).sum(-1).to(torch.float32)
-    return inter / union.clamp(min=1.0)
+    # Intersections by a gather at the reference pixels (sparse), not a dense AND.
+    mask_index, pixel_index = torch.nonzero(ref, as_tuple=True)
+    inter = torch.zeros((n, k), dtype=torch.int32, device=device)
+    inter.index_add_(0, mask_index, flat[mask_index, :, pixel_index].to(torch.int32))
+    ref_area = torch.bincount(mask_index, minlength=n).to(torch.int32)
+    union = cand_area + ref_area[:, None] - inter
+    return inter.to(torch.float32) / union.clamp(min=1).to(torch.float32)
 
 
 def refine_masks(

@@ -187,7 +187,7 @@ def segment_lightfield(
     meta = {
         "method": "lfsam",
         "package_version": __version__,
-        "segmenter": getattr(segmenter, "describe", lambda: {"name": segmenter.name})(),
+        "segmenter": segmenter.describe(),
         "config": config.to_dict(),
         "prompt_mode": "auto" if prompts is None else "prompts",
         "num_masks": num_masks,

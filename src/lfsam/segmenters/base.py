@@ -138,9 +138,18 @@ class Segmenter(abc.ABC):
 
     name: str = "segmenter"
     device: torch.device = torch.device("cpu")
+    random_weights: bool = False
 
     def __init__(self) -> None:
         self.encode_calls = 0
+
+    def describe(self) -> dict[str, Any]:
+        """JSON-ready facts for result metadata (backends add their own)."""
+        return {
+            "name": self.name,
+            "device": str(self.device),
+            "random_weights": self.random_weights,
+        }
 
     @abc.abstractmethod
     def encode(
