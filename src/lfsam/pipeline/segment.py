@@ -10,9 +10,7 @@ in one batch, and masks are kept bit-packed (never N x S x T x U x V dense).
 from __future__ import annotations
 
 import time
-from collections import defaultdict
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 
 import numpy as np
 import torch
@@ -29,28 +27,9 @@ from lfsam.pipeline.propagation import forward_warp, mask_disparities, propagate
 from lfsam.pipeline.refinement import refine_masks
 from lfsam.result import PackedMasks, SegmentationResult
 from lfsam.segmenters.base import Prompts, Segmenter
+from lfsam.timing import StageTimer
 
 __all__ = ["segment_lightfield"]
-
-
-class _StageTimer:
-    """Accumulates wall-clock seconds per pipeline stage (synchronising CUDA)."""
-
-    def __init__(self, device: torch.device) -> None:
-        self.seconds: dict[str, float] = defaultdict(float)
-        self._cuda = device.type == "cuda"
-
-    @contextmanager
-    def __call__(self, stage: str) -> Iterator[None]:
-        if self._cuda:
-            torch.cuda.synchronize()
-        start = time.perf_counter()
-        try:
-            yield
-        finally:
-            if self._cuda:
-                torch.cuda.synchronize()
-            self.seconds[stage] += time.perf_counter() - start
 
 
 def segment_lightfield(
@@ -88,7 +67,7 @@ def segment_lightfield(
         disparity's own time is not included; callers add it) and metadata.
     """
     config = config or PipelineConfig()
-    timer = _StageTimer(segmenter.device)
+    timer = StageTimer(segmenter.device)
     device = segmenter.device
     s_count, t_count = lightfield.grid_shape
     height, width = lightfield.view_shape
