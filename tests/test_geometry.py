@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 import torch
@@ -56,7 +58,7 @@ def test_view_offsets_and_snake_order():
 def test_snake_order_visits_every_view_once_through_neighbours(s, t):
     order = snake_order((s, t))
     assert sorted(order) == [(i, j) for i in range(s) for j in range(t)]
-    for (a, b), (c, d) in zip(order, order[1:], strict=False):
+    for (a, b), (c, d) in itertools.pairwise(order):
         assert abs(a - c) + abs(b - d) == 1
 
 

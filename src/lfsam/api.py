@@ -147,7 +147,12 @@ def run_segmentation(
         from lfsam.baseline import video_baseline
 
         result = video_baseline(
-            lightfield, segmenter, prompts=prompts, progress=progress, **(baseline_options or {})
+            lightfield,
+            segmenter,
+            prompts=prompts,
+            disparity=disparity,
+            progress=progress,
+            **(baseline_options or {}),
         )
         result.meta.update(run_meta)
         return result

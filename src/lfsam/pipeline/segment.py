@@ -75,6 +75,7 @@ def segment_lightfield(
     if disparity.shape != (height, width):
         raise ValueError(f"disparity has shape {disparity.shape}, expected {(height, width)}")
     start = time.perf_counter()
+    encodes_before = segmenter.encode_calls
 
     # (1) Initial segmentation of the center view.
     with timer("encode"):
@@ -171,7 +172,7 @@ def segment_lightfield(
         "prompt_mode": "auto" if prompts is None else "prompts",
         "num_masks": num_masks,
         "center": list(center),
-        "views_encoded": segmenter.encode_calls,
+        "views_encoded": segmenter.encode_calls - encodes_before,
     }
     return SegmentationResult(
         labels=labels,
