@@ -150,12 +150,13 @@ def semantic_occlusion(
     feats = F.normalize(_features_at(segmenter, embedding, unique_pixels, width), dim=1)
     device = feats.device
     mask_index_d, inverse_d = mask_index.to(device), inverse.to(device)
-    sims = torch.empty(mask_index.numel(), device=device, dtype=feats.dtype)
-    for start in range(0, mask_index.numel(), _PIXEL_CHUNK):
-        stop = start + _PIXEL_CHUNK
-        sims[start:stop] = (
-            feats[inverse_d[start:stop]] * sources[mask_index_d[start:stop]]
-        ).sum(dim=1)
+    # Cosine similarity of every covered pixel to every source (a matmul, P x N), then each pair
+    # picks its own entry: far cheaper than a per-pair C-dimensional product.
+    sources_t = sources.to(device=device, dtype=feats.dtype).T
+    table = torch.empty((feats.shape[0], n), device=device, dtype=feats.dtype)
+    for start in range(0, feats.shape[0], _PIXEL_CHUNK):
+        table[start : start + _PIXEL_CHUNK] = feats[start : start + _PIXEL_CHUNK] @ sources_t
+    sims = table[inverse_d, mask_index_d]
     weight = torch.where(sims >= t_sim, sims, torch.zeros_like(sims))
     return OcclusionWeights(
         mask_index=mask_index_d,
