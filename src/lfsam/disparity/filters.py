@@ -1,0 +1,117 @@
+"""Small torch filters shared by the disparity estimators: Gaussian and box smoothing.
+
+All filters work on tensors of shape ``(..., rows, cols)`` on any device, are separable and use
+reflected borders (replicated where an image is too small to reflect), so that a constant image
+stays constant and there is no darkening at the frame border.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+import torch.nn.functional as F
+
+__all__ = ["GuidedFilter", "box_blur", "gaussian_blur", "gaussian_kernel1d", "smooth_axis"]
+
+
+def gaussian_kernel1d(sigma: float, device: torch.device | None = None) -> torch.Tensor:
+    """Normalised sampled Gaussian of standard deviation ``sigma``, radius ``ceil(3 sigma)``.
+
+    Parameters
+    ----------
+    sigma : float
+        Standard deviation in samples (> 0).
+    device : torch.device, optional
+        Device of the returned kernel.
+
+    Returns
+    -------
+    kernel : torch.Tensor, shape (2 * radius + 1,), float32, summing to 1
+    """
+    radius = max(1, math.ceil(3.0 * sigma))
+    x = torch.arange(-radius, radius + 1, dtype=torch.float32, device=device)
+    kernel = torch.exp(-0.5 * (x / sigma) ** 2)
+    return kernel / kernel.sum()
+
+
+def smooth_axis(image: torch.Tensor, kernel: torch.Tensor, axis: int) -> torch.Tensor:
+    """Correlate ``image`` with a 1-D odd-length ``kernel`` along ``axis`` (-1 or -2).
+
+    Borders are reflected (replicated when the axis is shorter than the kernel radius).
+    """
+    if axis not in (-1, -2):
+        raise ValueError("axis must be -1 (columns) or -2 (rows)")
+    radius = kernel.numel() // 2
+    shape = image.shape
+    x = image.reshape(-1, 1, shape[-2], shape[-1])
+    length = shape[axis]
+    mode = "reflect" if length > radius else "replicate"
+    if axis == -1:
+        x = F.pad(x, (radius, radius, 0, 0), mode=mode)
+        weight = kernel.to(x).view(1, 1, 1, -1)
+    else:
+        x = F.pad(x, (0, 0, radius, radius), mode=mode)
+        weight = kernel.to(x).view(1, 1, -1, 1)
+    return F.conv2d(x, weight).reshape(shape)
+
+
+def gaussian_blur(image: torch.Tensor, sigma: float) -> torch.Tensor:
+    """Isotropic Gaussian smoothing of the last two axes (``sigma`` in pixels; 0 = identity)."""
+    if sigma <= 0:
+        return image
+    kernel = gaussian_kernel1d(sigma, image.device)
+    return smooth_axis(smooth_axis(image, kernel, -1), kernel, -2)
+
+
+def box_blur(image: torch.Tensor, radius: int) -> torch.Tensor:
+    """Mean over a ``(2 radius + 1)^2`` window of the last two axes (borders replicated).
+
+    Separable: one running mean along each axis (``avg_pool1d``), so the cost grows only linearly
+    with the window width.
+    """
+    if radius <= 0:
+        return image
+    shape = image.shape
+    size = 2 * radius + 1
+    x = image.reshape(-1, shape[-2], shape[-1])
+    x = F.pad(x, (radius, radius), mode="replicate")
+    x = F.avg_pool1d(x, size, stride=1)
+    x = x.transpose(1, 2)
+    x = F.pad(x, (radius, radius), mode="replicate")
+    x = F.avg_pool1d(x, size, stride=1).transpose(1, 2)
+    return x.reshape(shape)
+
+
+class GuidedFilter:
+    """Edge-preserving smoothing guided by a gray image (He, Sun & Tang, "Guided image
+    filtering", TPAMI 2013, Algorithm 1), with the guide's statistics computed once.
+
+    The output is locally a linear function of the guide, ``q = a I + b``, fitted to the input in
+    every ``(2 radius + 1)^2`` window; ``eps`` (in squared guide units) sets which guide edges are
+    kept (local guide variance >> ``eps``) and which are smoothed over.
+
+    Parameters
+    ----------
+    guide : torch.Tensor, shape (rows, cols)
+        The guide image (e.g. the center view, gray levels in [0, 1]).
+    radius : int
+        Window radius in pixels.
+    eps : float
+        Regularisation of the local linear fit.
+    """
+
+    def __init__(self, guide: torch.Tensor, radius: int, eps: float) -> None:
+        self.guide = guide
+        self.radius = radius
+        self.mean_i = box_blur(guide, radius)
+        self.var_i = box_blur(guide * guide, radius) - self.mean_i**2
+        self.eps = eps
+
+    def __call__(self, image: torch.Tensor) -> torch.Tensor:
+        """Filter ``image`` of shape ``(..., rows, cols)`` (every leading slice separately)."""
+        mean_p = box_blur(image, self.radius)
+        mean_ip = box_blur(image * self.guide, self.radius)
+        a = (mean_ip - self.mean_i * mean_p) / (self.var_i + self.eps)
+        b = mean_p - a * self.mean_i
+        return box_blur(a, self.radius) * self.guide + box_blur(b, self.radius)
