@@ -15,6 +15,7 @@ not N x U x V features.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import torch
@@ -75,20 +76,14 @@ def _covered_pixels(
     return torch.nonzero(covered, as_tuple=True)[0], position[pixel_index]
 
 
-def _features_at(
+def _feature_chunks(
     segmenter: Segmenter, embedding: ViewEmbedding, pixel_index: torch.Tensor, width: int
-) -> torch.Tensor:
-    """Features (float32) at flat pixel indices, sampled in chunks."""
-    chunks = []
+) -> Iterator[tuple[int, torch.Tensor]]:
+    """Features (float32) at flat pixel indices, a chunk at a time: ``(start, (P_c, C))``."""
     for start in range(0, pixel_index.numel(), _PIXEL_CHUNK):
         flat = pixel_index[start : start + _PIXEL_CHUNK]
         rows_cols = torch.stack([flat // width, flat % width], dim=1).to(torch.float32)
-        chunks.append(
-            segmenter.sample_features(embedding, rows_cols.to(segmenter.device)).float()
-        )
-    if not chunks:
-        return torch.zeros((0, 1), device=segmenter.device)
-    return torch.cat(chunks)
+        yield start, segmenter.sample_features(embedding, rows_cols.to(segmenter.device)).float()
 
 
 def source_features(
@@ -112,10 +107,17 @@ def source_features(
     mask_index, pixel_index = _pairs(masks)
     unique_pixels, inverse = _covered_pixels(masks, pixel_index)
     # The paper averages the upscaled embedding over the mask (not unit vectors), then the
-    # cosine similarity normalises; the sum has the direction of the mean.
-    feats = _features_at(segmenter, embedding, unique_pixels, width)
-    sums = torch.zeros((n, feats.shape[1]), device=feats.device, dtype=feats.dtype)
-    sums.index_add_(0, mask_index.to(feats.device), feats[inverse.to(feats.device)])
+    # cosine similarity normalises; the sum has the direction of the mean. Features are sampled
+    # a chunk of pixels at a time, so the full pixels x channels matrix never exists.
+    sums = None
+    for start, feats in _feature_chunks(segmenter, embedding, unique_pixels, width):
+        in_chunk = (inverse >= start) & (inverse < start + len(feats))
+        chosen = torch.nonzero(in_chunk, as_tuple=True)[0]
+        if sums is None:
+            sums = torch.zeros((n, feats.shape[1]), device=feats.device, dtype=feats.dtype)
+        sums.index_add_(0, mask_index[chosen].to(feats.device), feats[inverse[chosen] - start])
+    if sums is None:
+        return torch.zeros((n, 1), device=segmenter.device)
     return F.normalize(sums, dim=1)
 
 
@@ -147,16 +149,20 @@ def semantic_occlusion(
     n, height, width = coarse.shape
     mask_index, pixel_index = _pairs(coarse)
     unique_pixels, inverse = _covered_pixels(coarse, pixel_index)
-    feats = F.normalize(_features_at(segmenter, embedding, unique_pixels, width), dim=1)
-    device = feats.device
+    device = sources.device
     mask_index_d, inverse_d = mask_index.to(device), inverse.to(device)
-    # Cosine similarity of every covered pixel to every source (a matmul, P x N), then each pair
-    # picks its own entry: far cheaper than a per-pair C-dimensional product.
-    sources_t = sources.to(device=device, dtype=feats.dtype).T
-    table = torch.empty((feats.shape[0], n), device=device, dtype=feats.dtype)
-    for start in range(0, feats.shape[0], _PIXEL_CHUNK):
-        table[start : start + _PIXEL_CHUNK] = feats[start : start + _PIXEL_CHUNK] @ sources_t
-    sims = table[inverse_d, mask_index_d]
+    # Cosine similarity of a chunk of covered pixels to every source by a matmul (chunk x N),
+    # then each pair picks its own entry: far cheaper than a per-pair C-dimensional product,
+    # and neither the pixels x channels features nor the pixels x masks table exists whole.
+    sources_t = sources.T
+    sims = torch.zeros(mask_index.numel(), device=device, dtype=sources.dtype)
+    for start, feats in _feature_chunks(segmenter, embedding, unique_pixels, width):
+        feats /= feats.norm(dim=1, keepdim=True).clamp(min=1e-12)
+        table = feats.to(device=device, dtype=sources.dtype) @ sources_t
+        chosen = torch.nonzero(
+            (inverse_d >= start) & (inverse_d < start + len(feats)), as_tuple=True
+        )[0]
+        sims[chosen] = table[inverse_d[chosen] - start, mask_index_d[chosen]]
     weight = torch.where(sims >= t_sim, sims, torch.zeros_like(sims))
     return OcclusionWeights(
         mask_index=mask_index_d,
