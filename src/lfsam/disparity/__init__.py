@@ -8,14 +8,17 @@
   ``.npy`` file.
 """
 
+from lfsam.disparity.baseline import estimate_disparity_baseline
 from lfsam.disparity.estimate import DisparityEstimate
 from lfsam.disparity.range import estimate_disparity_range
 from lfsam.disparity.source import resolve_disparity
-from lfsam.disparity.structure_tensor import estimate_disparity
+from lfsam.disparity.structure_tensor import candidate_disparities, estimate_disparity
 
 __all__ = [
     "DisparityEstimate",
+    "candidate_disparities",
     "estimate_disparity",
+    "estimate_disparity_baseline",
     "estimate_disparity_range",
     "resolve_disparity",
 ]

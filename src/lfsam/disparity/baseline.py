@@ -66,6 +66,7 @@ def estimate_disparity_baseline(
     inner_scale: float = 0.75,
     outer_scale: float = 2.0,
     color: bool = True,
+    disparity_range: tuple[float, float] | None = None,
 ) -> DisparityEstimate:
     """Center-view disparity with the plain single-scale EPI structure tensor (NumPy).
 
@@ -78,6 +79,9 @@ def estimate_disparity_baseline(
         tensor aggregation; the defaults are plenpy's.
     color : bool
         One estimate per colour channel (plenpy's behaviour) instead of one on gray levels.
+    disparity_range : (lo, hi), optional
+        Clip the result to this range (plenpy clips to ``vmin, vmax``); the orientation of a
+        near-horizontal EPI structure otherwise gives unbounded values.
 
     Returns
     -------
@@ -118,6 +122,8 @@ def estimate_disparity_baseline(
     weight_sum = np.sum(weights, axis=0)
     disparity = np.sum([d * w for d, w in zip(estimates, weights, strict=True)], axis=0)
     disparity = np.where(weight_sum > 0, disparity / np.maximum(weight_sum, 1e-20), 0.0)
+    if disparity_range is not None:
+        disparity = np.clip(disparity, *disparity_range)
     confidence = np.sqrt(weight_sum / len(weights))
     return DisparityEstimate(
         disparity=disparity.astype(np.float32),

@@ -12,7 +12,7 @@ import math
 import torch
 import torch.nn.functional as F
 
-__all__ = ["GuidedFilter", "box_blur", "gaussian_blur", "gaussian_kernel1d", "smooth_axis"]
+__all__ = ["box_blur", "gaussian_blur", "gaussian_kernel1d", "smooth_axis"]
 
 
 def gaussian_kernel1d(sigma: float, device: torch.device | None = None) -> torch.Tensor:
@@ -81,37 +81,3 @@ def box_blur(image: torch.Tensor, radius: int) -> torch.Tensor:
     x = F.pad(x, (radius, radius), mode="replicate")
     x = F.avg_pool1d(x, size, stride=1).transpose(1, 2)
     return x.reshape(shape)
-
-
-class GuidedFilter:
-    """Edge-preserving smoothing guided by a gray image (He, Sun & Tang, "Guided image
-    filtering", TPAMI 2013, Algorithm 1), with the guide's statistics computed once.
-
-    The output is locally a linear function of the guide, ``q = a I + b``, fitted to the input in
-    every ``(2 radius + 1)^2`` window; ``eps`` (in squared guide units) sets which guide edges are
-    kept (local guide variance >> ``eps``) and which are smoothed over.
-
-    Parameters
-    ----------
-    guide : torch.Tensor, shape (rows, cols)
-        The guide image (e.g. the center view, gray levels in [0, 1]).
-    radius : int
-        Window radius in pixels.
-    eps : float
-        Regularisation of the local linear fit.
-    """
-
-    def __init__(self, guide: torch.Tensor, radius: int, eps: float) -> None:
-        self.guide = guide
-        self.radius = radius
-        self.mean_i = box_blur(guide, radius)
-        self.var_i = box_blur(guide * guide, radius) - self.mean_i**2
-        self.eps = eps
-
-    def __call__(self, image: torch.Tensor) -> torch.Tensor:
-        """Filter ``image`` of shape ``(..., rows, cols)`` (every leading slice separately)."""
-        mean_p = box_blur(image, self.radius)
-        mean_ip = box_blur(image * self.guide, self.radius)
-        a = (mean_ip - self.mean_i * mean_p) / (self.var_i + self.eps)
-        b = mean_p - a * self.mean_i
-        return box_blur(a, self.radius) * self.guide + box_blur(b, self.radius)

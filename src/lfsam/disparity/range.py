@@ -30,26 +30,45 @@ DEFAULT_MAX_DISPARITY = 12.0
 _TARGET_SIZE = 128
 # A winner counts when its cost is below this fraction of the pixel's median cost.
 _DISTINCT = 0.6
+# Finest search step (pixels per view step): the range is widened by one step anyway.
+_MIN_STEP = 0.5
+# Candidates swept per batched resampling call (bounds the memory of the sweep).
+_CHUNK = 8
 # Fallback when no pixel has texture: the structure tensor's own working range.
 _FALLBACK = (-1.0, 1.0)
 
 
-def _shift_last_axis(images: torch.Tensor, shifts: torch.Tensor) -> tuple[torch.Tensor, ...]:
-    """Sample ``images[n, ..., x - shifts[n]]`` by linear interpolation.
+def _sweep_costs(
+    moving: torch.Tensor, center: torch.Tensor, offsets: torch.Tensor, grid: torch.Tensor
+) -> torch.Tensor:
+    """Mean absolute difference to ``center`` of the views ``moving`` shifted back by each
+    disparity of ``grid``: view ``n`` sampled at ``x - d * offsets[n]`` (linear interpolation).
 
-    Returns the sampled values and a mask of samples that fall inside the image.
+    Returns ``(K, rows, cols)``; pixels that no view covers get cost 1 (uninformative).
     """
-    cols = images.shape[-1]
-    x = torch.arange(cols, device=images.device, dtype=torch.float32)
-    src = x - shifts.view(-1, *([1] * (images.ndim - 1)))
+    count, rows, cols = moving.shape
+    x = torch.arange(cols, device=moving.device, dtype=torch.float32)
+    # sample positions for every (candidate, view): (K, N, cols)
+    src = x - grid[:, None, None] * offsets[None, :, None]
     valid = (src >= 0) & (src <= cols - 1)
-    src = src.clamp(0, cols - 1)
-    left = src.floor().long().clamp(max=cols - 2) if cols > 1 else src.floor().long()
-    frac = src - left
-    index = left.expand_as(images)
-    a = torch.gather(images, -1, index)
-    b = torch.gather(images, -1, (index + 1).clamp(max=cols - 1))
-    return a + frac * (b - a), valid.expand_as(images)
+    norm_x = 2.0 * src / max(cols - 1, 1) - 1.0
+    norm_y = 2.0 * torch.arange(rows, device=moving.device, dtype=torch.float32) / max(
+        rows - 1, 1
+    ) - 1.0
+    k = grid.numel()
+    sample = torch.stack(
+        torch.broadcast_tensors(
+            norm_x[:, :, None, :].expand(k, count, rows, cols),
+            norm_y[None, None, :, None].expand(k, count, rows, cols),
+        ),
+        dim=-1,
+    ).reshape(k * count, rows, cols, 2)
+    source = moving[None].expand(k, count, rows, cols).reshape(k * count, 1, rows, cols)
+    aligned = F.grid_sample(source, sample, align_corners=True).view(k, count, rows, cols)
+    weight = valid[:, :, None, :].float()
+    diff = (aligned - center).abs() * weight
+    total = weight.sum(1)
+    return torch.where(total > 0, diff.sum(1) / total.clamp(min=1), torch.ones_like(total))
 
 
 def estimate_disparity_range(
@@ -90,9 +109,9 @@ def estimate_disparity_range(
             if factor > 1:
                 images = F.avg_pool2d(images[:, None], factor, ceil_mode=True)[:, 0]
             # one low-resolution pixel of shift at the outermost view, at most 1 px per view step
-            step = factor / (2.0 * max_offset)
+            step = max(_MIN_STEP, factor / (2.0 * max_offset))
             step_used = max(step_used, step)
-            limit = min(max_disparity, 0.25 * min(cols, rows) / max_offset)
+            limit = min(max_disparity, 0.25 * cols / max_offset)
             count = max(1, int(limit / step))
             grid = step * torch.arange(-count, count + 1, device=images.device, dtype=torch.float32)
             others = torch.ones(images.shape[0], dtype=torch.bool, device=images.device)
@@ -100,15 +119,13 @@ def estimate_disparity_range(
             center = images[stack.center]
             moving = images[others]
             offsets = stack.offsets[others] / factor
-            costs = []
-            for d in grid:
-                aligned, valid = _shift_last_axis(moving, d * offsets)
-                diff = (aligned - center).abs() * valid
-                cost = diff.sum(0) / valid.sum(0).clamp(min=1)
-                # pixels no view covers get an uninformative cost
-                cost = torch.where(valid.any(0), cost, torch.full_like(cost, math.inf))
-                costs.append(cost)
-            volume = box_blur(torch.nan_to_num(torch.stack(costs), posinf=1.0), 2)
+            costs = torch.cat(
+                [
+                    _sweep_costs(moving, center, offsets, chunk)
+                    for chunk in grid.split(_CHUNK)
+                ]
+            )
+            volume = box_blur(costs, 2)
             best, arg = volume.min(0)
             median = volume.median(0).values
             gy, gx = torch.gradient(center)

@@ -13,7 +13,9 @@ gives the disparity and its coherence ``sqrt((J_xx - J_nn)^2 + 4 J_nx^2) / (J_nn
 line-like the neighbourhood is (Wanner & Goldluecke, "Globally consistent depth labeling of 4D
 light fields", CVPR 2012, section 3.1; "Variational light field analysis for disparity estimation
 and super-resolution", TPAMI 2014, section 4.1). The center row of views gives the horizontal EPIs,
-the center column the vertical ones; the two are fused with weights ``coherence^2``.
+the center column the vertical ones; per pixel, the direction with the lower photo-consistency
+cost (below) wins (Wanner & Goldluecke fuse by coherence; on our benchmark scenes and on HCI
+antinous the cost is the better judge).
 
 Large disparities (multi-hypothesis scheme). Derivatives across views alias once a line moves by
 more than about a pixel per view, so the plain structure tensor breaks beyond about +-1 to 2 px
