@@ -84,3 +84,20 @@ def test_mask_iou_matches_a_dense_reference_computation():
         union = (c | r[:, None]).sum((-1, -2)).float()
         expected = inter / union.clamp(min=1)
         assert torch.allclose(mask_iou(cand, ref, reg), expected)
+
+
+def test_chunked_refinement_equals_one_batch():
+    from lfsam.pipeline.refinement import refine_masks
+    from lfsam.segmenters import load_segmenter
+    from lfsam.synth import generate_scene
+
+    lf = generate_scene(grid=(3, 3), size=(48, 64), seed=1, num_objects=4)
+    segmenter = load_segmenter("oracle", lightfield=lf)
+    embedding = segmenter.encode(lf.views[0, 0][None], keys=[(0, 0)])[0]
+    ids = np.unique(lf.labels[1, 1])[1:]
+    coarse = torch.as_tensor(np.stack([lf.labels[1, 1] == k for k in ids]))  # center masks
+    weights = uniform_weights(coarse)
+    one = refine_masks(segmenter, embedding, coarse, weights, chunk_size=64)
+    many = refine_masks(segmenter, embedding, coarse, weights, chunk_size=1)
+    assert torch.equal(one.masks, many.masks) and torch.equal(one.fallback, many.fallback)
+    assert torch.allclose(one.iou, many.iou, equal_nan=True)

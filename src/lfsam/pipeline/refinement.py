@@ -198,6 +198,7 @@ def refine_masks(
     t_iou: float = 0.1,
     seen: torch.Tensor | None = None,
     frame_runs: FrameRuns | None = None,
+    chunk_size: int = 64,
 ) -> RefinementOutcome:
     """Re-prompt the segmenter in one view and keep refined masks that agree with the coarse ones.
 
@@ -217,6 +218,8 @@ def refine_masks(
         only (the coarse mask knows nothing of content the center view does not see).
     frame_runs : FrameRuns, optional
         Unseen strips at the frame border; see :func:`refinement_prompts`.
+    chunk_size : int
+        Prompts decoded per batch (bounds memory; each batch is one decoder call).
 
     Returns
     -------
@@ -231,13 +234,18 @@ def refine_masks(
     if prompts is None:
         return RefinementOutcome(masks, fallback, iou)
     index = torch.nonzero(prompted, as_tuple=True)[0].to(device)
-    prediction = segmenter.predict(embedding, prompts, multimask_output=True)
-    candidates = prediction.masks.to(device)
-    ious = mask_iou(candidates, coarse[index], seen)
-    best_iou, best_k = ious.max(dim=1)
-    chosen = candidates[torch.arange(len(index), device=device), best_k]
-    accept = best_iou > t_iou
-    masks[index[accept]] = chosen[accept]
-    fallback[index] = ~accept
-    iou[index] = best_iou
+    # One batched decode per chunk of prompts, each chunk reduced to its chosen masks at once,
+    # so the N x 3 x U x V candidates never exist together.
+    for start in range(0, len(index), chunk_size):
+        rows = index[start : start + chunk_size]
+        prediction = segmenter.predict(
+            embedding, prompts.subset(slice(start, start + chunk_size)), multimask_output=True
+        )
+        candidates = prediction.masks.to(device)
+        best_iou, best_k = mask_iou(candidates, coarse[rows], seen).max(dim=1)
+        chosen = candidates[torch.arange(len(rows), device=device), best_k]
+        accept = best_iou > t_iou
+        masks[rows[accept]] = chosen[accept]
+        fallback[rows] = ~accept
+        iou[rows] = best_iou
     return RefinementOutcome(masks, fallback, iou)
