@@ -8,7 +8,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lfsam.pipeline.propagation import (
-    close_masks,
     forward_warp,
     mask_disparities,
     propagate_masks,
@@ -70,11 +69,6 @@ def test_stretched_surface_has_no_holes_after_filling():
     cols = torch.nonzero(row).flatten()
     assert bool(row[cols.min() : cols.max() + 1].all())  # contiguous after filling
     assert int((~raw[0, 10, cols.min() : cols.max() + 1]).sum()) > 0  # gaps before filling
-
-
-def test_close_masks_does_not_grow_outline():
-    mask = _square()
-    assert torch.equal(close_masks(mask), mask)
 
 
 def test_zbuffer_hides_farther_pixels():

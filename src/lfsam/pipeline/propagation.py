@@ -25,7 +25,6 @@ from lfsam.geometry import project_pixels
 __all__ = [
     "ForwardWarp",
     "FrameRuns",
-    "close_masks",
     "fill_warp_holes",
     "forward_warp",
     "mask_disparities",
@@ -199,29 +198,6 @@ def forward_warp(disparity: torch.Tensor, ds: float, dt: float) -> ForwardWarp:
         0, target[valid], disparity.reshape(-1)[valid], reduce="amax", include_self=True
     )
     return ForwardWarp(target=target, valid=valid, zbuffer=zbuffer, ds=float(ds), dt=float(dt))
-
-
-def close_masks(masks: torch.Tensor, size: int = 3) -> torch.Tensor:
-    """Morphological closing (dilation then erosion) of a batch of masks with a square window.
-
-    Fills the one-pixel gaps forward warping leaves; does not grow a mask's outline.
-
-    Parameters
-    ----------
-    masks : (N, U, V) bool tensor
-    size : int
-        Odd window size.
-    """
-    if masks.numel() == 0:
-        return masks
-    pad = size // 2
-    x = masks[:, None].to(torch.float32)
-    dilated = F.max_pool2d(x, size, stride=1, padding=pad)
-    # Erosion = 1 - dilation of the complement; pad with 1 so the frame border does not erode.
-    eroded = 1.0 - F.max_pool2d(
-        F.pad(1.0 - dilated, (pad, pad, pad, pad), value=0.0), size, stride=1
-    )
-    return eroded[:, 0] > 0.5
 
 
 def splat_masks(masks: torch.Tensor, warp: ForwardWarp, keep: torch.Tensor | None = None):

@@ -29,7 +29,7 @@ from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_output
 from lfsam.lightfield import snake_order
 from lfsam.viz.layout import _to_numpy, as_rgb_uint8, blank
-from lfsam.viz.overlay import overlay_labels
+from lfsam.viz.overlay import overlay_view
 
 __all__ = [
     "ANIMATION_SUFFIXES",
@@ -116,13 +116,7 @@ def animation_frames(
             )
     grid = views.shape[:2]
     for s, t in snake_order(grid) if order is None else order:
-        frame = overlay_labels(
-            as_rgb_uint8(views[s, t]),
-            None if labels is None else labels[s, t],
-            alpha=alpha,
-            boundaries=boundaries,
-            masks=None if masks is None else masks.view(s, t),
-        )
+        frame = overlay_view(views, labels, masks, s, t, alpha=alpha, boundaries=boundaries)
         if indicator:
             frame = np.concatenate([frame, indicator_strip(grid, (s, t), frame.shape[1])], axis=0)
         yield frame

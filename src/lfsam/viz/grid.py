@@ -14,8 +14,8 @@ from numpy.typing import ArrayLike
 from tqdm.auto import tqdm
 
 from lfsam.errors import LfsamError
-from lfsam.viz.layout import CAPTION_HEIGHT, _to_numpy, as_rgb_uint8, caption, tile
-from lfsam.viz.overlay import overlay_labels
+from lfsam.viz.layout import CAPTION_HEIGHT, _to_numpy, caption, tile
+from lfsam.viz.overlay import overlay_view
 
 __all__ = ["VIEW_SELECTIONS", "grid_layout", "select_views", "view_grid"]
 
@@ -133,13 +133,7 @@ def view_grid(
             tiles.append(None)
             continue
         s, t = cell
-        image = overlay_labels(
-            as_rgb_uint8(views[s, t]),
-            None if labels is None else labels[s, t],
-            alpha=alpha,
-            boundaries=boundaries,
-            masks=None if masks is None else masks.view(s, t),
-        )
+        image = overlay_view(views, labels, masks, s, t, alpha=alpha, boundaries=boundaries)
         if captions:
             image = caption(image, f"({s}, {t})", height=CAPTION_HEIGHT, background=background)
         tiles.append(image)

@@ -147,3 +147,39 @@ def overlay_labels(
             edge_colors = table[labels[edge]]
         out[edge] = edge_colors if boundary_color is None else np.asarray(boundary_color)
     return out
+
+
+def overlay_view(
+    views: np.ndarray,
+    labels: np.ndarray | None,
+    masks,
+    s: int,
+    t: int,
+    *,
+    alpha: float = 0.5,
+    boundaries: bool = True,
+) -> np.ndarray:
+    """:func:`overlay_labels` of view ``(s, t)`` of a light field, with its labels and masks.
+
+    Parameters
+    ----------
+    views : (S, T, U, V, 3) ndarray
+    labels : (S, T, U, V) ndarray, optional
+    masks : PackedMasks, optional
+        Per-mask outlines are drawn from ``masks.view(s, t)`` when given.
+    s, t : int
+        The view.
+    alpha, boundaries
+        As for :func:`overlay_labels`.
+
+    Returns
+    -------
+    (U, V, 3) uint8 ndarray
+    """
+    return overlay_labels(
+        as_rgb_uint8(views[s, t]),
+        None if labels is None else labels[s, t],
+        alpha=alpha,
+        boundaries=boundaries,
+        masks=None if masks is None else masks.view(s, t),
+    )
