@@ -38,7 +38,9 @@ def gaussian_kernel1d(sigma: float, device: torch.device | None = None) -> torch
 def smooth_axis(image: torch.Tensor, kernel: torch.Tensor, axis: int) -> torch.Tensor:
     """Correlate ``image`` with a 1-D odd-length ``kernel`` along ``axis`` (-1 or -2).
 
-    Borders are reflected (replicated when the axis is shorter than the kernel radius).
+    Borders are reflected (replicated when the axis is shorter than the kernel radius). Computed
+    as a weighted sum of shifted slices, one per tap: for the short kernels used here this is
+    several times faster on a CPU than a one-channel ``conv2d``, on any device.
     """
     if axis not in (-1, -2):
         raise ValueError("axis must be -1 (columns) or -2 (rows)")
@@ -47,13 +49,13 @@ def smooth_axis(image: torch.Tensor, kernel: torch.Tensor, axis: int) -> torch.T
     x = image.reshape(-1, 1, shape[-2], shape[-1])
     length = shape[axis]
     mode = "reflect" if length > radius else "replicate"
-    if axis == -1:
-        x = F.pad(x, (radius, radius, 0, 0), mode=mode)
-        weight = kernel.to(x).view(1, 1, 1, -1)
-    else:
-        x = F.pad(x, (0, 0, radius, radius), mode=mode)
-        weight = kernel.to(x).view(1, 1, -1, 1)
-    return F.conv2d(x, weight).reshape(shape)
+    pad = (radius, radius, 0, 0) if axis == -1 else (0, 0, radius, radius)
+    x = F.pad(x, pad, mode=mode)
+    taps = kernel.tolist()
+    out = x.narrow(axis, 0, length) * taps[0]
+    for offset in range(1, len(taps)):
+        out.add_(x.narrow(axis, offset, length), alpha=taps[offset])
+    return out.reshape(shape)
 
 
 def gaussian_blur(image: torch.Tensor, sigma: float) -> torch.Tensor:
