@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import torch
@@ -100,6 +102,12 @@ def test_cli_writes_npy_and_preview(tmp_path, capsys):
     disp = np.load(out)
     assert disp.shape == (48, 64) and np.median(np.abs(disp[10:-10, 10:-10] - 1.0)) < 0.05
     assert preview.is_file()
-    capsys.readouterr()
+    assert json.loads(capsys.readouterr().out)["edge_refinement"] is True
+    raw = tmp_path / "raw.npy"
+    assert main(["disparity", str(tmp_path / "plane.npz"), "--out", str(raw), "--range=0,2",
+                 "--no-edge-refinement"]) == 0
+    assert json.loads(capsys.readouterr().out)["edge_refinement"] is False
+    expected = estimate_disparity(lf, (0.0, 2.0), edge_refinement=False).disparity
+    np.testing.assert_array_equal(np.load(raw), expected)
     assert main(["disparity", str(tmp_path / "plane.npz"), "--out", str(tmp_path / "x.txt")]) == 2
     assert "must end in .npy" in capsys.readouterr().err

@@ -15,6 +15,8 @@ Estimate the disparity of the center view with the structure tensor on epipolar-
 The result is a (U, V) float32 .npy in lfsam's convention: a center pixel (u, v) with disparity d
 is seen in view (s, t) at (u - d (s - s_c), v - d (t - t_c)); larger is closer. Give it to
 `lfsam segment --disparity FILE.npy`. The disparity range is found from the views unless given.
+The local estimate is finished by an edge-aware, confidence-weighted smoothing guided by the
+center view (it lowers both error measures on our benchmark); --no-edge-refinement skips it.
 """
 
 EPILOG = """\
@@ -40,6 +42,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         type=lambda s: parse_pair(s, sep=",", kind=float),
         help="disparity range in pixels per view step (default: found from the views)",
     )
+    parser.add_argument(
+        "--no-edge-refinement", dest="edge_refinement", action="store_false",
+        help="keep the local structure-tensor estimate (skip the edge-aware smoothing)",
+    )
     parser.add_argument("--preview", metavar="PNG", help="also write a colour-mapped picture")
     parser.add_argument("--format", dest="input_format", help="input format (default: detect)")
     parser.add_argument("--device", default=None, help="cpu, cuda, mps (default: best)")
@@ -62,7 +68,10 @@ def run(args: argparse.Namespace) -> int:
         check_output_path(args.preview)
     lightfield = read_lightfield(args.path, format=args.input_format)
     start = time.perf_counter()
-    estimate = estimate_disparity(lightfield, args.disparity_range, device=args.device)
+    estimate = estimate_disparity(
+        lightfield, args.disparity_range, device=args.device,
+        edge_refinement=args.edge_refinement,
+    )
     seconds = time.perf_counter() - start
     with atomic_output(args.out) as tmp:
         np.save(tmp, estimate.disparity.astype(np.float32))
@@ -80,5 +89,6 @@ def run(args: argparse.Namespace) -> int:
         "range": [round(float(x), 3) for x in estimate.disparity_range],
         "seconds": round(seconds, 3),
         "mean_confidence": round(float(estimate.confidence.mean()), 3),
+        "edge_refinement": args.edge_refinement,
     }))
     return 0
