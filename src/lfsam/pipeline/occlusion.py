@@ -10,12 +10,14 @@ Geometric occluding (DESIGN.md section 3, beyond the paper) is a z-buffer test o
 disparity: see :meth:`lfsam.pipeline.propagation.ForwardWarp.visible`.
 
 Masks are handled as (mask index, pixel index) pairs so memory follows the masks' total area,
-not N x U x V features.
+not N x U x V features; the features themselves are the segmenter's business
+(:meth:`~lfsam.segmenters.base.Segmenter.feature_sums`,
+:meth:`~lfsam.segmenters.base.Segmenter.feature_similarity`), which for SAM 2 never samples the
+256-channel embedding at every pixel (:mod:`lfsam.segmenters.feature_grid`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import dataclass
 
 import torch
@@ -25,7 +27,6 @@ from lfsam.segmenters.base import Segmenter, ViewEmbedding
 
 __all__ = ["OcclusionWeights", "semantic_occlusion", "source_features", "uniform_weights"]
 
-_PIXEL_CHUNK = 65536
 
 
 @dataclass
@@ -67,25 +68,6 @@ def _pairs(masks: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return mask_index, pixel_index
 
 
-def _covered_pixels(
-    masks: torch.Tensor, pixel_index: torch.Tensor
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Pixels covered by any mask, and each pair's position among them (a sort-free unique)."""
-    covered = masks.reshape(masks.shape[0], -1).any(dim=0)
-    position = torch.cumsum(covered, dim=0) - 1
-    return torch.nonzero(covered, as_tuple=True)[0], position[pixel_index]
-
-
-def _feature_chunks(
-    segmenter: Segmenter, embedding: ViewEmbedding, pixel_index: torch.Tensor, width: int
-) -> Iterator[tuple[int, torch.Tensor]]:
-    """Features (float32) at flat pixel indices, a chunk at a time: ``(start, (P_c, C))``."""
-    for start in range(0, pixel_index.numel(), _PIXEL_CHUNK):
-        flat = pixel_index[start : start + _PIXEL_CHUNK]
-        rows_cols = torch.stack([flat // width, flat % width], dim=1).to(torch.float32)
-        yield start, segmenter.sample_features(embedding, rows_cols.to(segmenter.device)).float()
-
-
 def source_features(
     segmenter: Segmenter, embedding: ViewEmbedding, masks: torch.Tensor
 ) -> torch.Tensor:
@@ -103,21 +85,10 @@ def source_features(
     -------
     (N, C) float tensor, L2-normalised (zero for an empty mask)
     """
-    n, _, width = masks.shape
-    mask_index, pixel_index = _pairs(masks)
-    unique_pixels, inverse = _covered_pixels(masks, pixel_index)
     # The paper averages the upscaled embedding over the mask (not unit vectors), then the
-    # cosine similarity normalises; the sum has the direction of the mean. Features are sampled
-    # a chunk of pixels at a time, so the full pixels x channels matrix never exists.
-    sums = None
-    for start, feats in _feature_chunks(segmenter, embedding, unique_pixels, width):
-        in_chunk = (inverse >= start) & (inverse < start + len(feats))
-        chosen = torch.nonzero(in_chunk, as_tuple=True)[0]
-        if sums is None:
-            sums = torch.zeros((n, feats.shape[1]), device=feats.device, dtype=feats.dtype)
-        sums.index_add_(0, mask_index[chosen].to(feats.device), feats[inverse[chosen] - start])
-    if sums is None:
-        return torch.zeros((n, 1), device=segmenter.device)
+    # cosine similarity normalises; the sum has the direction of the mean.
+    mask_index, pixel_index = _pairs(masks)
+    sums = segmenter.feature_sums(embedding, mask_index, pixel_index, masks.shape[0])
     return F.normalize(sums, dim=1)
 
 
@@ -148,24 +119,11 @@ def semantic_occlusion(
     """
     n, height, width = coarse.shape
     mask_index, pixel_index = _pairs(coarse)
-    unique_pixels, inverse = _covered_pixels(coarse, pixel_index)
     device = sources.device
-    mask_index_d, inverse_d = mask_index.to(device), inverse.to(device)
-    # Cosine similarity of a chunk of covered pixels to every source by a matmul (chunk x N),
-    # then each pair picks its own entry: far cheaper than a per-pair C-dimensional product,
-    # and neither the pixels x channels features nor the pixels x masks table exists whole.
-    sources_t = sources.T
-    sims = torch.zeros(mask_index.numel(), device=device, dtype=sources.dtype)
-    for start, feats in _feature_chunks(segmenter, embedding, unique_pixels, width):
-        feats /= feats.norm(dim=1, keepdim=True).clamp(min=1e-12)
-        table = feats.to(device=device, dtype=sources.dtype) @ sources_t
-        chosen = torch.nonzero(
-            (inverse_d >= start) & (inverse_d < start + len(feats)), as_tuple=True
-        )[0]
-        sims[chosen] = table[inverse_d[chosen] - start, mask_index_d[chosen]]
+    sims = segmenter.feature_similarity(embedding, mask_index, pixel_index, sources).to(device)
     weight = torch.where(sims >= t_sim, sims, torch.zeros_like(sims))
     return OcclusionWeights(
-        mask_index=mask_index_d,
+        mask_index=mask_index.to(device),
         pixel_index=pixel_index.to(device),
         weight=weight,
         num_masks=n,

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 
 __all__ = [
     "AutoMasks",
@@ -219,3 +220,82 @@ class Segmenter(abc.ABC):
         -------
         features : (P, C) float32 tensor on :attr:`device`
         """
+
+    # --- what semantic occluding needs of the features (defaults: via sample_features) ----------
+    #: Pixels whose features are sampled at once by the default implementations below.
+    feature_chunk: int = 65536
+
+    def _feature_chunks(
+        self, embedding: ViewEmbedding, pixel_index: torch.Tensor, width: int
+    ) -> Any:
+        """Features at flat pixel indices, a chunk at a time: ``(start, (P_c, C) float32)``."""
+        for start in range(0, pixel_index.numel(), self.feature_chunk):
+            flat = pixel_index[start : start + self.feature_chunk]
+            rows_cols = torch.stack([flat // width, flat % width], dim=1).to(torch.float32)
+            yield start, self.sample_features(embedding, rows_cols.to(self.device)).float()
+
+    def feature_sums(
+        self,
+        embedding: ViewEmbedding,
+        mask_index: torch.Tensor,
+        pixel_index: torch.Tensor,
+        num_masks: int,
+    ) -> torch.Tensor:
+        """Sum of the per-pixel features over each mask (paper 3.3: the source feature is their
+        mean; its direction is all the cosine similarity uses).
+
+        Parameters
+        ----------
+        embedding : ViewEmbedding
+        mask_index, pixel_index : (P,) int64 tensors
+            The masks as (mask, flat pixel ``u * V + v``) pairs.
+        num_masks : int
+
+        Returns
+        -------
+        (num_masks, C) float32 tensor on :attr:`device`
+
+        The default samples :meth:`sample_features` a chunk of pixels at a time; backends with a
+        feature grid override it with an exact shortcut (:mod:`lfsam.segmenters.feature_grid`).
+        """
+        width = embedding.image_size[1]
+        sums = None
+        for start, feats in self._feature_chunks(embedding, pixel_index, width):
+            if sums is None:
+                sums = torch.zeros((num_masks, feats.shape[1]), device=feats.device)
+            chunk = mask_index[start : start + len(feats)].to(feats.device)
+            sums.index_add_(0, chunk, feats)
+        if sums is None:
+            return torch.zeros((num_masks, 1), device=self.device)
+        return sums
+
+    def feature_similarity(
+        self,
+        embedding: ViewEmbedding,
+        mask_index: torch.Tensor,
+        pixel_index: torch.Tensor,
+        sources: torch.Tensor,
+    ) -> torch.Tensor:
+        """Cosine similarity of each pair's pixel feature to its mask's source feature (paper 3.3).
+
+        Parameters
+        ----------
+        embedding : ViewEmbedding
+            The encoded view.
+        mask_index, pixel_index : (P,) int64 tensors
+            (mask, flat pixel ``u * V + v``) pairs.
+        sources : (N, C) float tensor
+            Unit-norm source features (:meth:`feature_sums`, normalised).
+
+        Returns
+        -------
+        (P,) float32 tensor on the device of ``sources``
+        """
+        width = embedding.image_size[1]
+        device = sources.device
+        sims = torch.zeros(pixel_index.numel(), device=device, dtype=torch.float32)
+        for start, feats in self._feature_chunks(embedding, pixel_index, width):
+            feats = F.normalize(feats.to(device), dim=1, eps=1e-12)
+            chunk = mask_index[start : start + len(feats)].to(device)
+            sims[start : start + len(feats)] = (feats * sources[chunk].float()).sum(1)
+        return sims

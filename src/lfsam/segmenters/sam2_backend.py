@@ -25,6 +25,7 @@ from sam2.sam2_image_predictor import SAM2ImagePredictor
 
 from lfsam.errors import LfsamError
 from lfsam.segmenters.base import AutoMasks, MaskPrediction, Prompts, Segmenter, ViewEmbedding
+from lfsam.segmenters.feature_grid import grid_cosine_similarity, grid_feature_sums
 from lfsam.segmenters.registry import DEFAULT_MODEL
 from lfsam.segmenters.sam2_build import (
     autocast_dtype,
@@ -420,6 +421,40 @@ class Sam2Segmenter(Segmenter):
                 align_corners=False,
             )
         return sampled[0, :, 0, :].transpose(0, 1).contiguous()
+
+    def feature_sums(
+        self,
+        embedding: ViewEmbedding,
+        mask_index: torch.Tensor,
+        pixel_index: torch.Tensor,
+        num_masks: int,
+    ) -> torch.Tensor:
+        """Sum of the bilinearly upsampled embedding over each mask, computed on the embedding
+        grid (exact; :func:`lfsam.segmenters.feature_grid.grid_feature_sums`)."""
+        with torch.no_grad():
+            grid = self._features(embedding).image_embed[0].float()
+            return grid_feature_sums(
+                grid, mask_index.to(self.device), pixel_index.to(self.device), num_masks,
+                tuple(embedding.image_size),
+            )
+
+    def feature_similarity(
+        self,
+        embedding: ViewEmbedding,
+        mask_index: torch.Tensor,
+        pixel_index: torch.Tensor,
+        sources: torch.Tensor,
+    ) -> torch.Tensor:
+        """Cosine similarity of the upsampled embedding at each pair's pixel to its mask's
+        source, without sampling 256 channels per pixel (exact;
+        :func:`lfsam.segmenters.feature_grid.grid_cosine_similarity`)."""
+        with torch.no_grad():
+            grid = self._features(embedding).image_embed[0].float()
+            sims = grid_cosine_similarity(
+                grid, mask_index, pixel_index, sources.to(self.device),
+                tuple(embedding.image_size),
+            )
+        return sims.to(sources.device)
 
 
 def _check_images(images: np.ndarray) -> np.ndarray:
