@@ -139,23 +139,25 @@ def grid_cosine_similarity(
     (P,) float32 tensor
     """
     channels, h, w = grid.shape
-    width = image_size[1]
+    u_size, v_size = image_size
     device = grid.device
     pixel_index = pixel_index.to(device)
     mask_index = mask_index.to(device)
-    corners = bilinear_corners(pixel_index // width, pixel_index % width, image_size, (h, w))
-    wts = corners.weight
-    # numerator: sum_k w_k (E_k . s_n), from the (N, h w) table of grid-to-source products
-    table = sources.to(device).float() @ grid.reshape(channels, h * w).float()
-    flat = mask_index[:, None] * (h * w) + corners.index
-    numerator = (table.reshape(-1)[flat] * wts).sum(1)
-    # squared norm: w^T G w with the cell's Gram matrix (off-diagonal pairs counted twice)
-    # (in float64: the corner products may cancel where neighbouring features point apart)
-    gram = _gram_maps(grid)[:, corners.cell]  # (10, P)
-    w64 = wts.double()
-    norm_sq = torch.zeros_like(numerator, dtype=torch.float64)
+    # corners and feature norms of every pixel of the view once (masks overlap: pairs can
+    # outnumber pixels many times over), then gathered per pair
+    flat_pixels = torch.arange(u_size * v_size, device=device)
+    corners = bilinear_corners(flat_pixels // v_size, flat_pixels % v_size, image_size, (h, w))
+    # squared norm: w^T G w with the cell's Gram matrix (off-diagonal pairs counted twice), in
+    # float64: the corner products may cancel where neighbouring features point apart
+    gram = _gram_maps(grid)[:, corners.cell]  # (10, U V)
+    w64 = corners.weight.double()
+    norm_sq = torch.zeros(u_size * v_size, device=device, dtype=torch.float64)
     for pair, (i, j) in enumerate(_PAIRS):
         factor = 1.0 if i == j else 2.0
         norm_sq += factor * w64[:, i] * w64[:, j] * gram[pair]
     norm = norm_sq.clamp(min=0.0).sqrt().clamp(min=1e-12).float()
-    return numerator / norm
+    # numerator: sum_k w_k (E_k . s_n), from the (N, h w) table of grid-to-source products
+    table = sources.to(device).float() @ grid.reshape(channels, h * w).float()
+    flat = mask_index[:, None] * (h * w) + corners.index[pixel_index]
+    numerator = (table.reshape(-1)[flat] * corners.weight[pixel_index]).sum(1)
+    return numerator / norm[pixel_index]

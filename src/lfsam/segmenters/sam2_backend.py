@@ -2,11 +2,13 @@
 
 Each view is encoded once (:meth:`Sam2Segmenter.encode`: SAM 2's transforms, image encoder,
 ``_prepare_backbone_features`` and ``no_mem_embed``, exactly as ``SAM2ImagePredictor.set_image``),
-and its embedding then serves every prompt batch (:meth:`~Sam2Segmenter.predict`, through
-``SAM2ImagePredictor._predict``: prompt encoder + mask decoder, all N prompts in one call),
-automatic mask generation (:meth:`~Sam2Segmenter.generate`: ``SAM2AutomaticMaskGenerator`` fed
-the cached embedding instead of re-encoding) and feature probing for semantic occluding
-(:meth:`~Sam2Segmenter.sample_features`, paper section 3.3) (DESIGN.md section 3, "efficiency
+and its embedding then serves every prompt batch (:meth:`~Sam2Segmenter.predict`: what
+``SAM2ImagePredictor._predict`` computes, by the restructured decoder of
+:mod:`lfsam.segmenters.sam2_decoder` that shares the image side across prompts), automatic mask
+generation (:meth:`~Sam2Segmenter.generate`: ``SAM2AutomaticMaskGenerator`` fed the cached
+embedding instead of re-encoding) and the features for semantic occluding
+(:meth:`~Sam2Segmenter.sample_features`, :meth:`~Sam2Segmenter.feature_sums`,
+:meth:`~Sam2Segmenter.feature_similarity`, paper section 3.3) (DESIGN.md section 3, "efficiency
 facts").
 """
 
@@ -32,6 +34,12 @@ from lfsam.segmenters.sam2_build import (
     build_sam2,
     inference_context,
     make_image_predictor,
+)
+from lfsam.segmenters.sam2_decoder import (
+    LOGIT_CLAMP,
+    decode_prompts,
+    default_chunk_size,
+    prepare_image,
 )
 
 __all__ = ["PAPER_AMG_OPTIONS", "CachedFeaturePredictor", "Sam2Features", "Sam2Segmenter"]
@@ -270,21 +278,29 @@ class Sam2Segmenter(Segmenter):
         predictor._is_image_set = True
 
     # --- prompting ----------------------------------------------------------------------------
+    _decode_chunk_size: int | None = None
+    """Prompts that go through the decoder's image-sized tensors together (capped by
+    :attr:`max_prompts_per_batch`); None: ``sam2_decoder.default_chunk_size`` for the device."""
+
     def predict(
         self, embedding: ViewEmbedding, prompts: Prompts, multimask_output: bool = True
     ) -> MaskPrediction:
         """Decode N prompts on one view: prompt encoder + mask decoder, batched.
 
-        Prompts are decoded in chunks of :attr:`max_prompts_per_batch` through
-        ``SAM2ImagePredictor._predict`` (points and boxes merged as there: box corners first);
-        a point label of -1 marks padding (prompts with fewer points than others).
+        Computes what ``SAM2ImagePredictor._predict`` computes (points and boxes merged as
+        there: box corners first; a point label of -1 marks padding, for prompts with fewer
+        points than others), through :func:`lfsam.segmenters.sam2_decoder.decode_prompts`, which
+        shares the prompt-independent part of the decoder across prompts (issue #5). The
+        prompts go through the decoder :attr:`_decode_chunk_size` at a time and are
+        post-processed in groups of :attr:`max_prompts_per_batch`, which also caps the chunk.
 
         Returns
         -------
         MaskPrediction
-            ``masks`` (N, K, U, V) bool (logits > threshold after bilinear upsampling to the
-            view), ``iou_predictions`` (N, K), ``low_res_logits`` (N, K, image_size/4,
-            image_size/4) float32; K = 3 with ``multimask_output`` else 1.
+            ``masks`` (N, K, U, V) bool (logits > threshold after SAM 2's post-processing:
+            bilinear upsampling to the view), ``iou_predictions`` (N, K), ``low_res_logits``
+            (N, K, image_size/4, image_size/4) float32, clamped to [-32, 32] as SAM 2 returns
+            them; K = 3 with ``multimask_output`` else 1.
         """
         u_size, v_size = embedding.image_size
         k = 3 if multimask_output else 1
@@ -296,22 +312,33 @@ class Sam2Segmenter(Segmenter):
                 iou_predictions=torch.zeros((0, k), device=self.device),
                 low_res_logits=torch.zeros((0, k, low, low), device=self.device),
             )
-        predictor = self._predictor
-        self._set_predictor(predictor, embedding)
+        feats = self._features(embedding)
+        transforms = self._predictor._transforms
+        threshold = self._predictor.mask_threshold
+        chunk = self._decode_chunk_size or default_chunk_size(self.device)
+        chunk = max(1, min(self.max_prompts_per_batch, chunk))
         masks, ious, logits = [], [], []
-        try:
-            with inference_context(self.device, inference_mode=False):
-                for start in range(0, n, self.max_prompts_per_batch):
-                    sub = prompts.subset(slice(start, start + self.max_prompts_per_batch))
-                    coords, labels, boxes = self._prompt_tensors(sub, (u_size, v_size))
-                    m, iou, lr = predictor._predict(
-                        coords, labels, boxes, multimask_output=multimask_output
-                    )
-                    masks.append(m)
-                    ious.append(iou.float())
-                    logits.append(lr.float())
-        finally:
-            predictor.reset_predictor()
+        with inference_context(self.device, inference_mode=False):
+            state = prepare_image(self.model, feats.image_embed, feats.high_res_feats)
+            for start in range(0, n, self.max_prompts_per_batch):
+                sub = prompts.subset(slice(start, start + self.max_prompts_per_batch))
+                coords, labels, boxes = self._prompt_tensors(sub, (u_size, v_size))
+                low_res, iou = decode_prompts(
+                    self.model,
+                    feats.image_embed,
+                    feats.high_res_feats,
+                    coords,
+                    labels,
+                    boxes,
+                    multimask_output,
+                    chunk_size=chunk,
+                    clamp=False,  # _predict post-processes the unclamped logits
+                    state=state,
+                )
+                full = transforms.postprocess_masks(low_res, (u_size, v_size))
+                masks.append(full > threshold)
+                ious.append(iou.float())
+                logits.append(torch.clamp(low_res, -LOGIT_CLAMP, LOGIT_CLAMP).float())
         return MaskPrediction(
             masks=torch.cat(masks),
             iou_predictions=torch.cat(ious),
