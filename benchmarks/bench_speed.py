@@ -143,11 +143,10 @@ def bench_model(model: str, lf, prompts: list[Prompts], args) -> dict[str, float
     row = {"encoder_s": encode, "lfsam_s": ours.timings["total"], "lfsam_T": ours_t}
 
     for start in args.starts:
-        options = {"start": start, "objects_per_pass": args.objects_per_pass,
-                   "disparity": disparity}
+        options = {"start": start, "objects_per_pass": args.objects_per_pass}
         base = _best_of(args.repeats, lambda options=options: run_segmentation(
             lf, method="video-baseline", segmenter=segmenter, prompts=prompts, progress=False,
-            baseline_options=options))
+            disparity=disparity, baseline_options=options))
         base_t = base.ms_per_mask_view
         print(f"video baseline (start {start}): total {base.timings['total']:.2f} s, "
               f"N={base.num_masks}, {base.meta['passes']} pass(es), "
