@@ -26,6 +26,7 @@ from collections.abc import Callable
 
 import numpy as np
 import torch
+from sam2.sam2_image_predictor import SAM2ImagePredictor
 
 from lfsam.segmenters import Prompts, load_segmenter
 from lfsam.segmenters.sam2_build import inference_context
@@ -82,14 +83,17 @@ def main() -> int:
 
     predictor = seg._predictor
     seg._set_predictor(predictor, emb)
+    # Meta's own method (the segmenter's predictor class routes _predict through ours)
+    meta_predict = SAM2ImagePredictor._predict
     with inference_context(device, inference_mode=False):
 
         def meta_batched():
-            return predictor._predict(coords, labels, boxes, multimask_output=multimask)
+            return meta_predict(predictor, coords, labels, boxes, multimask_output=multimask)
 
         def meta_single():
             return [
-                predictor._predict(
+                meta_predict(
+                    predictor,
                     coords[i : i + 1],
                     labels[i : i + 1],
                     boxes[i : i + 1],

@@ -36,6 +36,7 @@ from lfsam.segmenters.sam2_build import (
     make_image_predictor,
 )
 from lfsam.segmenters.sam2_decoder import (
+    DEFAULT_CHUNK_SIZE,
     LOGIT_CLAMP,
     decode_prompts,
     default_chunk_size,
@@ -86,6 +87,14 @@ class CachedFeaturePredictor(SAM2ImagePredictor):
 
     cached: tuple[Sam2Features, tuple[int, int]] | None = None
     encoder_passes: int = 0
+    #: Prompts decoded together by :func:`~lfsam.segmenters.sam2_decoder.decode_prompts`.
+    decode_chunk_size: int = DEFAULT_CHUNK_SIZE
+    _image_state: Any = None
+
+    def reset_predictor(self) -> None:
+        """Forget the image (and its decoder state)."""
+        super().reset_predictor()
+        self._image_state = None
 
     def set_image(self, image: Any) -> None:
         """Take the cached features if ``image`` is the cached view, else encode it."""
@@ -98,6 +107,41 @@ class CachedFeaturePredictor(SAM2ImagePredictor):
             return
         self.encoder_passes += 1
         super().set_image(image)
+
+    def _predict(
+        self,
+        point_coords: torch.Tensor | None,
+        point_labels: torch.Tensor | None,
+        boxes: torch.Tensor | None = None,
+        mask_input: torch.Tensor | None = None,
+        multimask_output: bool = True,
+        return_logits: bool = False,
+        img_idx: int = -1,
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """``SAM2ImagePredictor._predict`` through the restructured decoder (same results, the
+        image side shared across the prompts: :mod:`lfsam.segmenters.sam2_decoder`); with a mask
+        input (the generator's optional mask-to-mask pass) Meta's own code runs."""
+        if mask_input is not None:
+            return super()._predict(
+                point_coords, point_labels, boxes, mask_input, multimask_output, return_logits,
+                img_idx,
+            )
+        if not self._is_image_set:
+            raise RuntimeError("An image must be set with .set_image(...) before mask prediction.")
+        image_embed = self._features["image_embed"][img_idx].unsqueeze(0)
+        high_res = [level[img_idx].unsqueeze(0) for level in self._features["high_res_feats"]]
+        if self._image_state is None:  # once per image: the prompt-independent part
+            self._image_state = prepare_image(self.model, image_embed, high_res)
+        low_res, iou = decode_prompts(
+            self.model, image_embed, high_res, point_coords, point_labels, boxes,
+            multimask_output, chunk_size=self.decode_chunk_size, clamp=False,
+            state=self._image_state,
+        )
+        masks = self._transforms.postprocess_masks(low_res, self._orig_hw[img_idx])
+        low_res = torch.clamp(low_res, -LOGIT_CLAMP, LOGIT_CLAMP)
+        if not return_logits:
+            masks = masks > self.mask_threshold
+        return masks, iou, low_res
 
 
 class Sam2Segmenter(Segmenter):
@@ -375,6 +419,9 @@ class Sam2Segmenter(Segmenter):
                 mask_threshold=generator.mask_threshold,
                 max_hole_area=area,
                 max_sprinkle_area=area,
+            )
+            predictor.decode_chunk_size = self._decode_chunk_size or default_chunk_size(
+                self.device
             )
             generator.predictor = predictor
             self._generator = generator
