@@ -1,0 +1,45 @@
+"""The benchmark scripts run end to end (tiny settings): `make bench` must not rot unnoticed.
+
+The numbers they print at tiny sizes mean nothing; each case checks only that the script exits
+cleanly and prints its headline line. The real runs are `make bench` (README, "Development").
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+CASES = {
+    "bench_speed.py": (
+        ["--grid", "3x3", "--size", "32x48", "--prompts", "2", "--models", "sam2-tiny-test",
+         "--starts", "center,first"],
+        "summary (T in ms per mask per view)",
+    ),
+    "bench_pipeline.py": (
+        ["--parts", "speed", "--model", "sam2-tiny-test", "--grid", "3x3", "--size", "32x48",
+         "--prompts", "2"],
+        "total / encoder alone",
+    ),
+    "bench_decoder.py": (
+        ["--model", "sam2-tiny-test", "--size", "32x48", "--prompts", "4", "--repeats", "1",
+         "--chunks", "1,2"],
+        "max |low-res logits - Meta batched|",
+    ),
+    "bench_metrics.py": (["--grid", "3x3", "--size", "64x96", "--masks", "5"], "bench_metrics:"),
+}
+
+
+@pytest.mark.parametrize("script", sorted(CASES))
+def test_benchmark_script_runs(script):
+    args, expected = CASES[script]
+    run = subprocess.run(
+        [sys.executable, str(BENCHMARKS / script), *args],
+        capture_output=True, text=True, timeout=300,
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert expected in run.stdout
