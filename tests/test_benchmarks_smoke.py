@@ -30,6 +30,9 @@ CASES = {
          "--chunks", "1,2"],
         "max |low-res logits - Meta batched|",
     ),
+    "bench_disparity.py": (
+        ["--size", "48x64", "--timing-size", "48x64", "--no-real"], "ratio ours/plain"
+    ),
     "bench_metrics.py": (["--grid", "3x3", "--size", "64x96", "--masks", "5"], "bench_metrics:"),
 }
 
