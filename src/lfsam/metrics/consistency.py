@@ -41,6 +41,7 @@ from lfsam.metrics.projection import (
     iter_projected_views,
     project_view_to_center,
 )
+from lfsam.precision import wide_float
 
 __all__ = ["ConsistencyScores", "consistency_metrics"]
 
@@ -110,9 +111,10 @@ def consistency_metrics(
     )
     center_map = torch.zeros(npix, dtype=torch.long, device=device)
     center_map[center_pixels] = center_labels
-    center_area = torch.bincount(center_labels, minlength=k).double()
+    wide = wide_float(device)
+    center_area = torch.bincount(center_labels, minlength=k).to(wide)
 
-    iou_sum = torch.zeros(k, dtype=torch.float64, device=device)
+    iou_sum = torch.zeros(k, dtype=wide, device=device)
     view_count = torch.zeros(k, dtype=torch.long, device=device)
     dense = npix * k <= dense_limit
     hits = torch.zeros(npix * k, dtype=torch.bool, device=device) if dense else None
@@ -127,9 +129,9 @@ def consistency_metrics(
         count = len(batch.views)
         compared = torch.tensor([view != (s_c, t_c) for view in batch.views], device=device)
         cell = batch.view * k + batch.labels  # (view in batch, label)
-        area = torch.bincount(cell, minlength=count * k).view(count, k).double()
+        area = torch.bincount(cell, minlength=count * k).view(count, k).to(wide)
         agree = center_map[batch.pixels] == batch.labels
-        inter = torch.bincount(cell[agree], minlength=count * k).view(count, k).double()
+        inter = torch.bincount(cell[agree], minlength=count * k).view(count, k).to(wide)
         union = area + center_area - inter
         seen = (area > 0) & compared[:, None]
         iou_sum += torch.where(seen, inter / union.clamp(min=1), torch.zeros_like(inter)).sum(0)
@@ -150,5 +152,5 @@ def consistency_metrics(
     else:
         per_pixel = torch.bincount(torch.div(merged, k, rounding_mode="floor"), minlength=npix)
     labeled = per_pixel > 0
-    lpp = float(per_pixel[labeled].double().mean()) if bool(labeled.any()) else math.nan
+    lpp = float(per_pixel[labeled].to(wide).mean()) if bool(labeled.any()) else math.nan
     return ConsistencyScores(siou=siou, lpp=lpp, mask_siou=mask_siou, mask_views=mask_views)

@@ -27,6 +27,8 @@ import math
 
 import torch
 
+from lfsam.precision import wide_float
+
 __all__ = ["achievable_accuracy", "contingency_table", "undersegmentation_error"]
 
 _CHUNK = 1 << 22
@@ -102,4 +104,5 @@ def undersegmentation_error(table: torch.Tensor) -> float:
     present = region_size > 0
     if not bool(present.any()):
         return math.nan
-    return float((penalty[present].double() / region_size[present].double()).mean())
+    wide = wide_float(table.device)
+    return float((penalty[present].to(wide) / region_size[present].to(wide)).mean())

@@ -17,6 +17,7 @@ import torch
 
 from lfsam.pipeline.occlusion import OcclusionWeights
 from lfsam.pipeline.propagation import FrameRuns
+from lfsam.precision import wide_float
 from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
 
 __all__ = ["RefinementOutcome", "mask_iou", "refine_masks", "refinement_prompts"]
@@ -70,11 +71,12 @@ def refinement_prompts(
     keep = weights.weight > 0
     mask_index = weights.mask_index[keep]
     pixel_index = weights.pixel_index[keep]
-    w = weights.weight[keep].to(torch.float64)
-    rows = (pixel_index // width).to(torch.float64)
-    cols = (pixel_index % width).to(torch.float64)
+    wide = wide_float(device)
+    w = weights.weight[keep].to(wide)
+    rows = (pixel_index // width).to(wide)
+    cols = (pixel_index % width).to(wide)
 
-    total = torch.zeros(n, dtype=torch.float64, device=device).index_add_(0, mask_index, w)
+    total = torch.zeros(n, dtype=wide, device=device).index_add_(0, mask_index, w)
     prompted = total > 0
     if not bool(prompted.any()):
         return None, prompted
@@ -84,7 +86,7 @@ def refinement_prompts(
 
     # Nearest surviving pixel to the weighted centroid: per-mask argmin over the pairs.
     dist = (rows - centroid_r[mask_index]) ** 2 + (cols - centroid_c[mask_index]) ** 2
-    best = torch.full((n,), float("inf"), dtype=torch.float64, device=device)
+    best = torch.full((n,), float("inf"), dtype=wide, device=device)
     best.scatter_reduce_(0, mask_index, dist, reduce="amin", include_self=True)
     is_best = dist <= best[mask_index]
     # First pair reaching the minimum of each mask (pairs are sorted by mask index).
@@ -95,7 +97,7 @@ def refinement_prompts(
     point_rc = torch.stack([rows[chosen], cols[chosen]], dim=1)
 
     def _reduce(values: torch.Tensor, how: str, init: float) -> torch.Tensor:
-        out = torch.full((n,), init, dtype=torch.float64, device=device)
+        out = torch.full((n,), init, dtype=wide, device=device)
         return out.scatter_reduce_(0, mask_index, values, reduce=how, include_self=True)
 
     boxes = torch.stack(

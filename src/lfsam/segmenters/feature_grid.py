@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import torch
 
+from lfsam.precision import wide_float
+
 __all__ = ["BilinearCorners", "bilinear_corners", "grid_cosine_similarity", "grid_feature_sums"]
 
 # the ten unordered corner pairs (i <= j) of a cell's 4 x 4 Gram matrix
@@ -110,7 +112,7 @@ def _gram_maps(grid: torch.Tensor) -> torch.Tensor:
     xs = torch.arange(w, device=grid.device)
     y1 = (ys + 1).clamp(max=h - 1)
     x1 = (xs + 1).clamp(max=w - 1)
-    g = grid.double()
+    g = grid.to(wide_float(grid.device))
     corners = [g, g[:, :, x1], g[:, y1, :], g[:, y1][:, :, x1]]
     return torch.stack([(corners[i] * corners[j]).sum(0).reshape(-1) for i, j in _PAIRS])
 
@@ -148,10 +150,11 @@ def grid_cosine_similarity(
     flat_pixels = torch.arange(u_size * v_size, device=device)
     corners = bilinear_corners(flat_pixels // v_size, flat_pixels % v_size, image_size, (h, w))
     # squared norm: w^T G w with the cell's Gram matrix (off-diagonal pairs counted twice), in
-    # float64: the corner products may cancel where neighbouring features point apart
+    # float64 where the device has it: the corner products may cancel where neighbouring
+    # features point apart
     gram = _gram_maps(grid)[:, corners.cell]  # (10, U V)
-    w64 = corners.weight.double()
-    norm_sq = torch.zeros(u_size * v_size, device=device, dtype=torch.float64)
+    w64 = corners.weight.to(wide_float(device))
+    norm_sq = torch.zeros(u_size * v_size, device=device, dtype=w64.dtype)
     for pair, (i, j) in enumerate(_PAIRS):
         factor = 1.0 if i == j else 2.0
         norm_sq += factor * w64[:, i] * w64[:, j] * gram[pair]
