@@ -322,10 +322,6 @@ class Sam2Segmenter(Segmenter):
         predictor._is_image_set = True
 
     # --- prompting ----------------------------------------------------------------------------
-    _decode_chunk_size: int | None = None
-    """Prompts that go through the decoder's image-sized tensors together (capped by
-    :attr:`max_prompts_per_batch`); None: ``sam2_decoder.default_chunk_size`` for the device."""
-
     def predict(
         self, embedding: ViewEmbedding, prompts: Prompts, multimask_output: bool = True
     ) -> MaskPrediction:
@@ -333,10 +329,10 @@ class Sam2Segmenter(Segmenter):
 
         Computes what ``SAM2ImagePredictor._predict`` computes (points and boxes merged as
         there: box corners first; a point label of -1 marks padding, for prompts with fewer
-        points than others), through :func:`lfsam.segmenters.sam2_decoder.decode_prompts`, which
-        shares the prompt-independent part of the decoder across prompts (issue #5). The
-        prompts go through the decoder :attr:`_decode_chunk_size` at a time and are
-        post-processed in groups of :attr:`max_prompts_per_batch`, which also caps the chunk.
+        points than others), through :meth:`CachedFeaturePredictor._predict`, i.e. the decoder of
+        :mod:`lfsam.segmenters.sam2_decoder` that shares the prompt-independent part across
+        prompts (issue #5). Prompts go through in groups of :attr:`max_prompts_per_batch` (which
+        also caps how many the decoder takes at once).
 
         Returns
         -------
@@ -356,33 +352,25 @@ class Sam2Segmenter(Segmenter):
                 iou_predictions=torch.zeros((0, k), device=self.device),
                 low_res_logits=torch.zeros((0, k, low, low), device=self.device),
             )
-        feats = self._features(embedding)
-        transforms = self._predictor._transforms
-        threshold = self._predictor.mask_threshold
-        chunk = self._decode_chunk_size or default_chunk_size(self.device)
-        chunk = max(1, min(self.max_prompts_per_batch, chunk))
+        predictor = self._predictor
+        self._set_predictor(predictor, embedding)
+        predictor.decode_chunk_size = min(
+            self.max_prompts_per_batch, default_chunk_size(self.device)
+        )
         masks, ious, logits = [], [], []
-        with inference_context(self.device, inference_mode=False):
-            state = prepare_image(self.model, feats.image_embed, feats.high_res_feats)
-            for start in range(0, n, self.max_prompts_per_batch):
-                sub = prompts.subset(slice(start, start + self.max_prompts_per_batch))
-                coords, labels, boxes = self._prompt_tensors(sub, (u_size, v_size))
-                low_res, iou = decode_prompts(
-                    self.model,
-                    feats.image_embed,
-                    feats.high_res_feats,
-                    coords,
-                    labels,
-                    boxes,
-                    multimask_output,
-                    chunk_size=chunk,
-                    clamp=False,  # _predict post-processes the unclamped logits
-                    state=state,
-                )
-                full = transforms.postprocess_masks(low_res, (u_size, v_size))
-                masks.append(full > threshold)
-                ious.append(iou.float())
-                logits.append(torch.clamp(low_res, -LOGIT_CLAMP, LOGIT_CLAMP).float())
+        try:
+            with inference_context(self.device, inference_mode=False):
+                for start in range(0, n, self.max_prompts_per_batch):
+                    sub = prompts.subset(slice(start, start + self.max_prompts_per_batch))
+                    coords, labels, boxes = self._prompt_tensors(sub, (u_size, v_size))
+                    m, iou, lr = predictor._predict(
+                        coords, labels, boxes, multimask_output=multimask_output
+                    )
+                    masks.append(m)
+                    ious.append(iou.float())
+                    logits.append(lr.float())
+        finally:
+            predictor.reset_predictor()
         return MaskPrediction(
             masks=torch.cat(masks),
             iou_predictions=torch.cat(ious),
@@ -420,9 +408,7 @@ class Sam2Segmenter(Segmenter):
                 max_hole_area=area,
                 max_sprinkle_area=area,
             )
-            predictor.decode_chunk_size = self._decode_chunk_size or default_chunk_size(
-                self.device
-            )
+            predictor.decode_chunk_size = default_chunk_size(self.device)
             generator.predictor = predictor
             self._generator = generator
         return self._generator

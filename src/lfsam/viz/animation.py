@@ -28,7 +28,7 @@ from tqdm.auto import tqdm
 from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_output
 from lfsam.lightfield import snake_order
-from lfsam.viz.layout import _to_numpy, as_rgb_uint8, blank
+from lfsam.viz.layout import _matching_labels, _to_numpy, as_rgb_uint8, blank
 from lfsam.viz.overlay import overlay_view
 
 __all__ = [
@@ -107,13 +107,7 @@ def animation_frames(
         ``U x V`` block is ``overlay_labels(views[s, t], labels[s, t])``.
     """
     views = _to_numpy(views)
-    if labels is not None:
-        labels = _to_numpy(labels)
-        if labels.shape != views.shape[:4]:
-            raise LfsamError(
-                f"labels have shape {labels.shape} but the views are {views.shape[:4]}; "
-                "give the labels of the same light field"
-            )
+    labels = _matching_labels(views, labels)
     grid = views.shape[:2]
     for s, t in snake_order(grid) if order is None else order:
         frame = overlay_view(views, labels, masks, s, t, alpha=alpha, boundaries=boundaries)

@@ -74,6 +74,17 @@ def _check_pair(views: np.ndarray, labels_a, labels_b) -> tuple[np.ndarray, np.n
     return a, b
 
 
+def _compare_figures(
+    render, views, labels_a, labels_b, names, gap: int, direction: str, kwargs: dict
+) -> np.ndarray:
+    """``render(views, labels, **kwargs)`` for both label fields, placed side by side."""
+    views = _to_numpy(views)
+    a, b = _check_pair(views, labels_a, labels_b)
+    panels = [render(views, lab, **kwargs) for lab in (a, b)]
+    background = kwargs.get("background", 255)
+    return side_by_side(panels, names, gap=gap, direction=direction, background=background)
+
+
 def match_labels(reference: ArrayLike, labels: ArrayLike) -> np.ndarray:
     """Renumber ``labels`` so that its regions take the ids of the ``reference`` regions they match.
 
@@ -131,11 +142,8 @@ def compare_grid(
     ``grid_kwargs`` go to ``view_grid`` (``which``, ``alpha``, ``pad``, ...). The size follows
     :func:`side_by_side` with two panels of ``view_grid``'s size.
     """
-    views = _to_numpy(views)
-    a, b = _check_pair(views, labels_a, labels_b)
-    panels = [view_grid(views, lab, **grid_kwargs) for lab in (a, b)]
-    background = grid_kwargs.get("background", 255)
-    return side_by_side(panels, names, gap=gap, direction=direction, background=background)
+    return _compare_figures(view_grid, views, labels_a, labels_b, names, gap, direction,
+                            grid_kwargs)
 
 
 def compare_epi(
@@ -152,11 +160,8 @@ def compare_epi(
 
     The size follows :func:`side_by_side` with two panels of ``epi_figure``'s size.
     """
-    views = _to_numpy(views)
-    a, b = _check_pair(views, labels_a, labels_b)
-    panels = [epi_figure(views, lab, **epi_kwargs) for lab in (a, b)]
-    background = epi_kwargs.get("background", 255)
-    return side_by_side(panels, names, gap=gap, direction=direction, background=background)
+    return _compare_figures(epi_figure, views, labels_a, labels_b, names, gap, direction,
+                            epi_kwargs)
 
 
 def compare_frames(

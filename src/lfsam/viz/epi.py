@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from lfsam.errors import LfsamError
-from lfsam.viz.layout import _to_numpy, as_rgb_uint8, blank
+from lfsam.viz.layout import _matching_labels, _to_numpy, as_rgb_uint8, blank
 from lfsam.viz.overlay import overlay_labels
 
 __all__ = [
@@ -153,13 +153,7 @@ def epi_overlays(
     """
     views = _to_numpy(views)
     s_count, t_count, u_count, v_count = views.shape[:4]
-    if labels is not None:
-        labels = _to_numpy(labels)
-        if labels.shape != views.shape[:4]:
-            raise LfsamError(
-                f"labels have shape {labels.shape} but the views are {views.shape[:4]}; "
-                "give the labels of the same light field"
-            )
+    labels = _matching_labels(views, labels)
     s_c, t_c = (s_count // 2, t_count // 2) if center is None else center
     row = u_count // 2 if row is None else row
     col = v_count // 2 if col is None else col

@@ -14,7 +14,7 @@ from numpy.typing import ArrayLike
 from tqdm.auto import tqdm
 
 from lfsam.errors import LfsamError
-from lfsam.viz.layout import CAPTION_HEIGHT, _to_numpy, caption, tile
+from lfsam.viz.layout import CAPTION_HEIGHT, _matching_labels, _to_numpy, caption, tile
 from lfsam.viz.overlay import overlay_view
 
 __all__ = ["VIEW_SELECTIONS", "grid_layout", "select_views", "view_grid"]
@@ -118,13 +118,7 @@ def view_grid(
     views = _to_numpy(views)
     if views.ndim != 5 or views.shape[-1] != 3:
         raise LfsamError(f"views must have shape (S, T, U, V, 3), got {views.shape}")
-    if labels is not None:
-        labels = _to_numpy(labels)
-        if labels.shape != views.shape[:4]:
-            raise LfsamError(
-                f"labels have shape {labels.shape} but the views are {views.shape[:4]}; "
-                "give the labels of the same light field"
-            )
+    labels = _matching_labels(views, labels)
     rows, cols, cells = grid_layout(views.shape[:2], which)
     tiles: list[np.ndarray | None] = []
     bar = tqdm(cells, desc="views", unit="view", disable=None if progress is None else not progress)

@@ -12,6 +12,8 @@ from collections.abc import Sequence
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from lfsam.errors import LfsamError
+
 __all__ = [
     "CAPTION_HEIGHT",
     "as_rgb_uint8",
@@ -34,6 +36,19 @@ def _to_numpy(array) -> np.ndarray:
     if hasattr(array, "detach") and hasattr(array, "cpu"):
         array = array.detach().cpu().numpy()
     return np.asarray(array)
+
+
+def _matching_labels(views: np.ndarray, labels) -> np.ndarray | None:
+    """``labels`` as NumPy, checked to be ``[S, T, U, V]`` like ``views`` (None passes)."""
+    if labels is None:
+        return None
+    labels = _to_numpy(labels)
+    if labels.shape != views.shape[:4]:
+        raise LfsamError(
+            f"labels have shape {labels.shape} but the views are {views.shape[:4]}; "
+            "give the labels of the same light field"
+        )
+    return labels
 
 
 def as_rgb_uint8(image) -> np.ndarray:
