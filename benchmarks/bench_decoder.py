@@ -13,9 +13,14 @@ each, the refinement's prompt shape), with random weights (speed does not depend
 - the speed-up over Meta's batched and one-at-a-time paths, the decoder time over one
   image-encoder pass, and the largest absolute difference of the low-resolution logits.
 
+With ``--generate``, it also times automatic mask generation (``Sam2Segmenter.generate``, the
+paper's settings: 64 x 64 points) on the same view, once through our decoder and once with
+Meta's own ``SAM2ImagePredictor._predict`` (single runs: minutes on a CPU).
+
 Every time is the minimum of ``--repeats`` runs after one warm-up run (other work on the machine
 only ever adds time). Run: ``.venv/bin/python benchmarks/bench_decoder.py [--model
-sam2.1-hiera-small] [--size 240x320] [--prompts 16] [--repeats 3] [--chunks 1,2,4,8]``.
+sam2.1-hiera-small] [--size 240x320] [--prompts 16] [--repeats 3] [--chunks 1,2,4,8]
+[--generate]``.
 """
 
 from __future__ import annotations
@@ -64,6 +69,8 @@ def main() -> int:
     parser.add_argument("--chunks", default="1,2,4,8", help="decode_prompts chunk sizes to time")
     parser.add_argument("--single-mask", action="store_true", help="K = 1 instead of 3")
     parser.add_argument("--device", default=None)
+    parser.add_argument("--generate", action="store_true",
+                        help="also time automatic mask generation, ours vs Meta's decoder")
     args, _ = parser.parse_known_args()  # run_all.py may pass one extra argument
     u_size, v_size = (int(s) for s in args.size.lower().split("x"))
     multimask = not args.single_mask
@@ -164,7 +171,31 @@ def main() -> int:
         f"of {masks_ref.numel()} (Meta single vs batched: "
         f"{(masks_single != masks_ref).sum().item()})"
     )
+    if args.generate:
+        time_generation(seg, emb, view)
     return 0
+
+
+def time_generation(seg, emb, view: np.ndarray) -> None:
+    """Automatic mask generation on one view through our decoder and through Meta's."""
+    predictor = seg._mask_generator().predictor
+    start = time.perf_counter()
+    ours = seg.generate(emb, view)
+    ours_s = time.perf_counter() - start
+    # the same generator, its predictor's _predict swapped back to Meta's own method
+    predictor._predict = SAM2ImagePredictor._predict.__get__(predictor)
+    try:
+        start = time.perf_counter()
+        meta = seg.generate(emb, view)
+        meta_s = time.perf_counter() - start
+    finally:
+        del predictor._predict
+    same = ours.masks.shape == meta.masks.shape and bool((ours.masks == meta.masks).all())
+    print(
+        f"automatic generation ({seg.amg_options.get('points_per_side')}^2 points): ours "
+        f"{ours_s:.1f} s, Meta's decoder {meta_s:.1f} s ({meta_s / ours_s:.1f}x); "
+        f"{len(ours.masks)} vs {len(meta.masks)} masks, identical: {same}"
+    )
 
 
 if __name__ == "__main__":
