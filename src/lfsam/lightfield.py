@@ -60,6 +60,9 @@ class LightField:
     meta : dict
         Where the light field came from: ``source`` (path), ``format`` (reader name) and any
         reader-specific notes (e.g. the orientation a reader detected).
+    present : ndarray, shape (S, T), bool, optional
+        Which views exist (partial grids such as the HCI "star" subsets, docs/design.md
+        section 8). Absent views hold zeros and are never used as data; default: all present.
 
     Raises
     ------
@@ -71,6 +74,7 @@ class LightField:
     disparity: np.ndarray | None = None
     labels: np.ndarray | None = None
     meta: dict[str, Any] = field(default_factory=dict)
+    present: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         views = np.asarray(self.views)
@@ -84,6 +88,18 @@ class LightField:
         if views.dtype != np.uint8:
             views = _to_uint8(views)
         self.views = np.ascontiguousarray(views)
+        if self.present is None:
+            self.present = np.ones(views.shape[:2], dtype=bool)
+        present = np.asarray(self.present)
+        if present.shape != views.shape[:2]:
+            raise LfsamError(
+                f"present must have the grid's shape {views.shape[:2]}, got {present.shape}"
+            )
+        self.present = present.astype(bool)
+        if not self.present[self.center]:
+            raise LfsamError(
+                f"the center view {self.center} is absent; lfsam needs the center view"
+            )
         if self.disparity is not None:
             self.disparity = self._check_gt(self.disparity, "disparity").astype(np.float32)
         if self.labels is not None:
@@ -131,6 +147,16 @@ class LightField:
         """The reference view's image, ``(U, V, 3)`` uint8."""
         return self.views[self.center]
 
+    @property
+    def is_complete(self) -> bool:
+        """Whether every view of the grid is present."""
+        return bool(self.present.all())
+
+    @property
+    def num_present(self) -> int:
+        """Number of views present."""
+        return int(self.present.sum())
+
     # --- ground truth -------------------------------------------------------------------------
     @property
     def has_full_disparity(self) -> bool:
@@ -165,12 +191,13 @@ class LightField:
         return self.labels if (s, t) == self.center else None
 
     # --- iteration ----------------------------------------------------------------------------
-    def view_indices(self) -> Iterator[tuple[int, int]]:
-        """All ``(s, t)`` in row-major order."""
+    def view_indices(self, present_only: bool = False) -> Iterator[tuple[int, int]]:
+        """All ``(s, t)`` in row-major order (only the views present with ``present_only``)."""
         s_count, t_count = self.grid_shape
         for s in range(s_count):
             for t in range(t_count):
-                yield s, t
+                if not present_only or self.present[s, t]:
+                    yield s, t
 
     def snake_order(self) -> list[tuple[int, int]]:
         """Views in snake order; see :func:`snake_order`."""
@@ -183,6 +210,7 @@ class LightField:
             "grid": list(self.grid_shape),
             "view_size": list(self.view_shape),
             "center": list(self.center),
+            "views_present": self.num_present,
             "disparity": None if disp is None else ("all views" if disp.ndim == 4 else "center"),
             "disparity_range": None
             if disp is None
