@@ -116,7 +116,7 @@ def _from_map(
     disparity, holes = warp_center_disparity(array, offset, device=device)
     note = (
         f"{name} (center map forward-warped to view ({view[0]}, {view[1]}) with a z-buffer; "
-        f"{int(holes.sum())} hole pixels filled from the farther side)"
+        f"{int(holes.sum())} hole pixels filled along the epipolar line, farther side first)"
     )
     return disparity, note, holes
 

@@ -15,8 +15,8 @@ light fields", CVPR 2012, section 3.1; "Variational light field analysis for dis
 and super-resolution", TPAMI 2014, section 4.1). The reference view's row of views (the center
 view by default; any view, docs/design.md section 8) gives the horizontal EPIs, its column the
 vertical ones, absent views of a partial grid left out; per pixel, the direction with the lower
-photo-consistency cost (below) wins (Wanner & Goldluecke fuse by coherence; on our benchmark scenes and on HCI
-antinous the cost is the better judge).
+photo-consistency cost (below) wins (Wanner & Goldluecke fuse by coherence; on our benchmark
+scenes and on HCI antinous the cost is the better judge).
 
 Large disparities (multi-hypothesis scheme). Derivatives across views alias once a line moves by
 more than about a pixel per view, so the plain structure tensor breaks beyond about +-1 to 2 px
@@ -224,6 +224,8 @@ class _ShearedStack:
             halves = torch.stack([side * near, side * (1.0 - near)])
             whole = self.tensor_weights.sum(0)
             self.tensor_weights = torch.stack([whole * near[1:-1], whole])
+        # a half with no three consecutive views (gaps of a partial grid) has no tensor rows
+        self.no_tensor = (self.tensor_weights.sum(1) <= 0).view(2, 1, 1)
         half_sums = halves.sum(1, keepdim=True)
         self.cost_weights = halves / half_sums.clamp(min=1e-12)
         self.empty_halves = (half_sums[:, 0] <= 0).view(2, 1, 1)
@@ -264,9 +266,16 @@ class _ShearedStack:
             full[:, 3:] *= 1.0 / int((~empty).sum())
             halves = full
             empty = empty[:1] & False
+            no_tensor = self.no_tensor.all(0, keepdim=True)
+        else:
+            no_tensor = self.no_tensor
         smooth = gaussian_blur(halves, self.outer_scale)
         residual, coherence = orientation_from_tensor(smooth[:, 0], smooth[:, 1], smooth[:, 2])
         r = residual.clamp(-self.band, self.band)
+        if bool(no_tensor.any()):
+            # no tensor: the residual minimising the linearised cost (Lucas-Kanade)
+            lk = (smooth[:, 4] / smooth[:, 5].clamp(min=1e-12)).clamp(-self.band, self.band)
+            r = torch.where(no_tensor, lk, r)
         cost = smooth[:, 3] - 2.0 * r * smooth[:, 4] + r * r * smooth[:, 5]
         if bool(empty.any()):
             cost = cost.masked_fill(empty, math.inf)

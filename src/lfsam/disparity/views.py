@@ -6,11 +6,16 @@ view's disparity is known (a center-only ground truth, a ``(U, V)`` file), ``D_r
 *forward-warping* the center map: center pixel ``p`` with disparity ``d`` is seen in view ``r`` at
 ``p - d (s_r - s_c, t_r - t_c)`` (docs/design.md section 1) and keeps its disparity there (a scene
 point has one disparity in every view). Several center pixels landing on one pixel resolve by a
-z-buffer: the largest disparity (the closest point) wins. Pixels on which nothing lands are holes:
-disocclusions (background the center view does not see) and the strip entering at the frame
-border. Each hole takes the disparity of the farther (smaller-disparity) of the nearest landed
-pixels on either side of it along the epipolar line, because a disocclusion shows what lies
-behind; at the frame border the one side that exists is used.
+z-buffer: the largest disparity (the closest point) wins. Nearest-pixel splatting leaves cracks in
+stretched surfaces, through which a farther surface would show: a pixel takes the nearest
+disparity among its 3 x 3 neighbours' that the center view *confirms* (it shows a surface of
+that disparity where the pixel would be seen from the center) when that is clearly nearer than
+its own. Pixels still without a value are holes:
+gaps of stretched surfaces, disocclusions (background the center view does not see) and the strip
+entering at the frame border. Each hole takes the disparity of one of the nearest landed pixels
+on either side of it along the epipolar line: a side the center view confirms (it shows that
+surface where the hole would be seen from it: a stretched surface), else the farther side,
+because a disocclusion shows what lies behind; at the frame border the one side that exists.
 
 :class:`ViewDisparities` resolves the disparity of each view at most once, from any source
 (:func:`lfsam.disparity.source.resolve_disparity`), for the interactive predictor.
@@ -29,6 +34,10 @@ from lfsam.geometry import project_pixels
 from lfsam.lightfield import LightField
 
 __all__ = ["ViewDisparities", "warp_center_disparity"]
+
+# A hole's candidate disparity is confirmed by the center view within this (pixels per view
+# step): slanted surfaces change by far less across the one or two pixels a rounding moves.
+_CONFIRM = 0.1
 
 
 def _zbuffer(disparity: torch.Tensor, ds: float, dt: float) -> torch.Tensor:
@@ -50,13 +59,56 @@ def _zbuffer(disparity: torch.Tensor, ds: float, dt: float) -> torch.Tensor:
     return zbuffer.view(height, width)
 
 
-def _fill_from_farther_side(
-    zbuffer: torch.Tensor, ds: float, dt: float, reach: int
+def _confirmed(
+    candidate: torch.Tensor, center: torch.Tensor, ds: float, dt: float
 ) -> torch.Tensor:
-    """Fill the ``-inf`` holes of ``zbuffer``: per hole, the nearest landed pixel on each side
-    along the epipolar direction ``(ds, dt)`` is found (up to ``reach`` steps) and the smaller
-    (farther) disparity of the two is taken; one side only where the other leaves the frame.
-    Holes that see nothing within ``reach`` take the smallest landed disparity."""
+    """Where the center view confirms ``candidate`` (a disparity per view pixel ``q``, ``-inf``
+    or ``inf`` for none): it shows a surface of that disparity (within :data:`_CONFIRM`) at
+    ``q + d (ds, dt)``, where the view's pixel would be seen from the center."""
+    height, width = candidate.shape
+    device = candidate.device
+    rows = torch.arange(height, device=device, dtype=torch.float32)[:, None]
+    cols = torch.arange(width, device=device, dtype=torch.float32)[None, :]
+    finite = torch.isfinite(candidate)
+    d = torch.where(finite, candidate, torch.zeros_like(candidate))
+    u = torch.round(rows + d * ds).long()
+    v = torch.round(cols + d * dt).long()
+    inside = (u >= 0) & (u < height) & (v >= 0) & (v < width)
+    seen = center[u.clamp(0, height - 1), v.clamp(0, width - 1)]
+    return finite & inside & ((seen - d).abs() <= _CONFIRM)
+
+
+def _close_cracks(
+    zbuffer: torch.Tensor, center: torch.Tensor, ds: float, dt: float
+) -> torch.Tensor:
+    """Nearest-pixel splatting leaves cracks in a stretched surface, through which a farther
+    surface shows (or nothing lands). A pixel takes the nearest disparity among its 3 x 3
+    neighbours' that the center view confirms (:func:`_confirmed`) when that is nearer than its
+    own by more than :data:`_CONFIRM` (a crack); otherwise it keeps its own value."""
+    height, width = zbuffer.shape
+    padded = torch.nn.functional.pad(zbuffer[None, None], (1, 1, 1, 1), value=-math.inf)[0, 0]
+    best = torch.full_like(zbuffer, -math.inf)
+    for du in range(3):
+        for dv in range(3):
+            candidate = padded[du : du + height, dv : dv + width]
+            ok = _confirmed(candidate, center, ds, dt)
+            best = torch.where(ok & (candidate > best), candidate, best)
+    return torch.where(best > zbuffer + _CONFIRM, best, zbuffer)
+
+
+def _fill_holes(
+    zbuffer: torch.Tensor, center: torch.Tensor, ds: float, dt: float, reach: int
+) -> torch.Tensor:
+    """Fill the ``-inf`` holes of ``zbuffer`` (the view at ``(ds, dt)`` from the center).
+
+    Per hole, the nearest landed pixel on each side along the epipolar direction ``(ds, dt)`` is
+    found (up to ``reach`` steps). A side's disparity ``d`` is *confirmed* when the center view
+    shows that surface where the hole would be seen with ``d`` (``center`` within
+    :data:`_CONFIRM` at ``q + d (ds, dt)``): the hole is then a gap of a stretched surface. Among
+    confirmed sides the nearer wins (as in the z-buffer); with none confirmed (a disocclusion:
+    the center sees neither surface there) the farther side wins, because a disocclusion shows
+    what lies behind; one side only where the other leaves the frame. Holes that see nothing
+    within ``reach`` take the smallest landed disparity."""
     height, width = zbuffer.shape
     device = zbuffer.device
     landed = torch.isfinite(zbuffer)
@@ -78,7 +130,14 @@ def _fill_from_farther_side(
             new = inside & torch.isfinite(sample) & torch.isinf(value)
             value = torch.where(new, sample, value)
         found.append(value)
-    filled = torch.minimum(found[0], found[1])
+    confirmed = [_confirmed(value, center, ds, dt) for value in found]
+    both = confirmed[0] & confirmed[1]
+    farther = torch.minimum(found[0], found[1])
+    filled = torch.where(
+        both,
+        torch.maximum(found[0], found[1]),
+        torch.where(confirmed[0], found[0], torch.where(confirmed[1], found[1], farther)),
+    )
     if bool(torch.isinf(filled[holes]).any()):
         filled = torch.where(torch.isinf(filled), zbuffer[landed].min(), filled)
     return torch.where(holes, filled, zbuffer)
@@ -93,7 +152,8 @@ def warp_center_disparity(
     """Forward-warp the center view's disparity into the view at ``offset`` from the center.
 
     See the module docstring: nearest-pixel forward warp (docs/design.md section 1), z-buffer
-    (largest disparity wins), holes filled from the farther side along the epipolar line.
+    (largest disparity wins), holes filled along the epipolar line (from a side the center view
+    confirms, else from the farther side).
 
     Parameters
     ----------
@@ -116,13 +176,13 @@ def warp_center_disparity(
     if ds == 0 and dt == 0:
         flat = disparity.cpu().numpy()
         return flat.astype(np.float32), np.zeros(flat.shape, dtype=bool)
-    zbuffer = _zbuffer(disparity, ds, dt)
+    zbuffer = _close_cracks(_zbuffer(disparity, ds, dt), disparity, ds, dt)
     holes = ~torch.isfinite(zbuffer)
     # the widest disocclusion: the disparity spread times the view distance, plus slack
     spread = float(disparity.max() - disparity.min())
     reach = math.ceil(spread * max(abs(ds), abs(dt))) + 2
     reach = min(reach, max(disparity.shape))
-    filled = _fill_from_farther_side(zbuffer, ds, dt, reach)
+    filled = _fill_holes(zbuffer, disparity, ds, dt, reach)
     return filled.cpu().numpy().astype(np.float32), holes.cpu().numpy()
 
 
