@@ -373,7 +373,8 @@ def estimate_disparity(
     shift_radius : int
         Largest offset (pixels) of the shiftable aggregation windows; 0 disables them.
     occlusion_aware : bool
-        Score each candidate on the better half of the views (before / after the center).
+        Score each candidate on the better half of the views (before / after the reference view;
+        nearer / farther half of the one side for a view at the end of its row or column).
     color : bool
         Sum the terms of the three colour channels instead of using gray levels.
     edge_refinement : bool
