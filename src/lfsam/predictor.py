@@ -245,9 +245,7 @@ class LightFieldPredictor:
         if view not in self._disp_tensors:
             with self.timer("disparity"):
                 disp = self._disparities.get(view)
-            self._disp_tensors[view] = torch.as_tensor(
-                np.asarray(disp, dtype=np.float32), device=self.device
-            )
+            self._disp_tensors[view] = torch.tensor(disp, dtype=torch.float32, device=self.device)
         return self._disp_tensors[view]
 
     # --- objects -----------------------------------------------------------------------------
@@ -796,8 +794,12 @@ class LightFieldPredictor:
             "objects": objects_meta,
             "views_encoded": self.views_encoded,
             "views_present": int(lf.present.sum()),
-            "disparity_source": {
-                f"{s},{t}": src for (s, t), src in self._disparities.sources().items()
+            "disparity_source": self._disparities.source(lf.center)
+            if lf.center in self._disparities.resolved or not self._disparities.resolved
+            else self._disparities.source(self._disparities.resolved[0]),
+            "disparity_sources": {
+                f"{s},{t}": self._disparities.source((s, t))
+                for s, t in self._disparities.resolved
             },
         }
         return SegmentationResult(
