@@ -71,7 +71,8 @@ class SceneRow:
     method : str
         Method label of the run.
     metrics : dict
-        ``siou``, ``lpp``, ``aa``, ``ue``, ``coverage``, ``ms_per_mask_view`` (None when undefined
+        ``siou``, ``lpp``, ``aa``, ``ue``, ``coverage``, ``ms_per_mask_view``, ``recall``,
+        ``siou_center`` (None when undefined
         or when the scene failed).
     num_masks : int or None
         N of the result.
