@@ -22,10 +22,10 @@ import torch
 import torch.nn.functional as F
 from skimage.measure import label as connected_components
 
+from lfsam.devices import resolve_device
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.segmenters.base import AutoMasks, MaskPrediction, Prompts, Segmenter, ViewEmbedding
-from lfsam.segmenters.sam2_build import resolve_device
 
 __all__ = ["OracleSegmenter", "OracleView"]
 
@@ -82,7 +82,7 @@ class OracleSegmenter(Segmenter):
     seed : int
         Seed of the imperfections (deterministic per seed and call sequence).
     device : str or torch.device, optional
-        Default: CUDA, then MPS, then CPU.
+        Default ``auto``: CUDA, then MPS, then CPU (:func:`lfsam.devices.resolve_device`).
 
     Raises
     ------
