@@ -17,6 +17,7 @@ import torch
 from tqdm.auto import tqdm
 
 from lfsam import __version__
+from lfsam.errors import LfsamError
 from lfsam.geometry import view_offsets
 from lfsam.lightfield import LightField
 from lfsam.pipeline.config import PipelineConfig
@@ -73,7 +74,7 @@ def segment_lightfield(
     height, width = lightfield.view_shape
     center = lightfield.center
     if disparity.shape != (height, width):
-        raise ValueError(f"disparity has shape {disparity.shape}, expected {(height, width)}")
+        raise LfsamError(f"disparity has shape {disparity.shape}, expected {(height, width)}")
     start = time.perf_counter()
     encodes_before = segmenter.encode_calls
 
@@ -109,8 +110,9 @@ def segment_lightfield(
     bar = tqdm(
         total=len(others), desc="views", unit="view", disable=not progress or None, leave=False
     )
-    for batch_start in range(0, len(others) if num_masks else 0, config.encode_batch_size):
-        batch = others[batch_start : batch_start + config.encode_batch_size]
+    step = config.batch_size_for(device)
+    for batch_start in range(0, len(others) if num_masks else 0, step):
+        batch = others[batch_start : batch_start + step]
         embeddings = [None] * len(batch)
         if config.needs_view_encoding:
             with timer("encode"):
