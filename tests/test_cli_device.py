@@ -67,7 +67,7 @@ def test_the_commands_with_device_share_one_option():
     assert set(DEVICE_COMMANDS) <= set(SUBCOMMANDS)
 
 
-def test_evaluate_shares_the_model_options_of_segment():
+def test_evaluate_and_demo_share_the_model_options_of_segment():
     parsers = _sub_parsers()
 
     def model_options(name):
@@ -80,6 +80,10 @@ def test_evaluate_shares_the_model_options_of_segment():
 
     assert model_options("evaluate") == model_options("segment")
     assert len(model_options("evaluate")) == 5
+    demo, segment = model_options("demo"), model_options("segment")
+    assert demo.keys() == segment.keys()
+    assert demo["--model"][1] == segment["--model"][1]  # the same names are accepted
+    assert demo["--device"] == segment["--device"]
 
 
 @pytest.mark.parametrize("command", sorted(DEVICE_COMMANDS))

@@ -68,6 +68,8 @@ def run_demo(
     *,
     model: str | None = None,
     checkpoint: str | None = None,
+    random_weights: bool = False,
+    amg_options: dict[str, Any] | None = None,
     device: str | None = None,
     progress: bool = True,
 ) -> DemoReport:
@@ -83,6 +85,10 @@ def run_demo(
         Force a segmenter (default: :func:`choose_segmenter`).
     checkpoint : str, optional
         SAM 2 weights file (implies a SAM 2 model).
+    random_weights : bool
+        Untrained SAM 2 (implies a SAM 2 model; a speed check, the masks are meaningless).
+    amg_options : dict, optional
+        Overrides of the automatic mask generator's settings (SAM 2 only).
     device : str, optional
         ``auto`` (default), ``cpu``, ``cuda``, ``cuda:N`` or ``mps``
         (:func:`lfsam.devices.resolve_device`).
@@ -112,7 +118,7 @@ def run_demo(
     if out.exists() and not out.is_dir():
         raise LfsamError(f"{str(out)!r} exists and is not a folder; choose another --out")
     out.mkdir(parents=True, exist_ok=True)
-    if checkpoint and not model:
+    if (checkpoint or random_weights) and not model:
         model = DEFAULT_SAM2
     name, reason = choose_segmenter(model)
 
@@ -122,6 +128,8 @@ def run_demo(
         lightfield,
         model=name,
         checkpoint=checkpoint,
+        random_weights=random_weights,
+        amg_options=amg_options,
         disparity="estimate",
         device=device,
         progress=progress,

@@ -58,15 +58,22 @@ def parse_option(text: str) -> tuple[str, Any]:
     return key.strip(), parsed
 
 
-def add_model_arguments(parser: argparse.ArgumentParser, default: str = DEFAULT_MODEL) -> None:
-    """Add ``--model``, ``--checkpoint``, ``--random-weights``, ``--device`` and ``--amg``."""
+def add_model_arguments(
+    parser: argparse.ArgumentParser, default: str | None = DEFAULT_MODEL, model_help: str = ""
+) -> None:
+    """Add ``--model``, ``--checkpoint``, ``--random-weights``, ``--device`` and ``--amg``.
+
+    The one set of model and device options of every command that segments (``segment``,
+    ``evaluate``, ``demo``); ``model_help`` is appended to the help of ``--model`` (e.g. what
+    a ``None`` default means).
+    """
     group = parser.add_argument_group("segmenter")
     group.add_argument(
         "--model",
         default=default,
         choices=available_models(),
         metavar="NAME",
-        help="SAM 2 model or 'oracle' (ground-truth labels); see `lfsam models`",
+        help="SAM 2 model or 'oracle' (ground-truth labels); see `lfsam models`" + model_help,
     )
     group.add_argument(
         "--checkpoint",

@@ -12,7 +12,8 @@ They are checked against the ``sam2`` versions the tests cover (``pyproject.toml
 dependency to them): :data:`SAM2_CLASS_ATTRIBUTES`, :data:`SAM2_PREDICTOR_STATE` and
 :data:`SAM2_MODULE_ATTRIBUTES` list what this module needs, :func:`missing_sam2_api` says which of
 them the installed ``sam2`` lacks, and ``tests/test_sam2_adapter.py`` fails naming this module
-and the attribute when an upgrade removes one (docs/design.md section 6).
+and the attribute when an upgrade removes one (docs/design.md section 3, "efficiency facts", for why
+lfsam reaches this deep).
 """
 
 from __future__ import annotations
