@@ -74,7 +74,10 @@ def segment_lightfield(
     height, width = lightfield.view_shape
     center = lightfield.center
     if disparity.shape != (height, width):
-        raise LfsamError(f"disparity has shape {disparity.shape}, expected {(height, width)}")
+        raise LfsamError(
+            f"disparity has shape {disparity.shape}, expected {(height, width)}; give the center "
+            "view's (U, V) disparity of this light field"
+        )
     start = time.perf_counter()
     encodes_before = segmenter.encode_calls
 
