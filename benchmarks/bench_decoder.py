@@ -89,7 +89,7 @@ def main() -> int:
     coords, labels, boxes = seg._prompt_tensors(prompts, (u_size, v_size))
 
     predictor = seg._predictor
-    seg._set_predictor(predictor, emb)
+    predictor.use_features(feats.as_predictor_features(), emb.image_size)
     # Meta's own method (the segmenter's predictor class routes _predict through ours)
     meta_predict = SAM2ImagePredictor._predict
     with inference_context(device, inference_mode=False):

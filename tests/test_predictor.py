@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lfsam.errors import LfsamError
-from lfsam.pipeline import PipelineConfig, segment_lightfield
+from lfsam.pipeline import segment_lightfield
 from lfsam.pipeline.propagation import propagate_masks
 from lfsam.predictor import LightFieldPredictor
 from lfsam.prompts import ObjectPrompts, PointPrompt
@@ -247,7 +247,7 @@ def test_disk_cache_second_run_encodes_nothing(tiny_scene, tmp_path):
     second, labels_b = _cached_run(tiny_scene, tmp_path / "cache")
     assert second.views_encoded == 0
     assert np.array_equal(labels_a, labels_b)
-    uncached, labels_c = _cached_run(tiny_scene, None)
+    _, labels_c = _cached_run(tiny_scene, None)
     assert np.array_equal(labels_a, labels_c)  # a cached run reproduces an uncached one
 
 

@@ -281,7 +281,7 @@ def evaluate_dataset(
         empty folder): such entries are skipped with a note. Default
         :func:`lfsam.io.detect_format`.
     device : str, optional
-        Where the metrics are computed (default: CUDA when available).
+        Where the metrics are computed (default ``auto``, :func:`lfsam.devices.resolve_device`).
 
     Returns
     -------

@@ -553,7 +553,7 @@ class LightFieldPredictor:
         }
         views = list(lf.view_indices(present_only=True))
         needs_embedding = refine or config.semantic
-        batch_size = max(1, int(config.encode_batch_size or 1))
+        batch_size = config.batch_size_for(self.device)
         bar = tqdm(
             total=len(views), desc="views", unit="view", disable=not self.progress or None,
             leave=False,

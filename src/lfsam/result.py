@@ -199,6 +199,14 @@ def load_result(path: str | os.PathLike) -> SegmentationResult:
 
 
 def _json_default(value: Any) -> Any:
+    """``json.dump``'s ``default`` hook for metadata: NumPy scalars and arrays, tuples, paths.
+
+    Raises
+    ------
+    TypeError
+        For any other type, as ``json`` requires of the hook (metadata is built by lfsam itself,
+        so this is a fault of the calling code).
+    """
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, (np.ndarray, tuple)):

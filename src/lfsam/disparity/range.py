@@ -86,7 +86,7 @@ def estimate_disparity_range(
     views : LightField or ndarray, shape (S, T, U, V, 3), uint8
         The light field (at least three views in a row or column).
     device : str or torch.device, optional
-        Where to compute; default CUDA when present, else the CPU.
+        Where to compute; default ``auto`` (:func:`lfsam.devices.resolve_device`).
     max_disparity : float
         Largest |disparity| searched, pixels per view step (also capped so that the outermost
         view's shift stays below a quarter of the image).

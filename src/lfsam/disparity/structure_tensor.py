@@ -357,7 +357,7 @@ def estimate_disparity(
         Disparities to search, in pixels per view step; estimated from the data when omitted
         (:func:`lfsam.disparity.range.estimate_disparity_range`). The result is clipped to it.
     device : str or torch.device, optional
-        Where to compute; default CUDA when present, else the CPU.
+        Where to compute; default ``auto`` (:func:`lfsam.devices.resolve_device`).
     inner_scale : float
         Standard deviation (pixels) of the Gaussian pre-smoothing of the EPIs.
     outer_scale : float

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from lfsam.devices import resolve_device
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.metrics.consistency import ConsistencyScores, consistency_metrics
@@ -121,12 +122,6 @@ def check_ground_truth(shape: tuple[int, ...], gt: LightField) -> None:
         )
 
 
-def _default_device(device: str | torch.device | None) -> torch.device:
-    if device is not None:
-        return torch.device(device)
-    return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-
-
 def evaluate_labels(
     labels: np.ndarray | torch.Tensor,
     gt: LightField,
@@ -149,7 +144,7 @@ def evaluate_labels(
     num_masks : int, optional
         N for T; defaults to the number of distinct non-zero labels.
     device : str or torch.device, optional
-        Where to compute; CUDA when available, else CPU.
+        Where to compute; default ``auto`` (:func:`lfsam.devices.resolve_device`).
     min_area : int, optional
         Pixels a ground-truth object must show in some view to count for recall (default
         :func:`lfsam.metrics.recall.default_min_area`).
@@ -171,7 +166,7 @@ def evaluate_labels(
     if len(shape) != 4:
         raise LfsamError(f"labels must have shape (S, T, U, V), got {shape}")
     check_ground_truth(shape, gt)
-    dev = _default_device(device)
+    dev = resolve_device(device)
     predicted, predicted_ids = compact_labels(to_tensor(labels, dev), "predicted labels")
     truth, truth_ids = compact_labels(to_tensor(gt.labels, dev), "ground-truth labels")
     disparity = to_tensor(gt.disparity, dev)

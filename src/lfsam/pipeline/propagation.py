@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import torch
 import torch.nn.functional as F
 
+from lfsam.errors import LfsamError
 from lfsam.geometry import project_pixels
 
 __all__ = [
@@ -269,6 +270,11 @@ def mask_disparities(
     Returns
     -------
     (N,) float tensor (0 for an empty mask)
+
+    Raises
+    ------
+    LfsamError
+        If ``statistic`` is not ``"mean"`` or ``"median"``.
     """
     n = masks.shape[0]
     flat = masks.reshape(n, -1)
@@ -279,7 +285,7 @@ def mask_disparities(
     if statistic == "median":
         filled = torch.where(flat, values[None], torch.full_like(values[None], float("nan")))
         return torch.nan_to_num(torch.nanmedian(filled, dim=1).values, nan=0.0)
-    raise ValueError(f"unknown statistic {statistic!r}; use 'mean' or 'median'")
+    raise LfsamError(f"unknown statistic {statistic!r}; use mean or median")
 
 
 def shift_masks(masks: torch.Tensor, shifts_uv: torch.Tensor) -> torch.Tensor:
@@ -346,6 +352,11 @@ def propagate_masks(
     Returns
     -------
     coarse : (N, U, V) bool tensor
+
+    Raises
+    ------
+    LfsamError
+        If ``mode`` is not one of :data:`PROPAGATION_MODES`.
     """
     if mode == "pixel":
         if warp is None:
@@ -356,4 +367,4 @@ def propagate_masks(
         d = mask_disparities(masks, disparity, mode)
         shifts = torch.stack([-d * ds, -d * dt], dim=1)
         return shift_masks(masks, shifts)
-    raise ValueError(f"unknown propagation mode {mode!r}; use one of {PROPAGATION_MODES}")
+    raise LfsamError(f"unknown propagation {mode!r}; use one of {', '.join(PROPAGATION_MODES)}")

@@ -22,10 +22,10 @@ import torch
 import torch.nn.functional as F
 from skimage.measure import label as connected_components
 
+from lfsam.devices import resolve_device
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.segmenters.base import AutoMasks, MaskPrediction, Prompts, Segmenter, ViewEmbedding
-from lfsam.segmenters.sam2_build import resolve_device
 
 __all__ = ["OracleSegmenter", "OracleView"]
 
@@ -84,7 +84,7 @@ class OracleSegmenter(Segmenter):
         the prompt selects, so an answer does not depend on what was asked before (an
         interactive edit reproduces a full run exactly).
     device : str or torch.device, optional
-        Default: CUDA, then MPS, then CPU.
+        Default ``auto``: CUDA, then MPS, then CPU (:func:`lfsam.devices.resolve_device`).
 
     Raises
     ------

@@ -101,6 +101,11 @@ def colorize_labels(labels: ArrayLike) -> np.ndarray:
     Returns
     -------
     image : ndarray, shape ``labels.shape + (3,)``, uint8
+
+    Raises
+    ------
+    ValueError
+        If a label id is negative (a fault of the calling code; label fields are never negative).
     """
     labels = np.asarray(labels)
     if labels.size == 0:
