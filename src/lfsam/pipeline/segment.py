@@ -23,11 +23,12 @@ from lfsam.pipeline.config import PipelineConfig
 from lfsam.pipeline.fusion import fuse_labels
 from lfsam.pipeline.initial import SourceMasks, initial_segmentation
 from lfsam.pipeline.occlusion import semantic_occlusion, source_features, uniform_weights
-from lfsam.pipeline.propagation import forward_warp, mask_disparities, propagate_masks
+from lfsam.pipeline.propagation import propagate_masks
 from lfsam.pipeline.refinement import refine_masks
 from lfsam.result import PackedMasks, SegmentationResult
 from lfsam.segmenters.base import Prompts, Segmenter
 from lfsam.timing import StageTimer
+from lfsam.warp import forward_warp
 
 __all__ = ["segment_lightfield"]
 
@@ -93,7 +94,6 @@ def segment_lightfield(
             if config.semantic and num_masks
             else None
         )
-        mask_disp = mask_disparities(source.masks, disp) if num_masks else None
     del center_embedding
 
     labels = np.zeros((s_count, t_count, height, width), dtype=np.int32)
@@ -121,19 +121,11 @@ def segment_lightfield(
             # (2) Disparity propagation (+ geometric occluding by z-buffer).
             with timer("propagate"):
                 warp = forward_warp(disp, ds, dt)
-                keep = None
-                if config.geometric and config.propagation == "pixel":
-                    keep = warp.visible(disp, config.zbuffer_tolerance)
                 coarse = propagate_masks(
-                    source.masks, disp, ds, dt, config.propagation, warp=warp, keep=keep,
+                    source.masks, disp, ds, dt, config.propagation, warp=warp,
                     fill_holes=config.fill_holes,
+                    occlusion_tolerance=config.zbuffer_tolerance if config.geometric else None,
                 )
-                if config.geometric and config.propagation != "pixel":
-                    # A whole-mask shift is hidden where a closer surface lands.
-                    hidden = warp.zbuffer.reshape(height, width)[None] > (
-                        mask_disp[:, None, None] + config.zbuffer_tolerance
-                    )
-                    coarse &= ~hidden
             # (3) Semantic occluding.
             with timer("occlude"):
                 if config.semantic:
