@@ -1,7 +1,7 @@
 """The light-field disparity convention, written once for the whole package.
 
 A scene point seen at pixel ``(u, v)`` of view ``(s, t)`` with disparity ``d`` is seen in view
-``(s', t')`` at pixel ``(u - d (s' - s), v - d (t' - t))`` (``../shared/DESIGN.md`` section 1;
+``(s', t')`` at pixel ``(u - d (s' - s), v - d (t' - t))`` (docs/design.md section 1;
 paper section 3.2, with the sign fixed by the HCI 4D benchmark's files). ``u`` is the pixel row,
 ``v`` the pixel column, ``s`` the view row (growing downwards) and ``t`` the view column (growing
 rightwards). Disparity is in pixels per unit view step; larger is closer.
@@ -52,8 +52,8 @@ def project_pixels(u, v, disparity, ds, dt):
     """Move pixel coordinates from one view to another by the package's convention.
 
     ``u' = u - d * ds`` and ``v' = v - d * dt`` where ``(ds, dt) = (s' - s, t' - t)`` is the
-    angular step from the source view to the target view (DESIGN.md section 1). Inputs broadcast
-    against each other; torch tensors and NumPy arrays are both accepted.
+    angular step from the source view to the target view (docs/design.md section 1). Inputs
+    broadcast against each other; torch tensors and NumPy arrays are both accepted.
 
     Parameters
     ----------
@@ -82,7 +82,7 @@ def warp_to_reference(
     """Backward-warp one view into the reference view using the reference view's disparity.
 
     Reference pixel ``(u, v)`` with disparity ``d`` is seen in the view at
-    ``(u - d ds, v - d dt)`` (DESIGN.md section 1), so the warped image samples the view there.
+    ``(u - d ds, v - d dt)`` (docs/design.md section 1), so the warped image samples the view there.
     Pixels that fall outside the view are NaN.
 
     Parameters

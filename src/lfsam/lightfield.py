@@ -1,6 +1,6 @@
 """The light-field data model: views on a grid, with optional ground truth.
 
-A light field is ``L[s, t, u, v, c]`` (DESIGN.md section 1): ``s`` the view row, ``t`` the view
+A light field is ``L[s, t, u, v, c]`` (docs/design.md section 1): ``s`` the view row, ``t`` the view
 column, ``u`` the pixel row, ``v`` the pixel column, ``c`` RGB, stored as uint8. Ground truth, when
 present, is a disparity ``D[s, t, u, v]`` (float32, in the convention of :mod:`lfsam.geometry`) and
 labels ``G[s, t, u, v]`` (int32, 0 = no label); either may be given for the center view only, as
@@ -23,7 +23,7 @@ __all__ = ["LightField", "snake_order"]
 def snake_order(grid_shape: tuple[int, int]) -> list[tuple[int, int]]:
     """Views in snake (lawnmower) order: row 0 left to right, row 1 right to left, ...
 
-    This is the frame order of the SAM 2 video baseline (paper section 4; DESIGN.md section 4):
+    This is the frame order of the SAM 2 video baseline (paper section 4; docs/design.md section 4):
     consecutive frames are always neighbouring views.
 
     Parameters
@@ -61,8 +61,9 @@ class LightField:
         Where the light field came from: ``source`` (path), ``format`` (reader name) and any
         reader-specific notes (e.g. the orientation a reader detected).
     present : ndarray, shape (S, T), bool, optional
-        Which views exist (partial grids such as the HCI "star" subsets, docs/design.md
-        section 8). Absent views hold zeros and are never used as data; default: all present.
+        Which views exist (partial grids such as the HCI "star" subsets,
+        docs/design.md section 8). Absent views hold zeros and are never used as data;
+        default: all present.
 
     Raises
     ------
@@ -139,7 +140,7 @@ class LightField:
 
     @property
     def center(self) -> tuple[int, int]:
-        """The reference view ``(S // 2, T // 2)`` (DESIGN.md section 1)."""
+        """The reference view ``(S // 2, T // 2)`` (docs/design.md section 1)."""
         return self.grid_shape[0] // 2, self.grid_shape[1] // 2
 
     @property

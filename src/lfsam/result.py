@@ -3,7 +3,7 @@
 A result holds N masks over all views, ``M[n, s, t, u, v]``, bit-packed (never dense for large N:
 200 masks x 81 views x 480 x 640 is 5 GB as bool, 0.6 GB packed), and the derived label field
 ``labels[s, t, u, v]`` (int32, 0 = unlabeled, mask ``n`` has label ``n + 1``). It is saved as one
-``.npz`` written atomically, with a JSON ``meta`` (DESIGN.md section 1), and read back by
+``.npz`` written atomically, with a JSON ``meta`` (docs/design.md section 1), and read back by
 :func:`load_result`.
 """
 
@@ -86,7 +86,7 @@ class SegmentationResult:
     ----------
     labels : (S, T, U, V) int32 ndarray
         Label field, 0 = unlabeled, mask ``n`` is label ``n + 1`` (larger masks written first,
-        smaller on top; DESIGN.md section 3.6).
+        smaller on top; docs/design.md section 3.6).
     masks : PackedMasks or None
         The N masks before label fusion (overlaps kept).
     scores : (N,) float32 ndarray

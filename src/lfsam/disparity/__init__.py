@@ -1,4 +1,4 @@
-"""Center-view disparity for the pipeline (paper section 3.2; DESIGN.md section 3.2).
+"""Center-view disparity for the pipeline (paper section 3.2; docs/design.md section 3.2).
 
 - :func:`estimate_disparity`: structure tensor on sheared EPIs (torch, any device).
 - :func:`estimate_disparity_baseline`: the plain single-scale structure tensor in NumPy, kept as

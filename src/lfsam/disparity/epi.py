@@ -7,7 +7,7 @@ fixed pixel row ``u``), the *vertical* stack is the center column ``L[s, t_c]`` 
 Both are returned in one layout, ``[N, rows, cols]`` with the shifting pixel axis last: the
 vertical stack is transposed so that its pixel rows become the last axis. A scene point with
 disparity ``d`` at center pixel ``x`` (along the last axis) is then seen in the stack's view ``n``
-at ``x - d * (n - n_c)`` (DESIGN.md section 1), the same formula for both directions.
+at ``x - d * (n - n_c)`` (docs/design.md section 1), the same formula for both directions.
 
 A direction needs at least three views; a grid with fewer than three views in both directions has
 no usable EPI and raises :class:`~lfsam.errors.LfsamError`.

@@ -1,7 +1,7 @@
 """Where the pipeline's disparity comes from: estimated, ground truth, or a file.
 
 Every command that consumes disparity (``lfsam segment --disparity``, ``lfsam evaluate``)
-accepts the same three sources (DESIGN.md section 3.2: "also accept a given disparity map").
+accepts the same three sources (docs/design.md section 3.2: "also accept a given disparity map").
 """
 
 from __future__ import annotations

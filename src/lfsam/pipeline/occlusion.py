@@ -6,7 +6,7 @@ embedding over the center-view mask (the embedding brought to image resolution);
 feature. Pixels below ``t_sim`` (0.7 in the paper, section 4) get weight 0 and are dropped; the
 others keep their similarity as a weight, used later to place the refinement prompt.
 
-Geometric occluding (DESIGN.md section 3, beyond the paper) is a z-buffer test on the center
+Geometric occluding (docs/design.md section 3, beyond the paper) is a z-buffer test on the center
 disparity: see :meth:`lfsam.pipeline.propagation.ForwardWarp.visible`.
 
 Masks are handled as (mask index, pixel index) pairs so memory follows the masks' total area,

@@ -1,6 +1,6 @@
 """Step 4 of the pipeline: segmentation refinement by re-prompting SAM 2 in each view.
 
-Paper section 3.4 with the details of DESIGN.md section 3.5: in view ``(s, t)`` each mask is
+Paper section 3.4 with the details of docs/design.md section 3.5: in view ``(s, t)`` each mask is
 prompted with the box around its surviving coarse pixels and one positive point, the surviving
 pixel nearest to their similarity-weighted centroid (a plain centroid can fall outside a
 non-convex mask). Of the three multimask outputs the one with the highest IoU against the coarse
