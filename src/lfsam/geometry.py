@@ -40,6 +40,14 @@ def view_offsets(
     -------
     ds, dt : ndarray of int, shape (S, T)
         View-row and view-column offsets of each view from the reference.
+
+    Examples
+    --------
+    >>> ds, dt = view_offsets((3, 3), (1, 1))
+    >>> ds.tolist()
+    [[-1, -1, -1], [0, 0, 0], [1, 1, 1]]
+    >>> dt[0].tolist()
+    [-1, 0, 1]
     """
     s_count, t_count = grid_shape
     ds, dt = np.meshgrid(
@@ -68,6 +76,17 @@ def project_pixels(u, v, disparity, ds, dt):
     -------
     u_target, v_target : array_like
         Pixel rows and columns in the target view.
+
+    Examples
+    --------
+    A point at disparity 2 seen from one view row down and one view column left:
+
+    >>> project_pixels(10.0, 20.0, 2.0, 1, -1)
+    (8.0, 22.0)
+    >>> import numpy as np
+    >>> u, v = project_pixels(np.array([0.0, 5.0]), np.array([3.0, 3.0]), 0.5, 2, 0)
+    >>> u.tolist(), v.tolist()
+    ([-1.0, 4.0], [3.0, 3.0])
     """
     return u - disparity * ds, v - disparity * dt
 

@@ -35,6 +35,11 @@ def snake_order(grid_shape: tuple[int, int]) -> list[tuple[int, int]]:
     -------
     order : list of (s, t)
         Every view exactly once.
+
+    Examples
+    --------
+    >>> snake_order((2, 3))
+    [(0, 0), (0, 1), (0, 2), (1, 2), (1, 1), (1, 0)]
     """
     s_count, t_count = grid_shape
     order = []
@@ -69,6 +74,15 @@ class LightField:
     ------
     LfsamError
         If an array has the wrong shape or dtype.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> lf = LightField(np.zeros((3, 5, 4, 6, 3), dtype=np.uint8))
+    >>> lf.grid_shape, lf.view_shape, lf.center
+    ((3, 5), (4, 6), (1, 2))
+    >>> lf.center_view.shape
+    (4, 6, 3)
     """
 
     views: np.ndarray

@@ -140,6 +140,10 @@ def save_result(result: SegmentationResult, path: str | os.PathLike) -> Path:
     -------
     path : Path
         The written file.
+
+    Examples
+    --------
+    See :func:`load_result`, which reads it back.
     """
     arrays: dict[str, np.ndarray] = {
         "format_version": np.array(FORMAT_VERSION),
@@ -167,6 +171,19 @@ def load_result(path: str | os.PathLike) -> SegmentationResult:
     ------
     LfsamError
         If the file is missing, unreadable or has no ``labels`` of shape ``(S, T, U, V)``.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> result = SegmentationResult(
+    ...     labels=np.ones((1, 2, 3, 4), dtype=np.int32), meta={"method": "example"}
+    ... )
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = save_result(result, os.path.join(folder, "result.npz"))
+    ...     loaded = load_result(path)
+    >>> loaded.labels.shape, loaded.num_masks, loaded.meta["method"]
+    ((1, 2, 3, 4), 1, 'example')
     """
     path = Path(path)
     if not path.is_file():
