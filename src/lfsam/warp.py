@@ -101,9 +101,8 @@ def landing_pixels(
     # NaN and infinite disparities fail these comparisons (or give NaN), so they drop out.
     valid = (target_u >= 0) & (target_u <= height - 1) & (target_v >= 0)
     valid &= target_v <= width - 1
-    zero = torch.zeros((), dtype=dtype, device=disparity.device)
-    index = torch.where(valid, target_u, zero).long() * width
-    index += torch.where(valid, target_v, zero).long()
+    # Invalid entries (possibly NaN converted to an arbitrary integer) are overwritten with -1.
+    index = target_u.long() * width + target_v.long()
     target = torch.where(valid, index, torch.full_like(index, -1))
     lead = target.shape[:-2]
     return target.reshape(*lead, -1), valid.reshape(*lead, -1)
