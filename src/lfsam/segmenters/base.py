@@ -1,8 +1,8 @@
 """The promptable-segmenter interface the pipeline talks to.
 
 Its life cycle follows Meta's ``SAM2ImagePredictor`` (``set_image`` then ``predict``), split so a
-view is encoded once and its embedding serves every later step (DESIGN.md section 3, "efficiency
-facts"): :meth:`Segmenter.encode` a batch of views once, then for each
+view is encoded once and its embedding serves every later step (docs/design.md section 3,
+"efficiency facts"): :meth:`Segmenter.encode` a batch of views once, then for each
 :class:`ViewEmbedding` :meth:`Segmenter.predict` a batch of N prompts in one call,
 :meth:`Segmenter.generate` masks automatically, or :meth:`Segmenter.sample_features` per-pixel
 features for semantic occluding (paper section 3.3).

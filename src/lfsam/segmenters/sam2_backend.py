@@ -8,7 +8,7 @@ and its embedding then serves every prompt batch (:meth:`~Sam2Segmenter.predict`
 generation (:meth:`~Sam2Segmenter.generate`: ``SAM2AutomaticMaskGenerator`` fed the cached
 embedding instead of re-encoding) and the features for semantic occluding
 (:meth:`~Sam2Segmenter.sample_features`, :meth:`~Sam2Segmenter.feature_sums`,
-:meth:`~Sam2Segmenter.feature_similarity`, paper section 3.3) (DESIGN.md section 3, "efficiency
+:meth:`~Sam2Segmenter.feature_similarity`, paper section 3.3) (docs/design.md section 3, "efficiency
 facts").
 """
 
@@ -54,7 +54,7 @@ PAPER_AMG_OPTIONS: dict[str, Any] = {
     "box_nms_thresh": 0.7,
     "min_mask_region_area": 0,
 }
-"""Automatic mask generation settings of the paper (section 4; DESIGN.md section 3, step 1)."""
+"""Automatic mask generation settings of the paper (section 4; docs/design.md section 3.1)."""
 
 
 @dataclass

@@ -8,7 +8,7 @@ uses it for the architecture, adding what lfsam needs around it:
   the standard Hugging Face cache; offline or unreachable hub -> one-line :class:`LfsamError` that
   says how to provide the file, raised at once (no 20-second retry loop, no partial files);
 - ``random_weights=True``: the same architecture untrained, seeded (tests and speed benchmarks);
-- the tiny test model (``sam2-tiny-test``, DESIGN.md section 6);
+- the tiny test model (``sam2-tiny-test``, docs/design.md section 6);
 - the device (:func:`lfsam.devices.resolve_device`, re-exported here) and bf16 autocast on CUDA
   (:func:`inference_context`).
 
@@ -421,7 +421,7 @@ def make_image_predictor(
     """A ``SAM2ImagePredictor`` for ``model`` whose backbone feature sizes fit its input size.
 
     ``SAM2ImagePredictor`` hard-codes the feature sizes of a 1024-pixel input; they are
-    image_size / 4, / 8 and / 16 (DESIGN.md section 6).
+    image_size / 4, / 8 and / 16 (docs/design.md section 6).
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
 """Rendering a synthetic scene into a light field with exact ground truth.
 
-For each view (DESIGN.md section 6):
+For each view (docs/design.md section 6):
 
 - **RGB**, anti-aliased: ``k x k`` samples per pixel (``supersample = k``) at offsets
   ``(j + 0.5) / k - 0.5``; each sample is z-buffered (:func:`lfsam.synth.raster.zbuffer`) and
@@ -215,8 +215,8 @@ def generate_scene(
     ``disparity_range``; anti-aliased RGB. Deterministic per ``seed``.
 
     The background is labelled by default so that every pixel carries a label, which makes the
-    coverage of the ground-truth label field (DESIGN.md section 7) meaningful and lets the oracle
-    segmenter reach full coverage.
+    coverage of the ground-truth label field (docs/design.md section 7) meaningful and lets the
+    oracle segmenter reach full coverage.
 
     Parameters
     ----------

@@ -51,7 +51,8 @@ def mask_boundaries(masks: ArrayLike, width: int = 1) -> np.ndarray:
     """Inner boundaries of N possibly overlapping masks, as the label id drawn at each pixel.
 
     Mask ``n`` has label ``n + 1`` (:class:`lfsam.result.SegmentationResult`). Where boundaries of
-    several masks meet, the highest id wins (smaller masks are written on top, DESIGN.md 3.6).
+    several masks meet, the highest id wins (smaller masks are written on top,
+    docs/design.md section 3.6).
 
     Parameters
     ----------
