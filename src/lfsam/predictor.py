@@ -627,7 +627,7 @@ class LightFieldPredictor:
                 continue
             with self.timer("refine"):
                 seen = warp.seen((height, width))
-                extra = self._carried_points(members, view)
+                extra = self._carried_points(members, view, coarse)
                 outcome = refine_masks(
                     self.segmenter, embedding, coarse, weights, config.t_iou,
                     seen=seen, frame_runs=warp.frame_runs((height, width), seen),
@@ -647,16 +647,27 @@ class LightFieldPredictor:
                 out[i].iou[view] = iou[k]
 
     def _carried_points(
-        self, members: list[int], view: View
+        self, members: list[int], view: View, coarse: torch.Tensor
     ) -> tuple[np.ndarray, np.ndarray] | None:
-        """The members' own clicks carried into ``view``, padded with label -1."""
+        """The members' own clicks carried into ``view``, padded with label -1.
+
+        A carried click must agree with the object's surviving coarse mask there: a positive
+        click is kept only inside it and a negative one only outside it (a click carried by a
+        slightly wrong disparity onto a neighbour would otherwise merge or cut objects).
+        """
+        height, width = self.lightfield.view_shape
         carried = []
-        for i in members:
+        for k, i in enumerate(members):
             prompts = self._objects[i].prompts
             if prompts is None or not prompts.points:
                 carried.append((np.zeros((0, 2), np.float32), np.zeros(0, np.int64)))
-            else:
-                carried.append(self._points_in_view(prompts, view))
+                continue
+            xy, kinds = self._points_in_view(prompts, view)
+            rows = np.clip(np.rint(xy[:, 1]).astype(np.int64), 0, height - 1)
+            cols = np.clip(np.rint(xy[:, 0]).astype(np.int64), 0, width - 1)
+            inside = coarse[k].cpu().numpy()[rows, cols]
+            agree = inside == (kinds == 1)
+            carried.append((xy[agree], kinds[agree]))
         width = max(len(labels) for _, labels in carried)
         if width == 0:
             return None
