@@ -66,6 +66,17 @@ def make_prompts(
     return groups
 
 
+def _check_references(references: str, method: str, prompts) -> None:
+    """Reject ``references`` other than ``center`` where they mean nothing (one-line errors)."""
+    from lfsam.pipeline.references import check_references
+
+    check_references(references)
+    if references != "center" and prompts is not None:
+        raise LfsamError(f"--references {references} needs --auto; prompts set their own views")
+    if references != "center" and method != "lfsam":
+        raise LfsamError(f"--references {references} needs --method lfsam")
+
+
 def run_segmentation(
     lightfield: LightField,
     *,
@@ -82,6 +93,7 @@ def run_segmentation(
     segmenter: Segmenter | None = None,
     baseline_options: dict[str, Any] | None = None,
     progress: bool = True,
+    references: str = "center",
 ) -> SegmentationResult:
     """Segment a light field with LFSAM or the SAM 2 video baseline.
 
@@ -117,6 +129,9 @@ def run_segmentation(
         Options of the video baseline (e.g. ``objects_per_pass``, ``start``).
     progress : bool
         Show progress bars.
+    references : {"center", "corners", "ring", "all"}
+        Automatic LFSAM only: where masks are generated (issue 16;
+        :func:`lfsam.pipeline.references.reference_views`); ``center`` is the paper's setting.
 
     Returns
     -------
@@ -124,6 +139,7 @@ def run_segmentation(
     """
     if method not in METHODS:
         raise LfsamError(f"unknown method {method!r}; use one of {', '.join(METHODS)}")
+    _check_references(references, method, prompts)
     from lfsam.segmenters import load_segmenter
 
     given_segmenter = segmenter is not None
@@ -177,7 +193,13 @@ def run_segmentation(
     )
     disparity_seconds = time.perf_counter() - start
     result = segment_lightfield(
-        lightfield, segmenter, disparity_map, prompts, config, progress=progress
+        lightfield,
+        segmenter,
+        disparity_map,
+        prompts,
+        config,
+        progress=progress,
+        references=references,
     )
     result.timings["disparity"] = disparity_seconds
     result.timings["total"] += disparity_seconds

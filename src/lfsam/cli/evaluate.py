@@ -17,8 +17,10 @@ DATASET_DIR holds one scene per sub-folder or file (anything `lfsam info` can re
 ground-truth disparity and labels for every view (UrbanLF-Syn val, the paper's benchmark, or
 scenes made by `lfsam synth`). Entries that are not light fields are skipped with a note. For each
 scene, OUT gets <scene>.npz (the result) and <scene>.metrics.json; then metrics.csv (one row per
-scene and a `mean` row) and table.md (the layout of the paper's Table 1: SIoU, LPP, AA, UE, C, T;
-see `lfsam metrics --help` for their definitions).
+scene and a `mean` row) and table.md (the layout of the paper's Table 1: SIoU, LPP, AA, UE, C, T,
+then object recall and SIoU over center-present masks; see `lfsam metrics --help` for their
+definitions). --references corners|ring|all also generates masks in those views (`lfsam segment
+--help`), to find objects the center view cannot see.
 
 Runs resume: scenes whose result and metrics are in OUT are not run again (use --force). A scene
 that fails gets a row with its error; the others still run.
@@ -36,6 +38,7 @@ examples:
   lfsam evaluate --compare runs/baseline runs/ours            # paper Table 1
   lfsam evaluate --compare runs/none runs/ref runs/ours       # paper Table 2
   lfsam evaluate scenes --model oracle --disparity gt --out runs/oracle   # upper bound
+  lfsam evaluate hidden_scenes --model oracle --disparity gt --references corners --out runs/c
 """
 
 
@@ -64,6 +67,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="row of paper Table 2: no refinement or occluding, refinement only, or both",
     )
     parser.add_argument(
+        "--references",
+        default="center",
+        metavar="MODE",
+        help="views where masks are generated: center (paper), corners, ring or all",
+    )
+    parser.add_argument(
         "--label", metavar="TEXT", help="method name in the tables (default: built from options)"
     )
     parser.add_argument("--force", action="store_true", help="recompute finished scenes")
@@ -84,6 +93,8 @@ def method_label(args: argparse.Namespace) -> str:
         details.append("gt disparity")
     if args.random_weights:
         details.append("random weights")
+    if getattr(args, "references", "center") != "center":
+        details.append(f"references {args.references}")
     return f"{head} ({', '.join(details)})"
 
 
@@ -101,6 +112,11 @@ def run(args: argparse.Namespace) -> int:
             "lfsam evaluate needs DATASET_DIR and --out DIR (or --compare DIR1 DIR2 ...); "
             "see `lfsam evaluate --help`"
         )
+    from lfsam.pipeline.references import check_references
+
+    check_references(args.references)
+    if args.references != "center" and args.method != "lfsam":
+        raise LfsamError(f"--references {args.references} needs --method lfsam")
     try:
         from lfsam.api import run_segmentation
     except ImportError as exc:
@@ -118,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
         prompts=None,
         device=args.device,
         progress=False,
+        references=args.references,
     )
     table = evaluate_dataset(
         args.dataset, args.out, segment_fn, method_label=method_label(args), force=args.force,

@@ -21,6 +21,10 @@ lfsam.load_result() or `lfsam show` / `lfsam metrics`.
 
 Points are X,Y in center-view pixels (X = column, Y = row). When as many --point as --box are
 given, point i and box i prompt object i together.
+
+--references (with --auto) sets where masks are generated: center (the paper's setting), or also
+the corner views (corners), the outer ring's corners and edge midpoints (ring), or every view
+(all), there only where no mask lands yet, to find objects the center view cannot see.
 """
 
 EPILOG = """\
@@ -32,6 +36,7 @@ examples:
       --out antinous.npz            # untrained weights: a speed check, not a segmentation
   lfsam segment scene --auto --no-refine --occlusion none --out ablation_none.npz
   lfsam segment scene --auto --amg points_per_side=32 --out coarser_auto.npz
+  lfsam segment hidden.npz --auto --references corners --out all_objects.npz
 """
 
 
@@ -56,6 +61,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     prompt.add_argument(
         "--auto", action="store_true", help="automatic mask generation (the paper's setting)"
+    )
+    prompt.add_argument(
+        "--references",
+        default="center",
+        metavar="MODE",
+        help="with --auto: center (paper), corners, ring or all: views where masks are generated",
     )
     parser.add_argument(
         "--method", choices=["lfsam", "video-baseline"], default="lfsam",
@@ -105,8 +116,10 @@ def run(args: argparse.Namespace) -> int:
     from lfsam.fileutil import check_output_path
     from lfsam.io import read_lightfield
     from lfsam.pipeline import PipelineConfig
+    from lfsam.pipeline.references import check_references
     from lfsam.result import save_result
 
+    check_references(args.references)
     has_prompts = bool(args.point or args.box)
     if has_prompts == args.auto:
         raise LfsamError(
@@ -139,6 +152,7 @@ def run(args: argparse.Namespace) -> int:
             "start": args.baseline_start,
         },
         progress=not args.quiet,
+        references=args.references,
     )
     save_result(result, args.out)
     if not args.quiet:
