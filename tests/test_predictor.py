@@ -277,3 +277,23 @@ def test_memory_budget_evicts_and_recomputes(tiny_scene):
     reference.set_lightfield(tiny_scene, disparity="gt")
     reference.set_object(ObjectPrompts(1, (PointPrompt(30, 20),)))
     assert np.array_equal(reference.predict().labels, labels)
+
+
+# --- automatic mode from several reference views (issue 16) -------------------------------------
+def test_corner_references_find_the_hidden_objects():
+    from lfsam.api import run_segmentation
+    from lfsam.metrics import evaluate_result
+
+    lf = generate_scene(grid=(5, 5), size=(96, 128), seed=0, hidden_objects=2)
+    scores = {}
+    for references in ("center", "corners"):
+        result = run_segmentation(
+            lf, segmenter=load_segmenter("oracle", lightfield=lf, device="cpu"),
+            disparity="gt", references=references, progress=False,
+        )
+        scores[references] = evaluate_result(result, lf, device="cpu")
+        assert result.meta["references"] == references
+    assert scores["center"]["recall"] < 1.0
+    assert scores["corners"]["recall"] == 1.0
+    assert scores["corners"]["aa"] >= scores["center"]["aa"]
+    assert scores["corners"]["ue"] <= scores["center"]["ue"]

@@ -724,26 +724,76 @@ class LightFieldPredictor:
 
     # --- automatic mode -----------------------------------------------------------------------
     def generate(self, references: str = "center") -> list[int]:
-        """Automatic mask generation in the center view (paper section 4, implementation
-        details); each mask becomes an object (ids in order of decreasing area, after the ids in
-        use). Returns the new ids.
+        """Automatic mask generation; each mask becomes an object (returns the new ids).
+
+        ``center`` is the paper's setting (section 4, implementation details): masks of the
+        center view, ids in order of decreasing area. ``corners``, ``ring`` and ``all`` then
+        visit further reference views (:func:`lfsam.pipeline.references.reference_views`): in
+        each, the objects found so far are propagated there (steps 1-3), the generator asks
+        only at its grid points where no mask lands, and a new mask that mostly overlaps the
+        existing ones is dropped; each genuinely new object is propagated from its own view
+        (docs/design.md section 8: objects that the center view cannot see).
         """
+        from lfsam.pipeline.references import (
+            drop_covered_masks,
+            reference_views,
+            uncovered_points,
+        )
+
         lf = self._require()
-        if references != "center":
-            raise LfsamError(f"--references {references}: use center")
-        view = lf.center
-        embedding = self.embedding(view)
-        with self.timer("initial"):
-            source = initial_segmentation(self.segmenter, embedding, lf.views[view], None)
-        first = self.next_id()
-        masks = source.masks.cpu().numpy()
-        ids = []
-        for k in range(len(source)):
-            obj_id = first + k
-            self.add_mask(obj_id, masks[k], view=view, score=float(source.scores[k]))
-            self._objects[obj_id].extra["auto"] = True
-            ids.append(obj_id)
-        return ids
+        views = [v for v in reference_views(lf.grid_shape, references) if lf.present[v]]
+        per_side = int(getattr(self.segmenter, "amg_options", {}).get("points_per_side") or 32)
+        new_ids: list[int] = []
+        for k, view in enumerate(views):
+            embedding = self.embedding(view)
+            points = covered = None
+            if k > 0:
+                covered = self._coarse_in_view(self.object_ids, view).any(axis=0)
+                points = uncovered_points(per_side, covered)
+                if len(points) == 0:
+                    continue
+            with self.timer("initial"):
+                source = initial_segmentation(
+                    self.segmenter, embedding, lf.views[view], None, points=points
+                )
+            masks = source.masks.cpu().numpy()
+            keep = (
+                np.ones(len(masks), dtype=bool)
+                if covered is None
+                else drop_covered_masks(masks, covered)
+            )
+            first = self.next_id()
+            for n, index in enumerate(np.flatnonzero(keep)):
+                obj_id = first + n
+                self.add_mask(obj_id, masks[index], view=view, score=float(source.scores[index]))
+                self._objects[obj_id].extra["auto"] = True
+                new_ids.append(obj_id)
+        return new_ids
+
+    def _coarse_in_view(self, ids: list[int], view: View) -> np.ndarray:
+        """Steps 1-3 of the objects ``ids`` in one view, ``(N, U, V)`` bool (not stored)."""
+        lf = self._require()
+        height, width = lf.view_shape
+        if not ids:
+            return np.zeros((0, height, width), dtype=bool)
+        self._ensure_references(ids)
+        nbytes = (height * width + 7) // 8
+        s_count, t_count = lf.grid_shape
+
+        def blank() -> _Views:
+            return _Views(
+                bits=np.zeros((s_count, t_count, nbytes), dtype=np.uint8),
+                fallback=np.zeros((s_count, t_count), dtype=bool),
+                iou=np.zeros((s_count, t_count), dtype=np.float32),
+            )
+
+        out = {i: blank() for i in ids}
+        coarse = {i: blank() for i in ids}
+        embedding = self.embedding(view) if self.config.semantic else None
+        self._view_step(view, ids, embedding, False, out, coarse)
+        packed = np.stack([coarse[i].bits[view] for i in ids])
+        bits = np.unpackbits(packed, axis=1, count=height * width)
+        return bits.reshape(len(ids), height, width).astype(bool)
 
     # --- results ------------------------------------------------------------------------------
     def to_result(self) -> SegmentationResult:

@@ -79,6 +79,7 @@ def initial_segmentation(
     prompts: Sequence[Prompts] | None = None,
     *,
     min_area: int = 1,
+    points: np.ndarray | None = None,
 ) -> SourceMasks:
     """Segment the prompted (center) view: equation (1) of the paper.
 
@@ -94,6 +95,8 @@ def initial_segmentation(
         prompt of a single point is ambiguous, so SAM 2's three candidates are asked for and the
         one with the highest predicted IoU kept; other prompts ask for one mask. None: automatic
         mask generation, keeping masks of at least ``min_area`` pixels.
+    points : (P, 2) float ndarray, optional
+        Automatic generation only: ask at these pixels instead of the generator's own grid.
 
     Returns
     -------
@@ -101,7 +104,7 @@ def initial_segmentation(
     """
     height, width = embedding.image_size
     if prompts is None:
-        auto = segmenter.generate(embedding, image)
+        auto = segmenter.generate(embedding, image, points=points)
         masks = torch.as_tensor(np.asarray(auto.masks, dtype=bool)).reshape(-1, height, width)
         scores = np.asarray(auto.scores, dtype=np.float32).reshape(-1)
         areas = masks.flatten(1).sum(1).cpu().numpy()

@@ -204,8 +204,14 @@ class Segmenter(abc.ABC):
         """
 
     @abc.abstractmethod
-    def generate(self, embedding: ViewEmbedding, image: np.ndarray) -> AutoMasks:
+    def generate(
+        self, embedding: ViewEmbedding, image: np.ndarray, points: np.ndarray | None = None
+    ) -> AutoMasks:
         """Automatic mask generation on one encoded view (paper section 4, implementation details).
+
+        ``points`` ``(P, 2)`` (x, y pixels) replaces the generator's regular point grid (the
+        multi-reference automatic mode asks only where no mask lands yet; docs/design.md
+        section 8); None = the backend's own grid.
 
         Parameters
         ----------

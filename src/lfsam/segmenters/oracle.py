@@ -373,8 +373,11 @@ class OracleSegmenter(Segmenter):
         return out
 
     # --- automatic generation -----------------------------------------------------------------
-    def generate(self, embedding: ViewEmbedding, image: np.ndarray) -> AutoMasks:
-        """Every ground-truth region of the view with at least :attr:`min_area` pixels.
+    def generate(
+        self, embedding: ViewEmbedding, image: np.ndarray, points: np.ndarray | None = None
+    ) -> AutoMasks:
+        """Every ground-truth region of the view with at least :attr:`min_area` pixels (with
+        ``points``: only the regions under at least one of them).
 
         Returns
         -------
@@ -386,6 +389,13 @@ class OracleSegmenter(Segmenter):
         labels = view.labels
         ids, areas = torch.unique(labels, return_counts=True)
         keep = (ids > 0) & (areas >= max(self.min_area, 1))
+        if points is not None:
+            pts = torch.as_tensor(np.asarray(points, dtype=np.float32).reshape(-1, 2))
+            rows = pts[:, 1].floor().long().clamp(0, labels.shape[0] - 1)
+            cols = pts[:, 0].floor().long().clamp(0, labels.shape[1] - 1)
+            under = torch.zeros(int(labels.max()) + 1, dtype=torch.bool, device=labels.device)
+            under[labels[rows.to(labels.device), cols.to(labels.device)]] = True
+            keep &= under[ids]
         ids = ids[keep]
         if len(ids) == 0:
             u_size, v_size = embedding.image_size

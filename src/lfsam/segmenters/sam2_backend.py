@@ -388,8 +388,11 @@ class Sam2Segmenter(Segmenter):
             self._generator = generator
         return self._generator
 
-    def generate(self, embedding: ViewEmbedding, image: np.ndarray) -> AutoMasks:
-        """SAM 2 automatic mask generation on an encoded view, reusing its embedding.
+    def generate(
+        self, embedding: ViewEmbedding, image: np.ndarray, points: np.ndarray | None = None
+    ) -> AutoMasks:
+        """SAM 2 automatic mask generation on an encoded view, reusing its embedding (with
+        ``points``, those pixels replace the generator's point grid).
 
         Runs ``SAM2AutomaticMaskGenerator`` with :attr:`amg_options` (the paper's settings by
         default); the whole-view crop takes the cached embedding, so with the default
@@ -410,13 +413,24 @@ class Sam2Segmenter(Segmenter):
         predictor = generator.predictor
         predictor.cached = (self._view_features(embedding), tuple(embedding.image_size))
         before = predictor.encoder_passes
+        grids = generator.point_grids
+        u_size, v_size = embedding.image_size
+        if points is not None:
+            points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+            if len(points) == 0:
+                return AutoMasks(
+                    masks=np.zeros((0, u_size, v_size), dtype=bool),
+                    scores=np.zeros(0, np.float32),
+                )
+            # the generator scales its [0, 1] grids by the crop's (width, height)
+            generator.point_grids = [points / np.array([v_size, u_size])] * len(grids)
         try:
             with inference_context(self.device, inference_mode=False):
                 records = generator.generate(image)
         finally:
+            generator.point_grids = grids
             predictor.cached = None
             self.crop_encode_calls += predictor.encoder_passes - before
-        u_size, v_size = embedding.image_size
         if not records:
             return AutoMasks(
                 masks=np.zeros((0, u_size, v_size), dtype=bool), scores=np.zeros(0, np.float32)
