@@ -17,7 +17,7 @@ from lfsam.cli.common import HelpFormatter, add_device_argument
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.segmenters.base import Segmenter
-from lfsam.segmenters.factory import available_models, load_segmenter
+from lfsam.segmenters.factory import available_models
 from lfsam.segmenters.registry import DEFAULT_MODEL, MODELS, ORACLE
 
 __all__ = [
@@ -95,6 +95,66 @@ def add_model_arguments(
         help="override an automatic-mask-generation setting of the paper, e.g. "
         "points_per_side=32 (repeatable)",
     )
+    oracle = parser.add_argument_group("oracle imperfections (--model oracle)")
+    oracle.add_argument(
+        "--oracle-merge", type=probability, default=0.0, metavar="P",
+        help="probability that an answer also takes the neighbour with the longest shared "
+        "border (a negative click on it undoes that)",
+    )
+    oracle.add_argument(
+        "--oracle-jitter", type=non_negative_int, default=0, metavar="R",
+        help="answers dilated or eroded by a random radius in [-R, R] pixels",
+    )
+    oracle.add_argument(
+        "--oracle-seed", type=non_negative_int, default=0, metavar="N",
+        help="seed of the imperfections (each draw depends on the seed, view and prompt)",
+    )
+
+
+def probability(text: str) -> float:
+    """A number in [0, 1] (argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1], got {text!r}")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    """A whole number >= 0 (argparse type)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    return value
+
+
+def oracle_options_from_args(args: argparse.Namespace) -> dict[str, Any] | None:
+    """The oracle's imperfections asked for on the command line (None when none)."""
+    options = {
+        "merge_prob": float(getattr(args, "oracle_merge", 0.0) or 0.0),
+        "boundary_jitter": int(getattr(args, "oracle_jitter", 0) or 0),
+    }
+    return options if any(options.values()) else None
+
+
+def model_options_from_args(args: argparse.Namespace) -> Any:
+    """:class:`lfsam.api.ModelOptions` from the options of :func:`add_model_arguments`."""
+    from lfsam.api import ModelOptions
+
+    return ModelOptions(
+        name=getattr(args, "model", DEFAULT_MODEL),
+        checkpoint=getattr(args, "checkpoint", None),
+        random_weights=bool(getattr(args, "random_weights", False)),
+        device=getattr(args, "device", None),
+        amg=dict(getattr(args, "amg", None) or []) or None,
+        oracle=oracle_options_from_args(args),
+        seed=int(getattr(args, "oracle_seed", 0) or getattr(args, "seed", 0) or 0),
+    )
 
 
 def segmenter_from_args(
@@ -107,17 +167,7 @@ def segmenter_from_args(
     LfsamError
         With a one-line message, e.g. when weights are not cached and cannot be downloaded.
     """
-    model = getattr(args, "model", DEFAULT_MODEL)
-    amg = dict(getattr(args, "amg", None) or [])
-    return load_segmenter(
-        model,
-        checkpoint=getattr(args, "checkpoint", None),
-        random_weights=bool(getattr(args, "random_weights", False)),
-        device=getattr(args, "device", None),
-        lightfield=lightfield,
-        amg_options=amg or None,
-        seed=int(getattr(args, "seed", 0) or 0),
-    )
+    return model_options_from_args(args).build(lightfield)
 
 
 def list_models() -> dict[str, Any]:
