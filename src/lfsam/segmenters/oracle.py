@@ -281,7 +281,7 @@ class OracleSegmenter(Segmenter):
 
         selected = pos_labels & ~neg_labels
         if self.merge_prob > 0:
-            selected = self._merge(labels, selected)
+            selected = self._merge(labels, selected, excluded=neg_labels)
         region = selected[:, labels]  # (n, U, V)
         answer = region if box is None else region & box
         if not multimask:
@@ -296,8 +296,13 @@ class OracleSegmenter(Segmenter):
         return out
 
     # --- imperfections ------------------------------------------------------------------------
-    def _merge(self, labels: torch.Tensor, selected: torch.Tensor) -> torch.Tensor:
-        """With probability ``merge_prob``, add the neighbour with the longest shared border."""
+    def _merge(
+        self, labels: torch.Tensor, selected: torch.Tensor, excluded: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """With probability ``merge_prob``, add the neighbour with the longest shared border.
+
+        Regions under a negative point (``excluded``, like ``selected``) are never merged in.
+        """
         n = len(selected)
         draw = torch.rand(n, generator=self._rng).to(selected.device) < self.merge_prob
         if not draw.any():
@@ -308,6 +313,8 @@ class OracleSegmenter(Segmenter):
         counts = _count(labels, ring.flatten(1).float(), selected.shape[1])
         counts[:, 0] = 0
         counts[sel] = 0
+        if excluded is not None:
+            counts[excluded[draw]] = 0
         best = counts.argmax(1)
         found = counts.max(1).values > 0
         sel[found.nonzero()[:, 0], best[found]] = True
