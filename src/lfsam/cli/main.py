@@ -28,6 +28,7 @@ SUBCOMMANDS = [
     "evaluate",
     "show",
     "demo",
+    "view",
 ]
 
 DESCRIPTION = """\
