@@ -104,31 +104,7 @@ def test_scene_assumption(scene):
     assert set(np.unique(g[ring])) - {0} == {NEIGHBOUR}
 
 
-def test_one_image_layer_with_view_sliders_and_the_fixed_layers(make_napari_viewer, qtbot, scene):
-    viewer, widget = _open(make_napari_viewer, qtbot, scene)
-    image = widget.image_layer
-    assert image.rgb and image.data is scene.views  # the views themselves, not a copy
-    assert viewer.dims.ndim == 4 and viewer.dims.displayed == (2, 3)
-    assert viewer.dims.current_step[:2] == scene.center
-    for name in (L.CURRENT, L.COMMITTED, L.AUTO):
-        assert viewer.layers[name].data.shape == (3, 3, 48, 64)
-    assert viewer.layers[L.POINTS].ndim == viewer.layers[L.BOXES].ndim == 4
-    # a deleted fixed layer comes back
-    viewer.layers.remove(L.COMMITTED)
-    qtbot.waitUntil(lambda: L.COMMITTED in viewer.layers, timeout=5000)
-    # EPIs: a reorder of the same data's axes
-    viewer.dims.current_step = (1, 1, 20, 30)
-    widget.show_display("epi-row")
-    assert viewer.dims.displayed == (1, 3)  # (t, v) through pixel row u=20 of view row s=1
-    np.testing.assert_array_equal(image._slice.image.raw, scene.views[1, :, 20, :])
-    widget.show_display("epi-column")
-    assert viewer.dims.displayed == (2, 0)  # (u, s) through pixel column v=30 of view column 1
-    np.testing.assert_array_equal(image._slice.image.raw, scene.views[:, 1, :, 30].swapaxes(0, 1))
-    widget.show_display("views")
-    assert viewer.dims.displayed == (2, 3)
-
-
-def test_click_segments_every_view_reference_first(make_napari_viewer, qtbot, scene):
+def test_click_commit_segment_everything_reopen_labels(make_napari_viewer, qtbot, scene):
     viewer, widget = _open(make_napari_viewer, qtbot, scene)
     shown = []
     original = widget._show_current
@@ -156,6 +132,29 @@ def test_click_segments_every_view_reference_first(make_napari_viewer, qtbot, sc
     assert not widget.layers[L.CURRENT].data.any() and len(widget.layers[L.POINTS].data) == 0
     assert widget.session.current_id != obj_id
     assert widget.objects.count() == 1 and str(obj_id) in widget.objects.item(0).text()
+    # segment everything: the automatic mode finds every object of the center view
+    for obj_id in list(widget.session.object_ids):
+        widget.remove_object(obj_id)
+    widget.segment_everything()
+    _idle(qtbot, widget)
+    auto = widget.layers[L.AUTO].data
+    # every ground-truth object of the center view is found, exactly, in every view
+    center = scene.labels[scene.center]
+    assert len(widget.session.auto) == len(np.unique(center[center > 0]))
+    for label in np.unique(center[center > 0]):
+        (found,) = np.unique(auto[scene.center][center == label])
+        assert found in widget.session.auto
+        np.testing.assert_array_equal(auto == found, scene.labels == label)
+    # a labels layer (here the ground truth) reopens as editable objects (label = object id)
+    for obj_id in list(widget.session.object_ids):
+        widget.remove_object(obj_id)
+    _idle(qtbot, widget)
+    assert not widget.session.object_ids and not widget.layers[L.AUTO].data.any()
+    widget.open_labels(scene.labels)
+    _idle(qtbot, widget)
+    ids = [int(i) for i in np.unique(scene.labels) if i]
+    assert widget.session.object_ids == ids and widget.session.committed == set(ids)
+    np.testing.assert_array_equal(widget.layers[L.COMMITTED].data, scene.labels)
 
 
 def test_negative_click_fixes_a_merge_and_undo_redo(make_napari_viewer, qtbot, scene, tmp_path):
@@ -219,29 +218,6 @@ def test_negative_click_fixes_a_merge_and_undo_redo(make_napari_viewer, qtbot, s
         viewer2.close()
 
 
-def test_segment_everything_and_reopen_a_labels_layer(make_napari_viewer, qtbot, scene):
-    _, widget = _open(make_napari_viewer, qtbot, scene)
-    widget.segment_everything()
-    _idle(qtbot, widget)
-    auto = widget.layers[L.AUTO].data
-    # every ground-truth object of the center view is found, one label each, in every view
-    center = scene.labels[scene.center]
-    assert len(widget.session.auto) == len(np.unique(center[center > 0]))
-    for label in np.unique(center[center > 0]):
-        found = np.unique(auto[scene.center][center == label])
-        assert len(found) == 1 and found[0] > 0
-    # a labels layer (here the ground truth) reopens as editable objects (label = object id)
-    for obj_id in list(widget.session.object_ids):
-        widget.remove_object(obj_id)
-    _idle(qtbot, widget)
-    assert not widget.session.object_ids and not widget.layers[L.AUTO].data.any()
-    widget.open_labels(scene.labels)
-    _idle(qtbot, widget)
-    ids = [int(i) for i in np.unique(scene.labels) if i]
-    assert widget.session.object_ids == ids and widget.session.committed == set(ids)
-    np.testing.assert_array_equal(widget.layers[L.COMMITTED].data, scene.labels)
-
-
 def test_errors_are_notifications(make_napari_viewer, qtbot, monkeypatch):
     shown = []
     monkeypatch.setattr("lfsam.viewer.widget._notify_error", shown.append)
@@ -254,11 +230,12 @@ def test_errors_are_notifications(make_napari_viewer, qtbot, monkeypatch):
     assert not widget.session.loaded
 
 
-def test_reader_and_writer_round_trip(make_napari_viewer, scene, tmp_path):
+def test_reader_writer_layers_and_epis(make_napari_viewer, qtbot, scene, tmp_path, monkeypatch):
     import npe2
 
     from lfsam.io import write_lightfield
     from lfsam.result import load_result
+    from lfsam.viewer.plugin_io import get_reader
 
     viewer = make_napari_viewer()
     assert "lfsam" in npe2.PluginManager.instance()._manifests
@@ -268,21 +245,47 @@ def test_reader_and_writer_round_trip(make_napari_viewer, scene, tmp_path):
     image = layers[0]
     assert image.rgb and image.data.shape == (3, 3, 48, 64, 3)
     np.testing.assert_array_equal(image.data, scene.views)
-    assert image.metadata["lfsam_lightfield"].labels is not None
+    lightfield = image.metadata["lfsam_lightfield"]
+    assert image.data is lightfield.views  # the layer shows the views themselves, no copy
     assert layers[1].data.shape == (3, 3, 48, 64) and not layers[1].visible  # ground truth
+    # writer: a labels layer as a result, and the reader opens results
     out = tmp_path / "labels.npz"
     layers[1].save(str(out), plugin="lfsam")
     np.testing.assert_array_equal(load_result(out).labels, scene.labels)
     (reread,) = viewer.open(str(out), plugin="lfsam")
     np.testing.assert_array_equal(reread.data, scene.labels)
     assert reread.metadata["lfsam_result"].labels.shape == (3, 3, 48, 64)
-    # the widget docked from the plugin adopts the light field already open
-    widget = LightFieldWidget(viewer, autoload=False)
-    assert widget.image_layer is image
-    # unreadable input: the reader declines it, no exception
-    from lfsam.viewer.plugin_io import get_reader
-
+    # an unreadable file: a notification with lfsam's one-line message, no layer, no raise
+    shown = []
+    monkeypatch.setattr("napari.utils.notifications.show_error", shown.append)
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a zip")
+    reader = get_reader(str(bad))
+    assert reader(str(bad)) == [] and len(shown) == 1 and "\n" not in shown[0]
     assert get_reader(str(tmp_path / "missing.npz")) is None
+    # the dock widget (as from the Plugins menu) adopts the light field already open
+    widget = LightFieldWidget(viewer, autoload=False)
+    assert widget.image_layer is image and widget.session.lightfield is lightfield
+    assert viewer.dims.ndim == 4 and viewer.dims.displayed == (2, 3)
+    assert viewer.dims.current_step[:2] == scene.center
+    for name in (L.CURRENT, L.COMMITTED, L.AUTO):
+        assert viewer.layers[name].data.shape == (3, 3, 48, 64)
+    assert viewer.layers[L.POINTS].ndim == viewer.layers[L.BOXES].ndim == 4
+    # a deleted fixed layer comes back, in its place
+    index = viewer.layers.index(L.COMMITTED)
+    viewer.layers.remove(L.COMMITTED)
+    qtbot.waitUntil(lambda: L.COMMITTED in viewer.layers, timeout=5000)
+    assert viewer.layers.index(L.COMMITTED) == index
+    # EPIs: a reorder of the same data's axes
+    viewer.dims.current_step = (1, 1, 20, 30)
+    widget.show_display("epi-row")
+    assert viewer.dims.displayed == (1, 3)  # (t, v) through pixel row u=20 of view row s=1
+    np.testing.assert_array_equal(image._slice.image.raw, scene.views[1, :, 20, :])
+    widget.show_display("epi-column")
+    assert viewer.dims.displayed == (2, 0)  # (u, s) through pixel column v=30 of view column 1
+    np.testing.assert_array_equal(image._slice.image.raw, scene.views[:, 1, :, 30].swapaxes(0, 1))
+    widget.show_display("views")
+    assert viewer.dims.displayed == (2, 3)
 
 
 def test_view_help_and_the_message_without_the_extra(capsys, monkeypatch):
