@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -53,7 +52,6 @@ def main() -> None:
 
     from lfsam.viewer.widget import LightFieldWidget
 
-    warnings.filterwarnings("ignore", message=".*PyQt5 backend is deprecated")  # no toast
     lf = generate_scene(
         grid=(5, 5), size=(240, 320), seed=3, num_objects=5, label_background=False
     )
@@ -80,6 +78,11 @@ def main() -> None:
     _wait(widget)
     viewer.layers.selection.active = points
     viewer.reset_view()
+    _wait(widget)
+    from napari._qt.dialogs.qt_notification import NapariQtNotification
+
+    for toast in viewer.window._qt_window.findChildren(NapariQtNotification):
+        toast.close()  # e.g. napari's notice about the Qt binding
     _wait(widget)
     viewer.screenshot(args.out, canvas_only=False, flash=False)
     print(f"wrote {args.out}")

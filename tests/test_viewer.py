@@ -14,21 +14,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
+from napari.utils._proxies import ReadOnlyWrapper  # the dev extra installs napari: no skip
+from napari.utils.interactions import mouse_press_callbacks, mouse_release_callbacks
 from scipy import ndimage
 
 from lfsam.errors import LfsamError
 from lfsam.synth import generate_scene
-
-napari = pytest.importorskip("napari")  # the dev extra installs it; CI never skips
-
-from napari.utils._proxies import ReadOnlyWrapper  # noqa: E402
-from napari.utils.interactions import (  # noqa: E402
-    mouse_press_callbacks,
-    mouse_release_callbacks,
-)
-
-from lfsam.viewer import layers as L  # noqa: E402
-from lfsam.viewer.widget import LightFieldWidget  # noqa: E402
+from lfsam.viewer import layers as L
+from lfsam.viewer.widget import LightFieldWidget
 
 VIEW = (0, 2)  # a corner view: prompts work in any view, not just the center
 OBJ, NEIGHBOUR = 3, 2  # in VIEW of the scene below, object 3 touches only object 2
@@ -94,6 +87,17 @@ def _open(make_napari_viewer, qtbot, scene, **kwargs):
     return viewer, widget
 
 
+def _predictor_answer(scene, prompts) -> np.ndarray:
+    """The mask a predictor of its own gives these prompts (oracle, ground-truth disparity)."""
+    from lfsam.predictor import LightFieldPredictor
+    from lfsam.segmenters import load_segmenter
+
+    predictor = LightFieldPredictor(load_segmenter("oracle", lightfield=scene))
+    predictor.set_lightfield(scene, disparity="gt")
+    predictor.set_object(prompts)
+    return predictor.predict().masks[prompts.obj_id]
+
+
 def _idle(qtbot, widget):
     qtbot.waitUntil(lambda: not widget.busy and not widget._segment_pending, timeout=TIMEOUT)
 
@@ -132,6 +136,16 @@ def test_click_commit_segment_everything_reopen_labels(make_napari_viewer, qtbot
     assert not widget.layers[L.CURRENT].data.any() and len(widget.layers[L.POINTS].data) == 0
     assert widget.session.current_id != obj_id
     assert widget.objects.count() == 1 and str(obj_id) in widget.objects.item(0).text()
+    # a box drawn in the box layer segments the next object, as the predictor does by itself
+    rows, cols = np.nonzero(scene.labels[VIEW] == OBJ)
+    (r0, c0), (r1, c1) = (rows.min(), cols.min()), (rows.max(), cols.max())
+    box = np.array([[*VIEW, r0, c0], [*VIEW, r0, c1], [*VIEW, r1, c1], [*VIEW, r1, c0]], float)
+    widget.layers[L.BOXES].add_rectangles(box)
+    _idle(qtbot, widget)
+    box_id = widget.session.current_id
+    expected = _predictor_answer(scene, widget.session.current_prompts())
+    np.testing.assert_array_equal(widget.layers[L.CURRENT].data == box_id, expected)
+    np.testing.assert_array_equal(expected[VIEW], scene.labels[VIEW] == OBJ)
     # segment everything: the automatic mode finds every object of the center view
     for obj_id in list(widget.session.object_ids):
         widget.remove_object(obj_id)
