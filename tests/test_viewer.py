@@ -197,9 +197,17 @@ def test_negative_click_fixes_a_merge_and_undo_redo(make_napari_viewer, qtbot, s
     _idle(qtbot, widget)
     assert len(points.data) == 2
     np.testing.assert_array_equal(widget.layers[L.CURRENT].data == obj_id, g == OBJ)
-    # T makes plain clicks negative
-    keys.press_key("T")
-    assert widget.negative
+    # Shift-C clears; clicks made while the worker runs are queued, not lost
+    keys.press_key("Shift-C")
+    _idle(qtbot, widget)
+    assert len(points.data) == 0 and not widget.layers[L.CURRENT].data.any()
+    _click(viewer, points, VIEW, _interior(g[VIEW], OBJ))
+    assert widget.busy  # the first click's prediction runs in the worker thread
+    keys.press_key("T")  # T: plain clicks are negative now
+    _click(viewer, points, VIEW, _interior(g[VIEW], NEIGHBOUR))
+    _idle(qtbot, widget)
+    assert points.features["positive"].tolist() == [True, False]
+    np.testing.assert_array_equal(widget.layers[L.CURRENT].data == obj_id, g == OBJ)
     # save, then reopen the result for editing through `lfsam view --result`
     out = tmp_path / "result.npz"
     widget.save(out)
@@ -210,6 +218,13 @@ def test_negative_click_fixes_a_merge_and_undo_redo(make_napari_viewer, qtbot, s
     np.testing.assert_array_equal(result.labels == obj_id, g == OBJ)
     prompts = result.meta["objects"][0]
     assert prompts["id"] == obj_id and len(prompts["points"]) == 2
+    from lfsam.viewer.widget import _export_module
+
+    if _export_module() is not None:  # the CLI's export code, where this version has it
+        folder = widget.export(tmp_path / "export", "png")
+        assert (folder / "view_00_02.png").is_file()
+    else:
+        assert not widget.export_button.isEnabled()
     scene_dir = tmp_path / "scene"
     from lfsam.io import write_lightfield
 

@@ -655,12 +655,14 @@ class LightFieldWidget(QWidget):
         self.status.setText(f"saved {out}")
         return out
 
-    def export(self, out: str | os.PathLike, format: str) -> Any:
-        """Export the result through the CLI's code (:mod:`lfsam.export`)."""
+    def export(self, out: str | os.PathLike, to: str = "png") -> Any:
+        """Export the result into the folder ``out`` through the CLI's code (``lfsam.export``)."""
         module = _export_module()
         if module is None:
             raise LfsamError("export is not available in this version; save the result instead")
-        return module.export_result(self.session.to_result(), out, format=format)
+        path = module.export_result(self.session.to_result(), out, to=to)
+        self.status.setText(f"exported {path} ({to})")
+        return path
 
     # --- display ------------------------------------------------------------------------------
     def _show_labels(self, name: str, labels: np.ndarray) -> None:
@@ -755,9 +757,19 @@ class LightFieldWidget(QWidget):
             self._when_idle(lambda: self.save(path))
 
     def _export_dialog(self) -> None:
-        out = QFileDialog.getExistingDirectory(self, "Export to folder")
+        from qtpy.QtWidgets import QInputDialog
+
+        module = _export_module()
+        if module is None:
+            return
+        to, ok = QInputDialog.getItem(
+            self, "Export", "Format", list(module.EXPORT_FORMATS), 0, False
+        )
+        if not ok:
+            return
+        out, _ = QFileDialog.getSaveFileName(self, "Export to a new folder", "export")
         if out:
-            self._when_idle(lambda: self.export(out, "png"))
+            self._when_idle(lambda: self.export(out, to))
 
     def closeEvent(self, event: Any) -> None:
         """Stop reacting to the viewer when the dock widget closes."""
@@ -766,8 +778,9 @@ class LightFieldWidget(QWidget):
 
 
 def _export_module() -> Any:
+    """The CLI's export module (``lfsam export``), or None where this version has none."""
     try:
         import lfsam.export as module
     except ImportError:
         return None
-    return module
+    return module if hasattr(module, "export_result") else None
