@@ -159,6 +159,21 @@ def test_click_commit_segment_everything_reopen_labels(make_napari_viewer, qtbot
         (found,) = np.unique(auto[scene.center][center == label])
         assert found in widget.session.auto
         np.testing.assert_array_equal(auto == found, scene.labels == label)
+    # an automatic object opens for correction: its mask becomes the current object; a click
+    # gives it prompts, and undoing the click gives its automatic mask back
+    (auto_id,) = np.unique(auto[VIEW][scene.labels[VIEW] == OBJ])
+    widget.edit_object(int(auto_id))
+    _idle(qtbot, widget)
+    np.testing.assert_array_equal(widget.layers[L.CURRENT].data == auto_id, scene.labels == OBJ)
+    assert not (widget.layers[L.AUTO].data == auto_id).any()
+    _click(viewer, widget.layers[L.POINTS], VIEW, _interior(scene.labels[VIEW], OBJ))
+    _idle(qtbot, widget)
+    assert widget.session.predictor.objects[auto_id].points
+    widget.undo()
+    _idle(qtbot, widget)
+    assert auto_id not in widget.session.predictor.objects  # a mask-given object again
+    assert auto_id in widget.session.object_ids
+    np.testing.assert_array_equal(widget.layers[L.CURRENT].data == auto_id, scene.labels == OBJ)
     # a labels layer (here the ground truth) reopens as editable objects (label = object id)
     for obj_id in list(widget.session.object_ids):
         widget.remove_object(obj_id)

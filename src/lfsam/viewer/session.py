@@ -215,6 +215,7 @@ class ViewerSession:
     committed: set[int] = field(default_factory=set)
     auto: set[int] = field(default_factory=set)
     history: PromptHistory = field(default_factory=PromptHistory)
+    _given: tuple | None = field(default=None, repr=False)  # (id, view, mask) being edited
 
     # --- model --------------------------------------------------------------------------------
     @property
@@ -266,14 +267,29 @@ class ViewerSession:
         used = {*self.object_ids, *self.committed, *self.auto, self.current_id}
         return max(used) + 1
 
-    def set_current_prompts(self, obj: Any | None) -> None:
-        """Give the current object these prompts (None removes its prompts)."""
+    def sync_current(self) -> Any | None:
+        """Give the predictor the current object's prompts as the history has them.
+
+        An automatic or imported object being edited (no prompts) keeps its mask until it is
+        given prompts, and gets its mask back when every prompt edit is undone.
+
+        Returns
+        -------
+        ObjectPrompts or None
+            The current prompts.
+        """
         pred = self._require()
-        if obj is None:
-            if self.current_id in pred.object_ids:
-                pred.remove_object(self.current_id)
-        else:
-            pred.set_object(obj)
+        obj = self.history.current
+        obj_id = self.current_id
+        if obj is not None:
+            if pred.objects.get(obj_id) != obj:
+                pred.set_object(obj)
+        elif self._given is not None and self._given[0] == obj_id:
+            if obj_id in pred.objects:  # prompted meanwhile: back to the given mask
+                pred.add_mask(obj_id, self._given[2], view=self._given[1])
+        elif obj_id in pred.object_ids:
+            pred.remove_object(obj_id)
+        return obj
 
     def current_prompts(self) -> Any | None:
         """The current object's prompts, or None."""
@@ -314,6 +330,7 @@ class ViewerSession:
         self.auto.discard(obj_id)
         self.current_id = self.next_id()
         self.history.reset()
+        self._given = None
         return obj_id
 
     def edit(self, obj_id: int) -> Any | None:
@@ -330,6 +347,10 @@ class ViewerSession:
         self.auto.discard(obj_id)
         self.current_id = obj_id
         obj = pred.objects.get(obj_id)  # None for an automatic or imported object
+        self._given = None
+        if obj is None:
+            view, mask, _ = pred.predict_reference(obj_id)
+            self._given = (obj_id, tuple(view), np.asarray(mask, dtype=bool))
         self.history.reset(obj)
         return obj
 

@@ -525,12 +525,11 @@ class LightFieldWidget(QWidget):
             self._segment_pending = True
             self.load_model()
             return
-        obj = self.session.history.current
-        self.session.set_current_prompts(obj)
-        if obj is None:
-            self._show_current(self.session.current_id)
-            return
         obj_id = self.session.current_id
+        self.session.sync_current()
+        if obj_id not in self.session.object_ids:  # no prompts left
+            self._show_current(obj_id)
+            return
         self.stages = []
 
         def job() -> Iterator[tuple]:
@@ -546,7 +545,7 @@ class LightFieldWidget(QWidget):
     def _commit_now(self) -> None:
         if self.session is None or not self.session.loaded:
             raise LfsamError("nothing to commit: load a model and segment an object first")
-        self.session.set_current_prompts(self.session.history.current)
+        self.session.sync_current()
         self.session.commit()
         self._set_layer_prompts(None)
         self._show_current(self.session.current_id)
