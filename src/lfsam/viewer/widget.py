@@ -391,11 +391,14 @@ class LightFieldWidget(QWidget):
         self.worker = None
         self.progress.setValue(self.progress.maximum())
         self._refresh_objects()
-        if self._closing:
-            return
-        if self._queue:
+        if not self._closing:
+            self._drain()
+
+    def _drain(self) -> None:
+        """Run queued actions in order until one starts a worker; then a pending segmentation."""
+        while self._queue and not self.busy:
             self._try(self._queue.pop(0))
-        elif self._segment_pending:
+        if self._segment_pending and not self.busy:
             self._segment_pending = False
             self._try(self._segment_now)
 
@@ -440,8 +443,8 @@ class LightFieldWidget(QWidget):
         """Before napari adds a clicked point: its polarity (Ctrl-click = the other one)."""
         if layer.mode != "add":
             return
-        modifiers = {str(m) for m in getattr(event, "modifiers", ())}
-        flip = bool(modifiers & {"Control", "Meta"})
+        modifiers = getattr(event, "modifiers", ())
+        flip = "Control" in modifiers or "Meta" in modifiers  # vispy keys compare to names
         layer.feature_defaults = {"positive": self.negative == flip}
 
     def toggle_polarity(self) -> None:
