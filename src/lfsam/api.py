@@ -107,7 +107,8 @@ def run_segmentation(
     prompts : sequence of Prompts, optional
         Center-view prompts (see :func:`make_prompts`); None for automatic generation.
     device : str, optional
-        ``cuda``, ``mps`` or ``cpu``; default: the best available.
+        ``auto`` (default: CUDA, then MPS, then CPU), ``cpu``, ``cuda``, ``cuda:N`` or ``mps``
+        (:func:`lfsam.devices.resolve_device`).
     amg_options : dict, optional
         Overrides of the automatic mask generator's settings.
     segmenter : Segmenter, optional

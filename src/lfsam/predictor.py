@@ -48,7 +48,6 @@ from lfsam.pipeline.occlusion import semantic_occlusion, source_features, unifor
 from lfsam.pipeline.propagation import (
     ForwardWarp,
     forward_warp,
-    mask_disparities,
     propagate_masks,
 )
 from lfsam.pipeline.refinement import refine_masks
@@ -73,7 +72,6 @@ class _Reference:
     mask: torch.Tensor  # (U, V) bool on the device
     score: float
     feature: torch.Tensor | None = None  # (C,) unit source feature (semantic occluding)
-    disparity: torch.Tensor | None = None  # mean/median mask disparity (whole-mask modes)
 
 
 @dataclass
@@ -381,18 +379,12 @@ class LightFieldPredictor:
                     if self.config.semantic
                     else None
                 )
-                whole = (
-                    mask_disparities(stacked, self.disparity(view))
-                    if self.config.propagation != "pixel"
-                    else None
-                )
             for k, i in enumerate(members):
                 self._objects[i].reference = _Reference(
                     view=view,
                     mask=stacked[k],
                     score=scores[i],
                     feature=None if features is None else features[k],
-                    disparity=None if whole is None else whole[k],
                 )
 
     def _decode_references(
@@ -553,7 +545,7 @@ class LightFieldPredictor:
         }
         views = list(lf.view_indices(present_only=True))
         needs_embedding = refine or config.semantic
-        batch_size = max(1, int(config.encode_batch_size or 1))
+        batch_size = config.batch_size_for(self.device)
         bar = tqdm(
             total=len(views), desc="views", unit="view", disable=not self.progress or None,
             leave=False,
@@ -612,19 +604,11 @@ class LightFieldPredictor:
             ds, dt = view[0] - ref_view[0], view[1] - ref_view[1]
             warp = self._warp(ref_view, view)
             with self.timer("propagate"):
-                keep = None
-                if config.geometric and config.propagation == "pixel":
-                    keep = warp.visible(disp, config.zbuffer_tolerance)
                 coarse = propagate_masks(
-                    source_masks, disp, ds, dt, config.propagation, warp=warp, keep=keep,
+                    source_masks, disp, ds, dt, config.propagation, warp=warp,
                     fill_holes=config.fill_holes,
+                    occlusion_tolerance=config.zbuffer_tolerance if config.geometric else None,
                 )
-                if config.geometric and config.propagation != "pixel":
-                    whole = torch.stack([r.disparity for r in refs])
-                    hidden = warp.zbuffer.reshape(height, width)[None] > (
-                        whole[:, None, None] + config.zbuffer_tolerance
-                    )
-                    coarse &= ~hidden
             with self.timer("occlude"):
                 weights = None
                 if config.semantic:

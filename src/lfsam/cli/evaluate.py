@@ -7,6 +7,7 @@ import functools
 import sys
 
 from lfsam.cli.common import HelpFormatter
+from lfsam.cli.models import add_model_arguments
 from lfsam.errors import LfsamError
 
 DESCRIPTION = """\
@@ -53,15 +54,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--method", choices=["lfsam", "video-baseline"], default="lfsam",
         help="our method or the SAM 2 video baseline",
     )
-    parser.add_argument(
-        "--model", default="sam2.1-hiera-small",
-        help="segmenter: a SAM 2 name (see `lfsam models`) or 'oracle' (ground-truth labels)",
-    )
-    parser.add_argument("--checkpoint", metavar="FILE", help="SAM 2 weights file (.pt)")
-    parser.add_argument(
-        "--random-weights", action="store_true",
-        help="untrained SAM 2: timings only, the scores are meaningless",
-    )
+    add_model_arguments(parser)
     parser.add_argument(
         "--disparity", choices=["estimate", "gt"], default="estimate",
         help="center-view disparity for propagation: estimated or the scene's ground truth",
@@ -70,7 +63,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--ablation", choices=["none", "ref", "ref+occ"], default="ref+occ",
         help="row of paper Table 2: no refinement or occluding, refinement only, or both",
     )
-    parser.add_argument("--device", choices=["cuda", "mps", "cpu"], help="default: best available")
     parser.add_argument(
         "--label", metavar="TEXT", help="method name in the tables (default: built from options)"
     )
@@ -120,6 +112,7 @@ def run(args: argparse.Namespace) -> int:
         model=args.model,
         checkpoint=args.checkpoint,
         random_weights=args.random_weights,
+        amg_options=dict(args.amg) or None,
         disparity=args.disparity,
         ablation=args.ablation if args.method == "lfsam" else None,
         prompts=None,
@@ -127,7 +120,8 @@ def run(args: argparse.Namespace) -> int:
         progress=False,
     )
     table = evaluate_dataset(
-        args.dataset, args.out, segment_fn, method_label=method_label(args), force=args.force
+        args.dataset, args.out, segment_fn, method_label=method_label(args), force=args.force,
+        device=args.device,
     )
     print(table.summary_markdown(), end="")
     ok = len(table.rows) - len(table.failed)

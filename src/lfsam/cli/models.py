@@ -13,7 +13,7 @@ import ast
 import json
 from typing import Any
 
-from lfsam.cli.common import HelpFormatter
+from lfsam.cli.common import HelpFormatter, add_device_argument
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.segmenters.base import Segmenter
@@ -58,15 +58,22 @@ def parse_option(text: str) -> tuple[str, Any]:
     return key.strip(), parsed
 
 
-def add_model_arguments(parser: argparse.ArgumentParser, default: str = DEFAULT_MODEL) -> None:
-    """Add ``--model``, ``--checkpoint``, ``--random-weights``, ``--device`` and ``--amg``."""
+def add_model_arguments(
+    parser: argparse.ArgumentParser, default: str | None = DEFAULT_MODEL, model_help: str = ""
+) -> None:
+    """Add ``--model``, ``--checkpoint``, ``--random-weights``, ``--device`` and ``--amg``.
+
+    The one set of model and device options of every command that segments (``segment``,
+    ``evaluate``, ``demo``); ``model_help`` is appended to the help of ``--model`` (e.g. what
+    a ``None`` default means).
+    """
     group = parser.add_argument_group("segmenter")
     group.add_argument(
         "--model",
         default=default,
         choices=available_models(),
         metavar="NAME",
-        help="SAM 2 model or 'oracle' (ground-truth labels); see `lfsam models`",
+        help="SAM 2 model or 'oracle' (ground-truth labels); see `lfsam models`" + model_help,
     )
     group.add_argument(
         "--checkpoint",
@@ -78,9 +85,7 @@ def add_model_arguments(parser: argparse.ArgumentParser, default: str = DEFAULT_
         action="store_true",
         help="untrained SAM 2 of the same architecture (speed tests only: masks are meaningless)",
     )
-    group.add_argument(
-        "--device", default="auto", help="auto (CUDA, then MPS, then CPU), cpu, cuda, cuda:N, mps"
-    )
+    add_device_argument(group)
     group.add_argument(
         "--amg",
         action="append",
@@ -117,12 +122,8 @@ def segmenter_from_args(
 
 def list_models() -> dict[str, Any]:
     """What ``lfsam models`` shows, as a JSON-ready dict (no network, no model built)."""
-    from lfsam.segmenters.sam2_build import (
-        autocast_dtype,
-        cached_checkpoint,
-        hub_cache_dir,
-        resolve_device,
-    )
+    from lfsam.devices import resolve_device
+    from lfsam.segmenters.sam2_build import autocast_dtype, cached_checkpoint, hub_cache_dir
 
     device = resolve_device(None)
     rows = []

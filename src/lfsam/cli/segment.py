@@ -132,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
         disparity=args.disparity,
         config=config,
         prompts=make_prompts(args.point, args.box),
-        device=None if args.device == "auto" else args.device,
+        device=args.device,
         amg_options=amg,
         baseline_options={
             "objects_per_pass": args.objects_per_pass,

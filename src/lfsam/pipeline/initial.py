@@ -2,7 +2,7 @@
 
 Paper section 3.1, equation (1): ``M[s_m, t_m] = SAM2_img(L[s_m, t_m], P[s_m, t_m])`` for a user
 prompt (points with labels and/or a box), or SAM 2's automatic mask generation (paper section 4,
-implementation details; DESIGN.md section 3.1).
+implementation details; docs/design.md section 3.1).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ class SourceMasks:
         The segmenter's quality estimate of each mask.
     paint_order : (N,) int64 ndarray
         Mask indices from the largest to the smallest center area: label fusion writes them in
-        this order so smaller masks end on top (DESIGN.md section 3.6).
+        this order so smaller masks end on top (docs/design.md section 3.6).
     """
 
     masks: torch.Tensor

@@ -13,6 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.pipeline.config import PipelineConfig
 from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
@@ -60,7 +61,10 @@ def segment_lightfield(
 
     height, width = lightfield.view_shape
     if np.shape(disparity) != (height, width):
-        raise ValueError(f"disparity has shape {np.shape(disparity)}, expected {(height, width)}")
+        raise LfsamError(
+            f"disparity has shape {np.shape(disparity)}, expected {(height, width)}; give the "
+            "center view's (U, V) disparity of this light field"
+        )
     predictor = LightFieldPredictor(segmenter, config, progress=progress)
     predictor.set_lightfield(lightfield, disparity=np.asarray(disparity, dtype=np.float32))
     if prompts is None:
