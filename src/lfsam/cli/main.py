@@ -29,6 +29,7 @@ SUBCOMMANDS = [
     "evaluate",
     "show",
     "demo",
+    "view",
 ]
 
 DESCRIPTION = """\
