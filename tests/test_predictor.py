@@ -271,7 +271,8 @@ def test_memory_budget_evicts_and_recomputes(tiny_scene):
     predictor.set_lightfield(tiny_scene, disparity="gt")
     predictor.add_prompts(1, points=[(30, 20)])
     labels = predictor.predict().labels
-    assert len(predictor._store._memory) == 1  # only the last view is kept
+    # only the last view and the pinned reference view (the center) are kept
+    assert set(predictor._store._memory) == {tiny_scene.center, (2, 2)}
     reference = LightFieldPredictor(load_segmenter("sam2-tiny-test", random_weights=True,
                                                    device="cpu"))
     reference.set_lightfield(tiny_scene, disparity="gt")

@@ -154,7 +154,8 @@ class RunOptions:
     cache_dir : str, optional
         On-disk embedding cache (:mod:`lfsam.embeddings`).
     memory_budget_mb : float
-        In-memory embedding budget.
+        In-memory embedding budget (a batch run visits each view once; reference views of
+        objects stay pinned).
     progress : bool
         Progress bars.
     baseline : dict, optional
@@ -164,7 +165,7 @@ class RunOptions:
     method: str = "lfsam"
     references: str = "center"
     cache_dir: str | None = None
-    memory_budget_mb: float = 2048.0
+    memory_budget_mb: float = 256.0
     progress: bool = True
     baseline: dict[str, Any] | None = None
 
@@ -287,6 +288,7 @@ def segment(
         cache_dir=run.cache_dir,
         memory_budget_mb=run.memory_budget_mb,
         progress=run.progress,
+        keep_decoder_state=False,  # a batch run decodes each view once
     )
     predictor.set_lightfield(lightfield, disparity=disparity)
     if objects is None:

@@ -96,6 +96,7 @@ class EmbeddingStore:
         self.views = views
         self.budget = float(memory_budget_mb) * 2**20
         self._memory: OrderedDict[View, tuple[ViewEmbedding, int]] = OrderedDict()
+        self._pinned: set[View] = set()
         self._bytes = 0
         self.views_encoded = 0
         self.disk_hits = 0
@@ -147,6 +148,10 @@ class EmbeddingStore:
                 self._save(key, embedding)
         return [out[key] for key in keys]
 
+    def pin(self, view: View) -> None:
+        """Never drop ``view`` from memory (e.g. a reference view that serves again)."""
+        self._pinned.add((int(view[0]), int(view[1])))
+
     def forget(self) -> None:
         """Drop every in-memory embedding (the disk cache stays)."""
         self._memory.clear()
@@ -157,8 +162,12 @@ class EmbeddingStore:
         size = embedding_nbytes(embedding)
         self._memory[key] = (embedding, size)
         self._bytes += size
-        while self._bytes > self.budget and len(self._memory) > 1:
-            _, (_, dropped) = self._memory.popitem(last=False)
+        for old in list(self._memory):
+            if self._bytes <= self.budget or len(self._memory) <= 1:
+                break
+            if old in self._pinned or old == key:
+                continue
+            _, dropped = self._memory.pop(old)
             self._bytes -= dropped
 
     # --- disk -------------------------------------------------------------------------------

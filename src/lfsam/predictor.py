@@ -155,6 +155,9 @@ class LightFieldPredictor:
         In-memory embedding budget (least recently used views dropped beyond it).
     progress : bool
         Progress bars over views.
+    keep_decoder_state : bool
+        Keep SAM 2's prompt-independent decoder work with each cached embedding (faster edits,
+        about three times the memory per view; counted in the budget).
 
     Examples
     --------
@@ -177,8 +180,11 @@ class LightFieldPredictor:
         cache_dir: Any = None,
         memory_budget_mb: float = 2048.0,
         progress: bool = False,
+        keep_decoder_state: bool = True,
     ) -> None:
         self.segmenter = segmenter
+        if hasattr(segmenter, "keep_decoder_state"):
+            segmenter.keep_decoder_state = bool(keep_decoder_state)
         self.config = config or PipelineConfig()
         self.cache_dir = cache_dir
         self.memory_budget_mb = memory_budget_mb
@@ -360,6 +366,7 @@ class LightFieldPredictor:
             groups[self._reference_view(self._objects[i])].append(i)
         for view, members in groups.items():
             embedding = self.embedding(view)
+            self._store.pin(view)
             masks: dict[int, torch.Tensor] = {}
             scores: dict[int, float] = {}
             prompted = []

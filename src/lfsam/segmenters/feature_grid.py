@@ -24,11 +24,19 @@ are clamped (``grid_sample(..., padding_mode="border")``).
 
 from __future__ import annotations
 
+import functools
+
 import torch
 
 from lfsam.precision import wide_float
 
-__all__ = ["BilinearCorners", "bilinear_corners", "grid_cosine_similarity", "grid_feature_sums"]
+__all__ = [
+    "BilinearCorners",
+    "bilinear_corners",
+    "grid_cosine_similarity",
+    "grid_feature_sums",
+    "pixel_feature_norms",
+]
 
 # the ten unordered corner pairs (i <= j) of a cell's 4 x 4 Gram matrix
 _PAIRS = [(i, j) for i in range(4) for j in range(i, 4)]
@@ -117,12 +125,43 @@ def _gram_maps(grid: torch.Tensor) -> torch.Tensor:
     return torch.stack([(corners[i] * corners[j]).sum(0).reshape(-1) for i, j in _PAIRS])
 
 
+@functools.lru_cache(maxsize=8)
+def _view_corners(
+    image_size: tuple[int, int], grid_hw: tuple[int, int], device: str
+) -> BilinearCorners:
+    """Bilinear corners of every pixel of a view (the same for every view of that size)."""
+    u_size, v_size = image_size
+    flat = torch.arange(u_size * v_size, device=device)
+    return bilinear_corners(flat // v_size, flat % v_size, image_size, grid_hw)
+
+
+def pixel_feature_norms(grid: torch.Tensor, image_size: tuple[int, int]) -> torch.Tensor:
+    """Norm of the interpolated feature at every pixel of a view, ``(U * V,)`` float32.
+
+    ``w^T G w`` with each cell's Gram matrix of its corner features (off-diagonal pairs counted
+    twice), in float64 where the device has it (the corner products may cancel where
+    neighbouring features point apart). Prompt-independent: computed once per view.
+    """
+    _, h, w = grid.shape
+    u_size, v_size = image_size
+    device = grid.device
+    corners = _view_corners(tuple(image_size), (h, w), str(device))
+    gram = _gram_maps(grid)[:, corners.cell]  # (10, U V)
+    w64 = corners.weight.to(wide_float(device))
+    norm_sq = torch.zeros(u_size * v_size, device=device, dtype=w64.dtype)
+    for pair, (i, j) in enumerate(_PAIRS):
+        factor = 1.0 if i == j else 2.0
+        norm_sq += factor * w64[:, i] * w64[:, j] * gram[pair]
+    return norm_sq.clamp(min=0.0).sqrt().clamp(min=1e-12).float()
+
+
 def grid_cosine_similarity(
     grid: torch.Tensor,
     mask_index: torch.Tensor,
     pixel_index: torch.Tensor,
     sources: torch.Tensor,
     image_size: tuple[int, int],
+    norms: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """Cosine similarity of each pair's interpolated pixel feature to its mask's source feature.
 
@@ -135,32 +174,25 @@ def grid_cosine_similarity(
     sources : (N, C) tensor
         Unit-norm source features (rows of zeros allowed: similarity 0).
     image_size : (U, V)
+    norms : (U * V,) float32 tensor, optional
+        :func:`pixel_feature_norms` of this view, when already computed (they depend on the
+        view only, not on the masks).
 
     Returns
     -------
     (P,) float32 tensor
     """
     channels, h, w = grid.shape
-    u_size, v_size = image_size
     device = grid.device
     pixel_index = pixel_index.to(device)
     mask_index = mask_index.to(device)
     # corners and feature norms of every pixel of the view once (masks overlap: pairs can
     # outnumber pixels many times over), then gathered per pair
-    flat_pixels = torch.arange(u_size * v_size, device=device)
-    corners = bilinear_corners(flat_pixels // v_size, flat_pixels % v_size, image_size, (h, w))
-    # squared norm: w^T G w with the cell's Gram matrix (off-diagonal pairs counted twice), in
-    # float64 where the device has it: the corner products may cancel where neighbouring
-    # features point apart
-    gram = _gram_maps(grid)[:, corners.cell]  # (10, U V)
-    w64 = corners.weight.to(wide_float(device))
-    norm_sq = torch.zeros(u_size * v_size, device=device, dtype=w64.dtype)
-    for pair, (i, j) in enumerate(_PAIRS):
-        factor = 1.0 if i == j else 2.0
-        norm_sq += factor * w64[:, i] * w64[:, j] * gram[pair]
-    norm = norm_sq.clamp(min=0.0).sqrt().clamp(min=1e-12).float()
+    corners = _view_corners(tuple(image_size), (h, w), str(device))
+    if norms is None:
+        norms = pixel_feature_norms(grid, image_size)
     # numerator: sum_k w_k (E_k . s_n), from the (N, h w) table of grid-to-source products
     table = sources.to(device).float() @ grid.reshape(channels, h * w).float()
     flat = mask_index[:, None] * (h * w) + corners.index[pixel_index]
     numerator = (table.reshape(-1)[flat] * corners.weight[pixel_index]).sum(1)
-    return numerator / norm[pixel_index]
+    return numerator / norms[pixel_index]

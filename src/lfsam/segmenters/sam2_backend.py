@@ -29,7 +29,11 @@ import torch.nn.functional as F
 from lfsam.devices import default_encode_batch_size
 from lfsam.errors import LfsamError
 from lfsam.segmenters.base import AutoMasks, MaskPrediction, Prompts, Segmenter, ViewEmbedding
-from lfsam.segmenters.feature_grid import grid_cosine_similarity, grid_feature_sums
+from lfsam.segmenters.feature_grid import (
+    grid_cosine_similarity,
+    grid_feature_sums,
+    pixel_feature_norms,
+)
 from lfsam.segmenters.registry import DEFAULT_MODEL
 from lfsam.segmenters.sam2_adapter import (
     CachedFeaturePredictor,
@@ -68,10 +72,19 @@ class Sam2Features:
         input); what the mask decoder and semantic occluding use.
     high_res_feats : list of two tensors
         ``(1, C/8, H/4, W/4)`` and ``(1, C/4, H/8, W/8)`` (after the decoder's 1x1 convolutions).
+    pixel_norms : (U * V,) tensor, optional
+        Norm of the upsampled embedding at every pixel (semantic occluding), made on first use.
+    decoder_state : ImageState, optional
+        The decoder's prompt-independent image side
+        (:func:`lfsam.segmenters.sam2_decoder.prepare_image`), kept when the segmenter's
+        :attr:`Sam2Segmenter.keep_decoder_state` is on (interactive use: every edit decodes
+        every view again).
     """
 
     image_embed: torch.Tensor
     high_res_feats: list[torch.Tensor]
+    pixel_norms: torch.Tensor | None = None
+    decoder_state: Any = None
 
     def as_predictor_features(self) -> dict[str, Any]:
         """The ``_features`` dict of ``SAM2ImagePredictor``."""
@@ -80,6 +93,10 @@ class Sam2Features:
 
 class Sam2Segmenter(Segmenter):
     """Meta's SAM 2 image model as an lfsam :class:`Segmenter`.
+
+    :attr:`keep_decoder_state` (default off) keeps the decoder's prompt-independent image side
+    with each embedding (:class:`Sam2Features`), so a view decoded again (an interactive edit)
+    skips it; it about triples an embedding's memory.
 
     Parameters
     ----------
@@ -104,6 +121,8 @@ class Sam2Segmenter(Segmenter):
     >>> emb = seg.encode(views[None])[0]  # doctest: +SKIP
     >>> pred = seg.predict(emb, Prompts(points=[[[40, 30]]], point_labels=[[1]]))  # doctest: +SKIP
     """
+
+    keep_decoder_state: bool = False
 
     def __init__(
         self,
@@ -326,9 +345,9 @@ class Sam2Segmenter(Segmenter):
                 low_res_logits=torch.zeros((0, k, low, low), device=self.device),
             )
         predictor = self._predictor
-        predictor.use_features(
-            self._view_features(embedding).as_predictor_features(), embedding.image_size
-        )
+        feats = self._view_features(embedding)
+        predictor.use_features(feats.as_predictor_features(), embedding.image_size)
+        predictor.image_state = feats.decoder_state
         predictor.decode_chunk_size = min(
             self.max_prompts_per_batch, default_chunk_size(self.device)
         )
@@ -344,6 +363,8 @@ class Sam2Segmenter(Segmenter):
                     masks.append(m)
                     ious.append(iou.float())
                     logits.append(lr.float())
+            if self.keep_decoder_state:
+                feats.decoder_state = predictor.image_state
         finally:
             predictor.reset_predictor()
         return MaskPrediction(
@@ -498,10 +519,13 @@ class Sam2Segmenter(Segmenter):
         source, without sampling 256 channels per pixel (exact;
         :func:`lfsam.segmenters.feature_grid.grid_cosine_similarity`)."""
         with torch.no_grad():
-            grid = self._view_features(embedding).image_embed[0].float()
+            feats = self._view_features(embedding)
+            grid = feats.image_embed[0].float()
+            if feats.pixel_norms is None:  # prompt-independent: once per view
+                feats.pixel_norms = pixel_feature_norms(grid, tuple(embedding.image_size))
             sims = grid_cosine_similarity(
                 grid, mask_index, pixel_index, sources.to(self.device),
-                tuple(embedding.image_size),
+                tuple(embedding.image_size), norms=feats.pixel_norms,
             )
         return sims.to(sources.device)
 
