@@ -221,8 +221,9 @@ def test_propagate_a_to_b_and_back_returns_the_mask(flat_scene, a, b, box):
     # the boundary pixels that nearest-pixel rounding can move by one.
     from scipy import ndimage
 
-    inner = ndimage.binary_erosion(mask)
-    outer = ndimage.binary_dilation(mask)
+    square = ndimage.generate_binary_structure(2, 2)  # one pixel in both axes
+    inner = ndimage.binary_erosion(mask, square)
+    outer = ndimage.binary_dilation(mask, square)
     assert back[inner].all() and not back[~outer].any()
 
 
