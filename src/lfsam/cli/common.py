@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-__all__ = ["HelpFormatter", "parse_floats", "parse_pair"]
+__all__ = ["HelpFormatter", "add_value_range", "parse_floats", "parse_pair", "unit_interval"]
 
 
 class HelpFormatter(argparse.RawDescriptionHelpFormatter, argparse.ArgumentDefaultsHelpFormatter):
@@ -35,3 +35,26 @@ def parse_floats(text: str, count: int) -> tuple[float, ...]:
             f"expected {count} comma-separated numbers, got {text!r}"
         )
     return values
+
+
+def unit_interval(text: str) -> float:
+    """Parse a number in [0, 1] (a threshold such as ``--t-sim``)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0.0 <= value <= 1.0:  # also rejects NaN
+        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}")
+    return value
+
+
+def add_value_range(parser: argparse.ArgumentParser) -> None:
+    """Add ``--value-range 1|255``: how floating-point views are scaled (LightField docstring)."""
+    parser.add_argument(
+        "--value-range",
+        type=int,
+        choices=(1, 255),
+        default=None,
+        help="floating-point views are [0, 1] (1) or [0, 255] (255); default: [0, 1] when the "
+        "99.9th percentile of the values is <= 2",
+    )

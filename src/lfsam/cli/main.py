@@ -25,6 +25,7 @@ SUBCOMMANDS = [
     "models",
     "segment",
     "metrics",
+    "export",
     "evaluate",
     "show",
     "demo",

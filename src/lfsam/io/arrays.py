@@ -92,7 +92,7 @@ def _optional(arrays: dict, keys: tuple[str, ...]) -> np.ndarray | None:
     return None
 
 
-def read_npz(path: str | os.PathLike) -> LightField:
+def read_npz(path: str | os.PathLike, value_range: int | None = None) -> LightField:
     """Read an ``.npz`` light field (``views`` plus optional ``disparity``, ``labels``, ``meta``).
 
     Raises
@@ -113,7 +113,7 @@ def read_npz(path: str | os.PathLike) -> LightField:
         raise LfsamError(
             f"cannot read {path} as .npz ({type(exc).__name__}: {exc}); check the file"
         ) from None
-    keys = [k for k in arrays if k not in ("meta", *DISPARITY_KEYS, *LABEL_KEYS)]
+    keys = [k for k in arrays if k not in ("meta", "present", *DISPARITY_KEYS, *LABEL_KEYS)]
     key = _pick(keys, arrays, VIEW_KEYS, path)
     views = check_view_array(arrays[key], f"array {key!r} in {path}")
     meta: dict = {}
@@ -132,10 +132,12 @@ def read_npz(path: str | os.PathLike) -> LightField:
         disparity=_optional(arrays, DISPARITY_KEYS),
         labels=_optional(arrays, LABEL_KEYS),
         meta=meta,
+        present=arrays.get("present"),
+        value_range=value_range,
     )
 
 
-def read_npy(path: str | os.PathLike) -> LightField:
+def read_npy(path: str | os.PathLike, value_range: int | None = None) -> LightField:
     """Read a single ``.npy`` array ``[S, T, U, V, 3]``.
 
     Raises
@@ -149,7 +151,9 @@ def read_npy(path: str | os.PathLike) -> LightField:
     except (OSError, ValueError) as exc:
         raise LfsamError(f"cannot read {path} as .npy ({exc}); check the file") from None
     views = check_view_array(array, str(path))
-    return LightField(np.asarray(views), meta={"source": str(path), "format": "npy"})
+    return LightField(
+        np.asarray(views), meta={"source": str(path), "format": "npy"}, value_range=value_range
+    )
 
 
 def _h5_arrays(group) -> dict[str, object]:
@@ -180,7 +184,7 @@ class _Reversed:
         return array if dtype is None else array.astype(dtype)
 
 
-def _read_hdf5(path: Path, fmt: str, matlab: bool) -> LightField:
+def _read_hdf5(path: Path, fmt: str, matlab: bool, value_range: int | None = None) -> LightField:
     import h5py
 
     try:
@@ -200,10 +204,12 @@ def _read_hdf5(path: Path, fmt: str, matlab: bool) -> LightField:
     meta = {"source": str(path), "format": fmt, "dataset": key}
     if matlab:
         meta["layout"] = "MATLAB v7.3 (HDF5), axes reversed from column-major storage"
-    return LightField(views, disparity=disparity, labels=labels, meta=meta)
+    return LightField(
+        views, disparity=disparity, labels=labels, meta=meta, value_range=value_range
+    )
 
 
-def read_h5(path: str | os.PathLike) -> LightField:
+def read_h5(path: str | os.PathLike, value_range: int | None = None) -> LightField:
     """Read a 5-D ``[S, T, U, V, 3]`` dataset from an HDF5 file (key ``LF``, ``views``, ...).
 
     Raises
@@ -211,10 +217,10 @@ def read_h5(path: str | os.PathLike) -> LightField:
     LfsamError
         If the file is unreadable or holds no suitable dataset.
     """
-    return _read_hdf5(Path(path), "h5", matlab=False)
+    return _read_hdf5(Path(path), "h5", matlab=False, value_range=value_range)
 
 
-def read_mat(path: str | os.PathLike) -> LightField:
+def read_mat(path: str | os.PathLike, value_range: int | None = None) -> LightField:
     """Read a MATLAB ``.mat`` light field (v5 with SciPy, v7.3 with h5py).
 
     Raises
@@ -228,7 +234,7 @@ def read_mat(path: str | os.PathLike) -> LightField:
     try:
         contents = scipy.io.loadmat(path)
     except NotImplementedError:  # MATLAB v7.3 is HDF5
-        return _read_hdf5(path, "mat", matlab=True)
+        return _read_hdf5(path, "mat", matlab=True, value_range=value_range)
     except (OSError, ValueError, TypeError) as exc:
         raise LfsamError(f"cannot read {path} as a MATLAB file ({exc}); check the file") from None
     arrays = {
@@ -242,6 +248,7 @@ def read_mat(path: str | os.PathLike) -> LightField:
         disparity=_optional(arrays, DISPARITY_KEYS),
         labels=_optional(arrays, LABEL_KEYS),
         meta={"source": str(path), "format": "mat", "variable": key},
+        value_range=value_range,
     )
 
 
@@ -269,6 +276,8 @@ def write_npz(lf: LightField, path: str | os.PathLike, compress: bool = True) ->
         arrays["disparity"] = lf.disparity.astype(np.float32)
     if lf.labels is not None:
         arrays["labels"] = lf.labels.astype(np.int32)
+    if not lf.is_complete:
+        arrays["present"] = lf.present
     arrays["meta"] = np.array(json.dumps(json_safe(lf.meta), sort_keys=True))
     method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
     with (
