@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 
-from lfsam.cli.common import HelpFormatter, parse_floats
+from lfsam.cli.common import HelpFormatter, add_value_range, parse_floats, unit_interval
 from lfsam.cli.models import add_model_arguments
 
 DESCRIPTION = """\
@@ -81,8 +81,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="move each pixel by its disparity (paper eq. 2) or the whole mask by its "
         "mean/median disparity (authors' code)",
     )
-    method.add_argument("--t-sim", type=float, default=0.7, help="semantic occluding threshold")
-    method.add_argument("--t-iou", type=float, default=0.1, help="refinement fallback threshold")
+    method.add_argument(
+        "--t-sim", type=unit_interval, default=0.7, help="semantic occluding threshold, in [0, 1]"
+    )
+    method.add_argument(
+        "--t-iou", type=unit_interval, default=0.1, help="refinement fallback threshold, in [0, 1]"
+    )
     method.add_argument(
         "--objects-per-pass", type=int, default=15,
         help="video baseline: objects tracked per pass (the authors used 15)",
@@ -95,6 +99,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--format", dest="input_format", help="input format (default: detect)")
     parser.add_argument("--out", required=True, metavar="RESULT.npz", help="result file")
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    add_value_range(parser)
     parser.set_defaults(func=run)
 
 
@@ -114,7 +119,9 @@ def run(args: argparse.Namespace) -> int:
             "neither"
         )
     check_output_path(args.out)
-    lightfield = read_lightfield(args.path, format=args.input_format)
+    lightfield = read_lightfield(
+        args.path, format=args.input_format, value_range=args.value_range
+    )
     config = PipelineConfig(
         refine=not args.no_refine,
         occlusion=args.occlusion,

@@ -118,8 +118,14 @@ def evaluate_labels(
     *,
     num_masks: int | None = None,
     device: str | torch.device | None = None,
+    present: np.ndarray | None = None,
 ) -> dict[str, float | int | None]:
     """All metrics of paper Table 1 for one predicted label field.
+
+    Views absent from a partial grid (``present`` and ``gt.present``; docs/design.md section 8)
+    are skipped: their pixels are left out of every metric (they are treated as unlabeled in both
+    the prediction and the ground truth, which SIoU, LPP, AA and UE ignore; coverage and T count
+    the views present only).
 
     Parameters
     ----------
@@ -133,6 +139,8 @@ def evaluate_labels(
         N for T; defaults to the number of distinct non-zero labels.
     device : str or torch.device, optional
         Where to compute; CUDA when available, else CPU.
+    present : (S, T) bool array, optional
+        The views the prediction holds (a result's ``present``); default all.
 
     Returns
     -------
@@ -151,8 +159,16 @@ def evaluate_labels(
         raise LfsamError(f"labels must have shape (S, T, U, V), got {shape}")
     check_ground_truth(shape, gt)
     dev = _default_device(device)
-    predicted, predicted_ids = compact_labels(to_tensor(labels, dev), "predicted labels")
-    truth, truth_ids = compact_labels(to_tensor(gt.labels, dev), "ground-truth labels")
+    views = np.asarray(gt.present, dtype=bool)
+    if present is not None:
+        views = views & np.asarray(present, dtype=bool)
+    absent = torch.as_tensor(~views, device=dev)
+    raw_predicted, raw_truth = to_tensor(labels, dev), to_tensor(gt.labels, dev)
+    if bool(absent.any()):
+        raw_predicted = raw_predicted.masked_fill(absent[:, :, None, None], 0)
+        raw_truth = raw_truth.masked_fill(absent[:, :, None, None], 0)
+    predicted, predicted_ids = compact_labels(raw_predicted, "predicted labels")
+    truth, truth_ids = compact_labels(raw_truth, "ground-truth labels")
     disparity = to_tensor(gt.disparity, dev)
 
     consistency = consistency_metrics(predicted, disparity, len(predicted_ids))
@@ -164,8 +180,8 @@ def evaluate_labels(
         "lpp": consistency.lpp,
         "aa": achievable_accuracy(table),
         "ue": undersegmentation_error(table),
-        "coverage": coverage(predicted),
-        "ms_per_mask_view": ms_per_mask_view(timings, num_masks, shape[:2]),
+        "coverage": coverage(predicted[~absent]),
+        "ms_per_mask_view": ms_per_mask_view(timings, num_masks, (int(views.sum()), 1)),
         "num_masks": num_masks,
     }
 
@@ -193,5 +209,10 @@ def evaluate_result(
     """
     num_masks = result.masks.num_masks if result.masks is not None else None
     return evaluate_labels(
-        result.labels, gt, result.timings, num_masks=num_masks, device=device
+        result.labels,
+        gt,
+        result.timings,
+        num_masks=num_masks,
+        device=device,
+        present=result.present_mask,
     )
