@@ -6,7 +6,13 @@ import argparse
 import json
 import sys
 
-from lfsam.cli.common import HelpFormatter, add_value_range, parse_floats, unit_interval
+from lfsam.cli.common import (
+    HelpFormatter,
+    add_value_range,
+    bounded_int,
+    parse_floats,
+    unit_interval,
+)
 from lfsam.cli.models import add_model_arguments
 
 DESCRIPTION = """\
@@ -88,7 +94,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--t-iou", type=unit_interval, default=0.1, help="refinement fallback threshold, in [0, 1]"
     )
     method.add_argument(
-        "--objects-per-pass", type=int, default=15,
+        "--objects-per-pass", type=bounded_int(1), default=15,
         help="video baseline: objects tracked per pass (the authors used 15)",
     )
     method.add_argument(
