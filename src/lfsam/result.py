@@ -189,8 +189,12 @@ def load_result(path: str | os.PathLike) -> SegmentationResult:
     try:
         with np.load(path, allow_pickle=False) as npz:
             contents = {key: npz[key] for key in npz.files}
-    except Exception as exc:  # zipfile/np errors vary
-        raise LfsamError(f"cannot read {str(path)!r} as .npz: {exc}") from exc
+    except Exception as exc:  # zipfile/zlib/NumPy errors on damaged files vary
+        detail = " ".join(str(exc).split())[:160]
+        raise LfsamError(
+            f"cannot read {str(path)!r} as a result .npz ({type(exc).__name__}: {detail}); "
+            "give the .npz written by `lfsam segment --out`"
+        ) from None
     if "labels" not in contents:
         raise LfsamError(
             f"{str(path)!r} holds no 'labels' array (keys: {sorted(contents)}); "

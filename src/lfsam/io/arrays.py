@@ -23,6 +23,7 @@ import numpy as np
 
 from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_output
+from lfsam.io.decode import decoding
 from lfsam.io.native import json_safe
 from lfsam.lightfield import LightField
 
@@ -102,17 +103,16 @@ def read_npz(path: str | os.PathLike, value_range: int | None = None) -> LightFi
     """
     path = Path(path)
     arrays: dict[str, np.ndarray] = {}
-    try:
-        with np.load(path, allow_pickle=False) as archive:
-            for key in archive.files:
-                try:
-                    arrays[key] = archive[key]
-                except ValueError:  # a pickled object array: never unpickled, skipped
-                    continue
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        raise LfsamError(
-            f"cannot read {path} as .npz ({type(exc).__name__}: {exc}); check the file"
-        ) from None
+    with decoding(path, ".npz"), np.load(path, allow_pickle=False) as archive:
+        if not hasattr(archive, "files"):
+            raise LfsamError(f"{path} is a single .npy array, not an .npz archive; rename it")
+        for key in archive.files:
+            try:
+                arrays[key] = archive[key]
+            except ValueError as exc:  # a pickled object array: never unpickled, skipped
+                if "allow_pickle" not in str(exc):
+                    raise
+                continue
     keys = [k for k in arrays if k not in ("meta", "present", *DISPARITY_KEYS, *LABEL_KEYS)]
     key = _pick(keys, arrays, VIEW_KEYS, path)
     views = check_view_array(arrays[key], f"array {key!r} in {path}")
@@ -146,13 +146,15 @@ def read_npy(path: str | os.PathLike, value_range: int | None = None) -> LightFi
         If the file is unreadable or has the wrong shape.
     """
     path = Path(path)
-    try:
+    with decoding(path, ".npy"):
         array = np.load(path, mmap_mode="r", allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        raise LfsamError(f"cannot read {path} as .npy ({exc}); check the file") from None
+    if not isinstance(array, np.ndarray):
+        raise LfsamError(f"{path} is not a single .npy array; give an [S, T, U, V, 3] .npy")
     views = check_view_array(array, str(path))
+    with decoding(path, ".npy"):
+        views = np.array(views)
     return LightField(
-        np.asarray(views), meta={"source": str(path), "format": "npy"}, value_range=value_range
+        views, meta={"source": str(path), "format": "npy"}, value_range=value_range
     )
 
 
@@ -187,20 +189,19 @@ class _Reversed:
 def _read_hdf5(path: Path, fmt: str, matlab: bool, value_range: int | None = None) -> LightField:
     import h5py
 
-    try:
+    with decoding(path, "HDF5"):
         handle = h5py.File(path, "r")
-    except OSError as exc:
-        raise LfsamError(f"cannot read {path} as HDF5 ({exc}); check the file") from None
     with handle:
-        datasets = _h5_arrays(handle)
+        with decoding(path, "HDF5"):
+            datasets = _h5_arrays(handle)
         arrays = {k: (_Reversed(v) if matlab else v) for k, v in datasets.items()}
         keys = [k for k in arrays if k not in (*DISPARITY_KEYS, *LABEL_KEYS)]
         key = _pick(keys, arrays, VIEW_KEYS, path)
-        views = check_view_array(
-            np.asarray(arrays[key]), f"dataset {key!r} in {path}", allow_weight_channel=matlab
-        )
-        disparity = _optional(arrays, DISPARITY_KEYS)
-        labels = _optional(arrays, LABEL_KEYS)
+        with decoding(path, "HDF5"):
+            data = np.asarray(arrays[key])
+            disparity = _optional(arrays, DISPARITY_KEYS)
+            labels = _optional(arrays, LABEL_KEYS)
+        views = check_view_array(data, f"dataset {key!r} in {path}", allow_weight_channel=matlab)
     meta = {"source": str(path), "format": fmt, "dataset": key}
     if matlab:
         meta["layout"] = "MATLAB v7.3 (HDF5), axes reversed from column-major storage"
@@ -231,12 +232,13 @@ def read_mat(path: str | os.PathLike, value_range: int | None = None) -> LightFi
     import scipy.io
 
     path = Path(path)
-    try:
-        contents = scipy.io.loadmat(path)
-    except NotImplementedError:  # MATLAB v7.3 is HDF5
+    with decoding(path, "a MATLAB file"):
+        try:
+            contents = scipy.io.loadmat(path)
+        except NotImplementedError:  # MATLAB v7.3 is HDF5
+            contents = None
+    if contents is None:
         return _read_hdf5(path, "mat", matlab=True, value_range=value_range)
-    except (OSError, ValueError, TypeError) as exc:
-        raise LfsamError(f"cannot read {path} as a MATLAB file ({exc}); check the file") from None
     arrays = {
         k: v for k, v in contents.items() if not k.startswith("__") and isinstance(v, np.ndarray)
     }

@@ -52,7 +52,7 @@ def read_parameters(path: str | os.PathLike) -> dict[str, dict[str, object]]:
     parser = configparser.ConfigParser()
     try:
         parser.read(path)
-    except configparser.Error as exc:
+    except (configparser.Error, UnicodeDecodeError) as exc:
         raise LfsamError(f"cannot parse {path} ({exc}); fix or remove the file") from None
     return {
         section: {key: _number(value) for key, value in parser[section].items()}

@@ -14,7 +14,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from PIL import Image, UnidentifiedImageError
+from PIL import Image
 from tqdm import tqdm
 
 from lfsam.errors import LfsamError
@@ -46,7 +46,7 @@ def image_size(path: Path) -> tuple[int, int]:
     try:
         with Image.open(path) as image:
             width, height = image.size
-    except (OSError, UnidentifiedImageError, ValueError) as exc:
+    except Exception as exc:  # any decoder failure on a damaged file
         raise LfsamError(
             f"cannot read image {str(path)!r} ({type(exc).__name__}); replace or remove the file"
         ) from None
@@ -79,7 +79,7 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
             return np.asarray(image, dtype=np.uint8)
     except FileNotFoundError:
         raise LfsamError(f"image {str(path)!r} not found; check the path") from None
-    except (OSError, UnidentifiedImageError, ValueError, SyntaxError) as exc:
+    except Exception as exc:  # any decoder failure on a damaged file (zlib, struct, ...)
         raise LfsamError(
             f"cannot read image {str(path)!r} ({type(exc).__name__}: {exc}); "
             "replace or remove the file"

@@ -207,7 +207,7 @@ def is_native(path: Path) -> bool:
 def _load_gt(path: Path, name: str) -> np.ndarray:
     try:
         return np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
+    except Exception as exc:  # any NumPy failure on a damaged file
         raise LfsamError(
             f"cannot read {name} {str(path)!r} ({exc}); the scene is damaged, re-create it"
         ) from None
@@ -251,7 +251,9 @@ def read_native(path: str | os.PathLike) -> LightField:
     try:
         s_count, t_count = (int(x) for x in description["grid"])
         digits = int(description.get("view_digits", 2))
-    except (KeyError, TypeError, ValueError):
+        if min(s_count, t_count) < 1 or s_count * t_count > 100_000 or not 1 <= digits <= 6:
+            raise ValueError
+    except (KeyError, TypeError, ValueError, OverflowError):
         raise LfsamError(f"{marker} has no valid 'grid'; re-create the scene") from None
     pattern = _view_pattern(digits)
     present = description.get("present")
