@@ -255,8 +255,8 @@ def _check_options(args: argparse.Namespace, scene: _Scene) -> None:
         raise LfsamError(f"--alpha must lie in [0, 1], got {args.alpha}")
     if not 0 < args.scale <= 32:  # NaN fails too
         raise LfsamError(f"--scale must be > 0 and <= 32, got {args.scale}")
-    if not 0 < args.fps <= 1000:
-        raise LfsamError(f"--fps must be > 0 and <= 1000, got {args.fps}")
+    if not 0.01 <= args.fps <= 1000:  # a GIF frame lasts at most 655 s
+        raise LfsamError(f"--fps must lie in [0.01, 1000], got {args.fps}")
     if args.mask_outlines and (scene.masks is None or scene.other is not None):
         raise LfsamError("--mask-outlines needs a result that stores its masks, and no --compare")
     if args.match_colors and scene.other is None:
