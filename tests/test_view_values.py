@@ -28,6 +28,13 @@ def test_unit_range_with_a_value_slightly_above_one_reads_correctly():
     assert "[0, 1]" in note and "1 values above 1 clipped" in note
 
 
+def test_round_off_below_zero_reads_as_zero():
+    views = _unit_views(5)
+    views[0, 0, 0, 0] = -1e-6
+    lf = LightField(views)
+    assert lf.views[0, 0, 0, 0].tolist() == [0, 0, 0] and lf.views.mean() > 100
+
+
 def test_many_bright_outliers_still_read_as_unit_range():
     views = _unit_views(1)
     flat = views.reshape(-1)
@@ -63,6 +70,7 @@ def test_value_range_option_settles_a_dark_0_255_light_field(tmp_path, capsys):
         (np.inf, "1 view values are NaN or infinite"),
         (300.0, r"outside \[0, 255\]"),
         (-0.5, r"outside \[0, 255\]"),
+        (-0.01, r"outside \[0, 255\]"),
     ],
 )
 def test_bad_float_values_are_one_line_errors(value, message, tmp_path, capsys):

@@ -7,11 +7,12 @@ labels ``G[s, t, u, v]`` (int32, 0 = no label); either may be given for the cent
 ``[U, V]``.
 
 Floating-point views are converted to uint8 by one documented rule (:func:`float_scale`): values
-must be finite and within [0, 255]; they are read as [0, 1] intensities when the 99.9th percentile
-of the values is at most 2 (so a [0, 1] light field with a few values pushed slightly above 1 by
-processing still reads correctly; those few are clipped to 1), otherwise as [0, 255]. A 0..255
-light field whose 99.9th percentile is at most 2 (all but 0.1% of it darker than 2/255) would be
-misread; give ``value_range=255`` (``--value-range 255``) for it, or ``value_range=1``.
+must be finite and within [0, 255] (round-off down to -0.5/255 reads as 0); they are read as
+[0, 1] intensities when the 99.9th percentile of the values is at most 2 (so a [0, 1] light field
+with a few values pushed slightly above 1 by processing still reads correctly; those few are
+clipped to 1), otherwise as [0, 255]. A 0..255 light field whose 99.9th percentile is at most 2
+(all but 0.1% of it darker than 2/255) would be misread; give ``value_range=255``
+(``--value-range 255``) for it, or ``value_range=1``.
 """
 
 from __future__ import annotations
@@ -30,6 +31,8 @@ __all__ = ["LightField", "check_result_shape", "float_scale", "snake_order"]
 UNIT_RANGE_LIMIT = 2.0
 #: The percentile the [0, 1] / [0, 255] rule looks at.
 RANGE_PERCENTILE = 99.9
+#: Negative values down to this (float round-off; less than half a level even in [0, 1]) read as 0.
+NEGATIVE_TOLERANCE = 0.5 / 255
 
 
 def snake_order(grid_shape: tuple[int, int]) -> list[tuple[int, int]]:
@@ -303,7 +306,7 @@ def float_scale(views: np.ndarray, value_range: float | None = None) -> tuple[fl
             f"{bad} view values are NaN or infinite; fix the light field (views must be finite)"
         )
     low, high = (float(views.min()), float(views.max())) if views.size else (0.0, 0.0)
-    if low < 0 or high > 255:
+    if low < -NEGATIVE_TOLERANCE or high > 255:
         raise LfsamError(
             f"float view values span {low:.4g}..{high:.4g}, outside [0, 255]; rescale the "
             "views to [0, 1] or [0, 255]"

@@ -1,9 +1,10 @@
 """Light fields stored as arrays: ``.npz``, ``.npy``, HDF5 (``.h5``) and MATLAB (``.mat``).
 
 The views must be one 5-D array ``[S, T, U, V, 3]`` (view row, view column, pixel row, pixel
-column, RGB), uint8 or float in [0, 1]. Files with several arrays are searched by the usual key
-names (``views``, ``LF``, ``lf``, ``lightfield``, ``data``, ...), otherwise by the only 5-D array
-they hold. ``.npz`` files may also hold ``disparity`` and ``labels`` ([S, T, U, V] or center
+column, RGB), uint8, or float in [0, 1] or [0, 255] (the rule: :func:`lfsam.lightfield.float_scale`;
+``value_range`` says which). Files with several arrays are searched by the usual key names
+(``views``, ``LF``, ``lf``, ``lightfield``, ``data``, ...), otherwise by the only 5-D array they
+hold. ``.npz`` files may also hold ``disparity`` and ``labels`` ([S, T, U, V] or center
 [U, V]) and a JSON ``meta`` string: that is the package's exchange format, written by
 :func:`write_npz`, and its disparity is in the package convention.
 
