@@ -179,6 +179,43 @@ def test_hci_folders_with_any_subset_and_config(names, cfg):
             assert sorted(present) == sorted(names)  # every file is placed, none invented
 
 
+@FEW
+@given(
+    positions=st.lists(st.tuples(st.integers(0, 4), st.integers(0, 4)), min_size=1, max_size=12,
+                       unique=True),
+    style=st.sampled_from(["{r}_{c}", "lf_{r:02d}_{c:02d}", "{r:02d}{c:02d}", "{r}-{c}"]),
+)
+def test_grid_folders_with_any_views(positions, style):
+    with tempfile.TemporaryDirectory() as folder:
+        root = Path(folder)
+        for r, c in positions:
+            Image.fromarray(np.full((4, 5, 3), 10 * r + c + 1, np.uint8)).save(
+                root / f"{style.format(r=r, c=c)}.png"
+            )
+        lf = _read_or_clear(root)
+        if lf is not None:
+            found = sorted(int(lf.views[s, t, 0, 0, 0]) for s, t in lf.view_indices(True))
+            assert found == sorted({10 * r + c + 1 for r, c in positions}) or lf.meta.get(
+                "naming", ""
+            ).endswith("number")  # RRCC names may read as a linear numbering
+
+
+@FEW
+@given(mutation=_MUTATION, which=st.sampled_from(["2_2_disparity.npy", "1_1_label.npy"]))
+def test_damaged_urbanlf_ground_truth(originals, mutation, which):
+    with tempfile.TemporaryDirectory() as folder:
+        root = Path(folder)
+        views = read_lightfield(originals["npz"]).views
+        for s in range(3):
+            for t in range(3):
+                Image.fromarray(views[s, t]).save(root / f"{s + 1}_{t + 1}.png")
+                np.save(root / f"{s + 1}_{t + 1}_disparity.npy", np.zeros((8, 10), np.float32))
+                np.save(root / f"{s + 1}_{t + 1}_label.npy", np.zeros((8, 10), np.int64))
+        target = root / which
+        target.write_bytes(_mutate(target.read_bytes(), mutation))
+        _read_or_clear(root)
+
+
 _DTYPES = st.sampled_from(
     ["uint8", "int8", "uint16", "int32", "int64", "float16", "float32", "float64", "bool",
      "complex64", "<U2"]
