@@ -1,6 +1,6 @@
 """Speed of the shared-image mask decoder against Meta's ``SAM2ImagePredictor._predict`` (issue #5).
 
-LFSAM decodes N prompts per view (refinement, paper section 3.4; DESIGN.md section 3 step 5), so
+LFSAM decodes N prompts per view (refinement, paper section 3.4; docs/design.md section 3.5), so
 the decoder's cost per view is N decoder passes. Meta's batched path repeats the image embedding
 once per prompt and runs the whole two-way transformer and upscaling on N copies of it;
 :func:`lfsam.segmenters.sam2_decoder.decode_prompts` shares the prompt-independent part (see its
@@ -89,7 +89,7 @@ def main() -> int:
     coords, labels, boxes = seg._prompt_tensors(prompts, (u_size, v_size))
 
     predictor = seg._predictor
-    seg._set_predictor(predictor, emb)
+    predictor.use_features(feats.as_predictor_features(), emb.image_size)
     # Meta's own method (the segmenter's predictor class routes _predict through ours)
     meta_predict = SAM2ImagePredictor._predict
     with inference_context(device, inference_mode=False):

@@ -1,4 +1,4 @@
-"""Benchmark of the LFSAM pipeline (issue 5; DESIGN.md section 7 targets).
+"""Benchmark of the LFSAM pipeline (issue 5; docs/design.md section 7 targets).
 
 Three parts, each printing its numbers:
 

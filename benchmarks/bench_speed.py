@@ -2,8 +2,8 @@
 
 Paper section 4 (Table 1, metric T of section 4.1): milliseconds per mask per view,
 ``T = total wall-clock / (N x S x T)``; the paper reports 15.2 for LFSAM and 108.5 for SAM 2
-video tracking (7.1x) with Hiera-S on a V100. Targets (DESIGN.md section 7): LFSAM >= 10x faster
-than the baseline per mask per view on the same light field, model and machine, and LFSAM's
+video tracking (7.1x) with Hiera-S on a V100. Targets (docs/design.md section 7): LFSAM >= 10x
+faster than the baseline per mask per view on the same light field, model and machine, and LFSAM's
 total within 1.25x of the unavoidable cost, one image-encoder pass per view.
 
 One run measures, for each model (random weights: speed does not depend on the weights), on the

@@ -1,4 +1,4 @@
-"""The one disparity convention (DESIGN.md section 1), checked against data.
+"""The one disparity convention (docs/design.md section 1), checked against data.
 
 A scene point at pixel (u, v) of view (s, t) with disparity d is at (u - d (s' - s),
 v - d (t' - t)) in view (s', t'). Warping views into the center view with the ground-truth

@@ -1,4 +1,4 @@
-"""Label fusion: larger masks first, smaller on top (DESIGN.md section 3.6)."""
+"""Label fusion: larger masks first, smaller on top (docs/design.md section 3.6)."""
 
 from __future__ import annotations
 

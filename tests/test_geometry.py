@@ -1,4 +1,4 @@
-"""The disparity convention (DESIGN.md section 1) and the light-field model."""
+"""The disparity convention (docs/design.md section 1) and the light-field model."""
 
 from __future__ import annotations
 

@@ -40,8 +40,8 @@ def label_fields(draw, max_label: int = 5):
 def plane_scenes(draw):
     """A fronto-parallel plane at integer disparity d, drawn in every view by the convention.
 
-    View (s, t) shows at (u, v) the center pixel (u + d ds, v + d dt) (inverse of DESIGN.md
-    section 1's mapping), or 0 where that falls outside the center frame.
+    View (s, t) shows at (u, v) the center pixel (u + d ds, v + d dt) (inverse of the mapping
+    of docs/design.md section 1), or 0 where that falls outside the center frame.
     """
     s_count, t_count = draw(grids)
     u = draw(st.integers(3, 7))

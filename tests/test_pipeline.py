@@ -1,4 +1,4 @@
-"""End-to-end checks of the LFSAM pipeline (paper section 3; DESIGN.md section 7 targets).
+"""End-to-end checks of the LFSAM pipeline (paper section 3; docs/design.md section 7 targets).
 
 With the oracle segmenter and ground-truth disparity the pipeline's quality is compared with the
 scores of the ground-truth label field itself, which are not perfect (disocclusions and the frame

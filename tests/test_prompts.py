@@ -74,7 +74,10 @@ def test_malformed_json_names_object_and_field(data, fragment):
     ("obj", "fragment"),
     [
         (ObjectPrompts(1, (PointPrompt(100, 5),)), "object 1: point 1 X,Y = 100,5 lies outside"),
-        (ObjectPrompts(2, (PointPrompt(5, 5, True, (5, 0)),)), "object 2: point 1 is tagged with view 5,0"),
+        (
+            ObjectPrompts(2, (PointPrompt(5, 5, True, (5, 0)),)),
+            "object 2: point 1 is tagged with view 5,0",
+        ),
         (ObjectPrompts(3, (PointPrompt(5, 5, False),)), "object 3: only negative points"),
         (ObjectPrompts(4, (), BoxPrompt(10, 10, 5, 20)), "object 4: box 10,10,5,20 is empty"),
         (ObjectPrompts(0, (PointPrompt(5, 5),)), "object 0: id must be"),
@@ -98,7 +101,7 @@ def test_bad_files(tmp_path):
         load_prompts(tmp_path / "missing.json")
     bad = tmp_path / "bad.json"
     bad.write_text('[{"id": 1,, }]')
-    with pytest.raises(LfsamError, match="not valid JSON: .* at line 1 column"):
+    with pytest.raises(LfsamError, match=r"not valid JSON: .* at line 1 column"):
         load_prompts(bad)
     outside = tmp_path / "outside.json"
     outside.write_text(json.dumps([{"id": 9, "points": [[500, 5]]}]))

@@ -187,7 +187,7 @@ def test_generate_matches_official_generator_without_reencoding(seg, views, embe
 
 
 def test_generate_defaults_are_the_papers():
-    # paper section 4 / DESIGN.md section 3: 64 points per side, IoU 0.88, stability 0.95,
+    # paper section 4 / docs/design.md section 3.1: 64 points per side, IoU 0.88, stability 0.95,
     # offset 1.0, NMS 0.7, no minimum area
     assert PAPER_AMG_OPTIONS == {
         "points_per_side": 64,

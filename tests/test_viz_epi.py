@@ -24,7 +24,7 @@ def _box_lightfield(grid, size, box, d):
     """A bright box of constant integer disparity ``d`` over black, and its labels (id 1).
 
     Center-view box ``[u0, u1) x [v0, v1)`` is at ``[u0 - d ds, u1 - d ds) x [v0 - d dt, ...)``
-    in view ``(s_c + ds, t_c + dt)`` (DESIGN.md section 1).
+    in view ``(s_c + ds, t_c + dt)`` (docs/design.md section 1).
     """
     s_count, t_count = grid
     u_count, v_count = size

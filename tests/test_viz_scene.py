@@ -1,8 +1,8 @@
 """A tiny synthetic light field for the visualisation tests, and a check that it is right.
 
 Textured rectangles at constant integer disparities over a textured background plane, rendered
-by the package's convention (DESIGN.md section 1): the center pixel ``(u, v)`` of an object with
-disparity ``d`` is seen in view ``(s, t)`` at ``(u - d (s - s_c), v - d (t - t_c))``. Closer
+by the package's convention (docs/design.md section 1): the center pixel ``(u, v)`` of an object
+with disparity ``d`` is seen in view ``(s, t)`` at ``(u - d (s - s_c), v - d (t - t_c))``. Closer
 objects (larger ``d``) are painted last. Other test modules import :func:`make_scene`.
 """
 

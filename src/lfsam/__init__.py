@@ -7,18 +7,37 @@ Constrained Prompting", WACV 2025 workshops. The pipeline's four steps are
 :mod:`lfsam.pipeline.refinement` (segmentation refinement).
 """
 
+__version__ = "0.1.0"
+
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField, snake_order
 from lfsam.result import SegmentationResult, load_result, save_result
 
-__version__ = "0.1.0"
+
+def __getattr__(name: str):
+    # lfsam.segment, lfsam.LightFieldPredictor and the option groups load torch and the
+    # pipeline; importing them lazily keeps `import lfsam` (and the CLI's --help) light.
+    if name in ("segment", "SegmentOptions", "ModelOptions", "RunOptions"):
+        from lfsam import api
+
+        return getattr(api, name)
+    if name == "LightFieldPredictor":
+        from lfsam.predictor import LightFieldPredictor
+
+        return LightFieldPredictor
+    raise AttributeError(f"module 'lfsam' has no attribute {name!r}")
 
 __all__ = [
     "LfsamError",
     "LightField",
+    "LightFieldPredictor",
+    "ModelOptions",
+    "RunOptions",
+    "SegmentOptions",
     "SegmentationResult",
     "__version__",
     "load_result",
     "save_result",
+    "segment",
     "snake_order",
 ]

@@ -1,26 +1,43 @@
-"""High-level entry points: one call from a light field to a segmentation result.
+"""The one entry point for batch use: :func:`segment` (``lfsam.segment``).
 
-:func:`run_segmentation` is what ``lfsam segment`` and ``lfsam evaluate`` call: it builds the
-segmenter, resolves the disparity, and runs LFSAM (:func:`lfsam.pipeline.segment_lightfield`) or
-the SAM 2 video baseline (:mod:`lfsam.baseline`), recording everything needed to reproduce the
-run in the result's metadata.
+It builds the segmenter (:class:`ModelOptions`), runs LFSAM on the interactive predictor
+(:class:`lfsam.predictor.LightFieldPredictor`: the four steps of paper section 3, from each
+object's own reference view) or the SAM 2 video baseline (:mod:`lfsam.baseline`, paper section
+4), and records everything needed to reproduce the run in the result's metadata. Options come in
+three small groups (:class:`SegmentOptions`: the pipeline's :class:`PipelineConfig`, the model,
+the run). :func:`run_segmentation` is the same with flat keywords; ``lfsam segment`` and
+``lfsam evaluate`` are thin layers over them.
 """
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
-from lfsam.pipeline import PipelineConfig, segment_lightfield
+from lfsam.pipeline import PipelineConfig
+from lfsam.pipeline.segment import objects_from_prompts
+from lfsam.prompts import ObjectPrompts, load_prompts, validate_objects
 from lfsam.result import SegmentationResult
 from lfsam.segmenters.base import Prompts, Segmenter
+from lfsam.segmenters.registry import DEFAULT_MODEL
 
-__all__ = ["METHODS", "make_prompts", "run_segmentation"]
+__all__ = [
+    "METHODS",
+    "ModelOptions",
+    "RunOptions",
+    "SegmentOptions",
+    "as_objects",
+    "make_prompts",
+    "run_segmentation",
+    "segment",
+]
 
 METHODS = ("lfsam", "video-baseline")
 
@@ -66,125 +83,300 @@ def make_prompts(
     return groups
 
 
-def run_segmentation(
+def _check_references(references: str, method: str, prompts) -> None:
+    """Reject ``references`` other than ``center`` where they mean nothing (one-line errors)."""
+    from lfsam.pipeline.references import check_references
+
+    check_references(references)
+    if references != "center" and prompts is not None:
+        raise LfsamError(f"--references {references} needs --auto; prompts set their own views")
+    if references != "center" and method != "lfsam":
+        raise LfsamError(f"--references {references} needs --method lfsam")
+
+
+@dataclass(frozen=True)
+class ModelOptions:
+    """Which segmenter to build (:func:`lfsam.segmenters.load_segmenter`).
+
+    Parameters
+    ----------
+    name : str
+        A SAM 2 model name (``lfsam models``) or ``"oracle"`` (answers from ground truth).
+    checkpoint : str, optional
+        SAM 2 weights file; default: the model hub's weights (cached).
+    random_weights : bool
+        Untrained SAM 2 (tests and speed measurements only; recorded in the metadata).
+    device : str
+        ``auto`` (CUDA, then MPS, then CPU), ``cpu``, ``cuda``, ``cuda:N`` or ``mps``.
+    amg : dict, optional
+        Overrides of the paper's automatic-mask-generation settings.
+    oracle : dict, optional
+        The oracle's imperfections: ``merge_prob``, ``boundary_jitter``, ``min_area``.
+    seed : int
+        Seed of random weights or of the oracle's imperfections.
+    """
+
+    name: str = DEFAULT_MODEL
+    checkpoint: str | None = None
+    random_weights: bool = False
+    device: str | None = "auto"
+    amg: dict[str, Any] | None = None
+    oracle: dict[str, Any] | None = None
+    seed: int = 0
+
+    def build(self, lightfield: LightField | None = None) -> Segmenter:
+        """The segmenter these options describe."""
+        from lfsam.segmenters import load_segmenter
+
+        return load_segmenter(
+            self.name,
+            checkpoint=self.checkpoint,
+            random_weights=self.random_weights,
+            device=self.device,
+            lightfield=lightfield,
+            amg_options=dict(self.amg) if self.amg else None,
+            oracle_options=dict(self.oracle) if self.oracle else None,
+            seed=self.seed,
+        )
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How a run goes (not what it computes).
+
+    Parameters
+    ----------
+    method : {"lfsam", "video-baseline"}
+        Our method (paper section 3) or SAM 2 video tracking over the views (paper section 4).
+    references : {"center", "corners", "ring", "all"}
+        Automatic mode: where masks are generated (docs/design.md section 8; ``center`` is the
+        paper's setting).
+    cache_dir : str, optional
+        On-disk embedding cache (:mod:`lfsam.embeddings`).
+    memory_budget_mb : float
+        In-memory embedding budget.
+    progress : bool
+        Progress bars.
+    baseline : dict, optional
+        Options of the video baseline (``objects_per_pass``, ``start``).
+    """
+
+    method: str = "lfsam"
+    references: str = "center"
+    cache_dir: str | None = None
+    memory_budget_mb: float = 2048.0
+    progress: bool = True
+    baseline: dict[str, Any] | None = None
+
+
+@dataclass(frozen=True)
+class SegmentOptions:
+    """Every option of :func:`segment`, in three small groups."""
+
+    pipeline: PipelineConfig = field(default_factory=PipelineConfig)
+    model: ModelOptions = field(default_factory=ModelOptions)
+    run: RunOptions = field(default_factory=RunOptions)
+
+
+PromptsLike = None | str | os.PathLike | Sequence[ObjectPrompts] | Sequence[Prompts]
+
+
+def as_objects(prompts: PromptsLike, lightfield: LightField) -> list[ObjectPrompts] | None:
+    """Objects from any prompt form :func:`segment` accepts (None stays None: automatic).
+
+    A path is a prompt file (:func:`lfsam.prompts.load_prompts`); :class:`Prompts` groups are
+    center-view prompts, each row one object, ids in order.
+    """
+    if prompts is None:
+        return None
+    if isinstance(prompts, (str, os.PathLike)):
+        return load_prompts(prompts, lightfield.grid_shape, lightfield.view_shape)
+    objects: list[ObjectPrompts] = []
+    for item in prompts:
+        if isinstance(item, ObjectPrompts):
+            objects.append(item)
+        elif isinstance(item, Prompts):
+            first = max((o.obj_id for o in objects), default=0) + 1
+            objects.extend(objects_from_prompts(item, first_id=first))
+        else:
+            raise TypeError(f"prompts must be ObjectPrompts or Prompts, got {type(item).__name__}")
+    validate_objects(objects, lightfield.grid_shape, lightfield.view_shape)
+    return objects
+
+
+def segment(
     lightfield: LightField,
+    prompts: PromptsLike = None,
     *,
-    method: str = "lfsam",
-    model: str = "sam2.1-hiera-small",
-    checkpoint: str | None = None,
-    random_weights: bool = False,
-    disparity: str | np.ndarray = "estimate",
-    ablation: str | None = None,
-    config: PipelineConfig | None = None,
-    prompts: Sequence[Prompts] | None = None,
-    device: str | None = None,
-    amg_options: dict[str, Any] | None = None,
-    segmenter: Segmenter | None = None,
-    baseline_options: dict[str, Any] | None = None,
-    progress: bool = True,
+    model: str | Segmenter | None = None,
+    disparity: Any = "estimate",
+    options: SegmentOptions | None = None,
 ) -> SegmentationResult:
-    """Segment a light field with LFSAM or the SAM 2 video baseline.
+    """Segment a light field: the one entry point for batch use (paper section 3).
 
     Parameters
     ----------
     lightfield : LightField
-    method : {"lfsam", "video-baseline"}
-        Our method (paper section 3) or SAM 2 video tracking over the views in snake order
-        (paper section 4).
-    model : str
-        Segmenter name (``lfsam models`` lists them; ``oracle`` answers from ground truth).
-    checkpoint : str, optional
-        SAM 2 weights file; default: the model hub's weights for ``model`` (cached).
-    random_weights : bool
-        Untrained SAM 2 (tests and speed benchmarks only; recorded in the metadata).
-    disparity : {"estimate", "gt"}, path to a .npy, or array
-        Center-view disparity for propagation (LFSAM only): any source
-        :func:`lfsam.disparity.resolve_disparity` accepts.
-    ablation : {"none", "ref", "ref+occ"}, optional
-        A row of the paper's Table 2; overrides ``config``'s refinement and occluding.
-    config : PipelineConfig, optional
-        Pipeline switches and thresholds (default: the paper's full method).
-    prompts : sequence of Prompts, optional
-        Center-view prompts (see :func:`make_prompts`); None for automatic generation.
-    device : str, optional
-        ``cuda``, ``mps`` or ``cpu``; default: the best available.
-    amg_options : dict, optional
-        Overrides of the automatic mask generator's settings.
-    segmenter : Segmenter, optional
-        A ready segmenter (then ``model``, ``checkpoint``, ``random_weights`` are ignored).
-    baseline_options : dict, optional
-        Options of the video baseline (e.g. ``objects_per_pass``, ``start``).
-    progress : bool
-        Show progress bars.
+    prompts : None, prompt file, sequence of ObjectPrompts or of Prompts
+        Objects to segment, each prompted in any view (docs/design.md section 8); None runs
+        automatic mask generation (the paper's setting).
+    model : str or Segmenter, optional
+        A model name (overrides ``options.model.name``) or a ready segmenter.
+    disparity : {"estimate", "gt"}, path to a .npy, or ndarray
+        Where each reference view's disparity comes from (:mod:`lfsam.disparity.source`).
+    options : SegmentOptions, optional
+        Pipeline switches, model and run options.
 
     Returns
     -------
     SegmentationResult
-    """
-    if method not in METHODS:
-        raise LfsamError(f"unknown method {method!r}; use one of {', '.join(METHODS)}")
-    from lfsam.segmenters import load_segmenter
+        Labels (an object's label is its id), bit-packed masks in id order, per-view fallback
+        flags and IoUs, timings (``total`` = wall clock of the whole run) and metadata with the
+        prompts, so the result can be reopened and edited.
 
-    given_segmenter = segmenter is not None
-    if segmenter is None:
-        segmenter = load_segmenter(
-            model,
-            checkpoint=checkpoint,
-            random_weights=random_weights,
-            device=device,
-            lightfield=lightfield,
-            amg_options=amg_options,
-        )
+    Examples
+    --------
+    >>> import lfsam
+    >>> from lfsam.synth import generate_scene
+    >>> lf = generate_scene(grid=(3, 3), size=(32, 48), seed=0, num_objects=2)
+    >>> result = lfsam.segment(lf, model="oracle", disparity="gt",
+    ...                        options=SegmentOptions(run=RunOptions(progress=False)))
+    >>> result.labels.shape, result.meta["views_encoded"]
+    ((3, 3, 32, 48), 9)
+    """
+    options = options or SegmentOptions()
+    run = options.run
+    if run.method not in METHODS:
+        raise LfsamError(f"unknown method {run.method!r}; use one of {', '.join(METHODS)}")
+    objects = as_objects(prompts, lightfield)
+    _check_references(run.references, run.method, objects)
+    start = time.perf_counter()
+    if isinstance(model, Segmenter):
+        segmenter, model_name = model, model.name
+    else:
+        model_options = options.model if model is None else replace(options.model, name=model)
+        segmenter, model_name = model_options.build(lightfield), model_options.name
     run_meta: dict[str, Any] = {
         "input": str(lightfield.meta.get("source", "<array>")),
         "input_format": lightfield.meta.get("format"),
-        "model": segmenter.name if given_segmenter else model,
+        "model": model_name,
         "random_weights": bool(segmenter.random_weights),
-        "checkpoint": checkpoint,
+        "checkpoint": options.model.checkpoint,
         "grid": list(lightfield.grid_shape),
         "view_size": list(lightfield.view_shape),
     }
-    if method == "video-baseline":
+    if run.method == "video-baseline":
         from lfsam.baseline import video_baseline
 
         result = video_baseline(
             lightfield,
             segmenter,
-            prompts=prompts,
+            prompts=None if objects is None else _center_prompts(objects, lightfield),
             disparity=disparity,
-            progress=progress,
-            **(baseline_options or {}),
+            progress=run.progress,
+            **(run.baseline or {}),
         )
         result.meta.update(run_meta)
         return result
 
+    from lfsam.predictor import LightFieldPredictor
+
+    predictor = LightFieldPredictor(
+        segmenter,
+        options.pipeline,
+        cache_dir=run.cache_dir,
+        memory_budget_mb=run.memory_budget_mb,
+        progress=run.progress,
+    )
+    predictor.set_lightfield(lightfield, disparity=disparity)
+    if objects is None:
+        predictor.generate(references=run.references)
+    else:
+        for obj in objects:
+            predictor.set_object(obj)
+    result = predictor.to_result()
+    result.timings["total"] = time.perf_counter() - start
+    result.meta.update(run_meta)
+    result.meta["prompt_mode"] = "auto" if objects is None else "prompts"
+    if objects is None:
+        result.meta["references"] = run.references
+    return result
+
+
+def _center_prompts(objects: Sequence[ObjectPrompts], lightfield: LightField) -> list[Prompts]:
+    """Center-view objects as one-row :class:`Prompts` each (the video baseline's input)."""
+    groups = []
+    for obj in objects:
+        obj = obj.resolved(lightfield.center)
+        if obj.views(lightfield.center) != {lightfield.center}:
+            raise LfsamError(
+                f"object {obj.obj_id}: the video baseline takes center-view prompts only"
+            )
+        points = [(p.x, p.y) for p in obj.points]
+        groups.append(
+            Prompts(
+                points=np.array([points], dtype=np.float32) if points else None,
+                point_labels=np.array([[int(p.positive) for p in obj.points]])
+                if points
+                else None,
+                boxes=None if obj.box is None else np.array([obj.box.xyxy]),
+            )
+        )
+    return groups
+
+
+def run_segmentation(
+    lightfield: LightField,
+    *,
+    method: str = "lfsam",
+    model: str = DEFAULT_MODEL,
+    checkpoint: str | None = None,
+    random_weights: bool = False,
+    disparity: Any = "estimate",
+    ablation: str | None = None,
+    config: PipelineConfig | None = None,
+    prompts: PromptsLike = None,
+    device: str | None = None,
+    amg_options: dict[str, Any] | None = None,
+    segmenter: Segmenter | None = None,
+    baseline_options: dict[str, Any] | None = None,
+    progress: bool = True,
+    references: str = "center",
+    cache_dir: str | None = None,
+    oracle_options: dict[str, Any] | None = None,
+    seed: int = 0,
+) -> SegmentationResult:
+    """:func:`segment` with flat keyword options (what ``lfsam evaluate`` and the benchmarks
+    call); ``ablation`` (a row of the paper's Table 2: ``none``, ``ref``, ``ref+occ``)
+    overrides ``config``'s refinement and occluding."""
+    config = config or PipelineConfig()
     if ablation is not None:
-        base = config or PipelineConfig()
         config = PipelineConfig.from_ablation(
             ablation,
-            **{
-                k: v
-                for k, v in base.to_dict().items()
-                if k not in ("refine", "occlusion")
-            },
+            **{k: v for k, v in config.to_dict().items() if k not in ("refine", "occlusion")},
         )
-    from lfsam.disparity import resolve_disparity
-
-    start = time.perf_counter()
-    disparity_map, disparity_source = resolve_disparity(
-        disparity, lightfield, device=str(segmenter.device)
+    options = SegmentOptions(
+        pipeline=config,
+        model=ModelOptions(
+            name=model,
+            checkpoint=checkpoint,
+            random_weights=random_weights,
+            device=device,
+            amg=amg_options,
+            oracle=oracle_options,
+            seed=seed,
+        ),
+        run=RunOptions(
+            method=method,
+            references=references,
+            cache_dir=cache_dir,
+            progress=progress,
+            baseline=baseline_options,
+        ),
     )
-    disparity_seconds = time.perf_counter() - start
-    result = segment_lightfield(
-        lightfield, segmenter, disparity_map, prompts, config, progress=progress
+    result = segment(
+        lightfield, prompts, model=segmenter, disparity=disparity, options=options
     )
-    result.timings["disparity"] = disparity_seconds
-    result.timings["total"] += disparity_seconds
-    result.meta.update(run_meta)
-    result.meta.update(
-        {
-            "disparity_source": disparity_source,
-            "ablation": ablation,
-        }
-    )
+    if method == "lfsam":
+        result.meta["ablation"] = ablation
     return result

@@ -49,11 +49,11 @@ def choose_segmenter(requested: str | None = None) -> tuple[str, str]:
     """
     if requested:
         return requested, f"{requested} was requested with --model"
-    from lfsam.segmenters.sam2_build import _hub_reachable, _offline, cached_checkpoint
+    from lfsam.segmenters.sam2_build import cached_checkpoint, hub_offline, hub_reachable
 
     if cached_checkpoint(DEFAULT_SAM2) is not None:
         return DEFAULT_SAM2, f"SAM 2 weights for {DEFAULT_SAM2} are cached"
-    if not _offline() and _hub_reachable():
+    if not hub_offline() and hub_reachable():
         return DEFAULT_SAM2, f"SAM 2 weights for {DEFAULT_SAM2} will be downloaded once"
     return "oracle", (
         f"no SAM 2 weights are cached for {DEFAULT_SAM2} and the model hub cannot be reached, "
@@ -68,6 +68,9 @@ def run_demo(
     *,
     model: str | None = None,
     checkpoint: str | None = None,
+    random_weights: bool = False,
+    amg_options: dict[str, Any] | None = None,
+    device: str | None = None,
     progress: bool = True,
 ) -> DemoReport:
     """Generate, segment, score and draw the bundled scene; write everything to ``out_dir``.
@@ -82,6 +85,13 @@ def run_demo(
         Force a segmenter (default: :func:`choose_segmenter`).
     checkpoint : str, optional
         SAM 2 weights file (implies a SAM 2 model).
+    random_weights : bool
+        Untrained SAM 2 (implies a SAM 2 model; a speed check, the masks are meaningless).
+    amg_options : dict, optional
+        Overrides of the automatic mask generator's settings (SAM 2 only).
+    device : str, optional
+        ``auto`` (default), ``cpu``, ``cuda``, ``cuda:N`` or ``mps``
+        (:func:`lfsam.devices.resolve_device`).
     progress : bool
         Progress bars.
 
@@ -108,7 +118,7 @@ def run_demo(
     if out.exists() and not out.is_dir():
         raise LfsamError(f"{str(out)!r} exists and is not a folder; choose another --out")
     out.mkdir(parents=True, exist_ok=True)
-    if checkpoint and not model:
+    if (checkpoint or random_weights) and not model:
         model = DEFAULT_SAM2
     name, reason = choose_segmenter(model)
 
@@ -118,13 +128,16 @@ def run_demo(
         lightfield,
         model=name,
         checkpoint=checkpoint,
+        random_weights=random_weights,
+        amg_options=amg_options,
         disparity="estimate",
+        device=device,
         progress=progress,
     )
     files.append(save_result(result, out / "result.npz"))
 
-    ours = evaluate_result(result, lightfield)
-    ceiling = evaluate_labels(lightfield.labels, lightfield)
+    ours = evaluate_result(result, lightfield, device=device)
+    ceiling = evaluate_labels(lightfield.labels, lightfield, device=device)
     rows = [
         (f"lfsam ({name}, estimated disparity)", ours),
         ("ground-truth labels (ceiling)", ceiling),

@@ -1,9 +1,19 @@
-"""Errors that are the user's to fix.
+"""Errors that are the user's to fix, and the rule for every other exception in the package.
 
-Every error raised for bad input (a wrong path, a wrong shape, a missing checkpoint, an offline
-download) is an :class:`LfsamError` whose message is one line that names the problem and the fix.
-The command-line interface prints such errors as ``lfsam: error: <message>`` without a traceback
-and exits with status 2; anything else is a bug and keeps its traceback.
+The rule:
+
+- Everything a user can cause with their input or environment (a wrong path, a wrong shape, a
+  missing checkpoint, an offline download, an unknown option value or device, prompts that do
+  not fit, a disparity of the wrong size) raises :class:`LfsamError`, whose message is one line
+  that names the problem and the fix. That holds for the Python API as much as for the CLI.
+- ``ValueError`` / ``TypeError`` are raised only where the calling *code* is at fault (an
+  argument no user input can produce, e.g. an axis other than -1/-2, or a drawing primitive of
+  :mod:`lfsam.viz` given an image of another size than its labels, which ``lfsam show`` checks
+  first). Each such place says so in the Raises section of its docstring.
+- Anything else is a bug.
+
+The command-line interface prints :class:`LfsamError` as ``lfsam: error: <message>`` without a
+traceback and exits with status 2; any other exception keeps its traceback.
 """
 
 from __future__ import annotations

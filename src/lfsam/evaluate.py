@@ -1,4 +1,6 @@
-"""The data-set harness behind the paper's Tables 1 and 2 (paper section 4; DESIGN.md section 5).
+"""The data-set harness behind the paper's Tables 1 and 2 (paper section 4).
+
+Metrics as in docs/design.md section 5.
 
 :func:`evaluate_dataset` runs one segmentation method on every scene of a folder, saves each
 result, scores it with :func:`lfsam.metrics.evaluate_result`, and writes ``metrics.csv`` (a row
@@ -281,7 +283,7 @@ def evaluate_dataset(
         empty folder): such entries are skipped with a note. Default
         :func:`lfsam.io.detect_format`.
     device : str, optional
-        Where the metrics are computed (default: CUDA when available).
+        Where the metrics are computed (default ``auto``, :func:`lfsam.devices.resolve_device`).
 
     Returns
     -------

@@ -1,7 +1,7 @@
 """The light-field disparity convention, written once for the whole package.
 
 A scene point seen at pixel ``(u, v)`` of view ``(s, t)`` with disparity ``d`` is seen in view
-``(s', t')`` at pixel ``(u - d (s' - s), v - d (t' - t))`` (``../shared/DESIGN.md`` section 1;
+``(s', t')`` at pixel ``(u - d (s' - s), v - d (t' - t))`` (docs/design.md section 1;
 paper section 3.2, with the sign fixed by the HCI 4D benchmark's files). ``u`` is the pixel row,
 ``v`` the pixel column, ``s`` the view row (growing downwards) and ``t`` the view column (growing
 rightwards). Disparity is in pixels per unit view step; larger is closer.
@@ -40,6 +40,14 @@ def view_offsets(
     -------
     ds, dt : ndarray of int, shape (S, T)
         View-row and view-column offsets of each view from the reference.
+
+    Examples
+    --------
+    >>> ds, dt = view_offsets((3, 3), (1, 1))
+    >>> ds.tolist()
+    [[-1, -1, -1], [0, 0, 0], [1, 1, 1]]
+    >>> dt[0].tolist()
+    [-1, 0, 1]
     """
     s_count, t_count = grid_shape
     ds, dt = np.meshgrid(
@@ -52,8 +60,8 @@ def project_pixels(u, v, disparity, ds, dt):
     """Move pixel coordinates from one view to another by the package's convention.
 
     ``u' = u - d * ds`` and ``v' = v - d * dt`` where ``(ds, dt) = (s' - s, t' - t)`` is the
-    angular step from the source view to the target view (DESIGN.md section 1). Inputs broadcast
-    against each other; torch tensors and NumPy arrays are both accepted.
+    angular step from the source view to the target view (docs/design.md section 1). Inputs
+    broadcast against each other; torch tensors and NumPy arrays are both accepted.
 
     Parameters
     ----------
@@ -68,6 +76,17 @@ def project_pixels(u, v, disparity, ds, dt):
     -------
     u_target, v_target : array_like
         Pixel rows and columns in the target view.
+
+    Examples
+    --------
+    A point at disparity 2 seen from one view row down and one view column left:
+
+    >>> project_pixels(10.0, 20.0, 2.0, 1, -1)
+    (8.0, 22.0)
+    >>> import numpy as np
+    >>> u, v = project_pixels(np.array([0.0, 5.0]), np.array([3.0, 3.0]), 0.5, 2, 0)
+    >>> u.tolist(), v.tolist()
+    ([-1.0, 4.0], [3.0, 3.0])
     """
     return u - disparity * ds, v - disparity * dt
 
@@ -82,7 +101,7 @@ def warp_to_reference(
     """Backward-warp one view into the reference view using the reference view's disparity.
 
     Reference pixel ``(u, v)`` with disparity ``d`` is seen in the view at
-    ``(u - d ds, v - d dt)`` (DESIGN.md section 1), so the warped image samples the view there.
+    ``(u - d ds, v - d dt)`` (docs/design.md section 1), so the warped image samples the view there.
     Pixels that fall outside the view are NaN.
 
     Parameters

@@ -1,6 +1,6 @@
 """The light-field data model: views on a grid, with optional ground truth.
 
-A light field is ``L[s, t, u, v, c]`` (DESIGN.md section 1): ``s`` the view row, ``t`` the view
+A light field is ``L[s, t, u, v, c]`` (docs/design.md section 1): ``s`` the view row, ``t`` the view
 column, ``u`` the pixel row, ``v`` the pixel column, ``c`` RGB, stored as uint8. Ground truth, when
 present, is a disparity ``D[s, t, u, v]`` (float32, in the convention of :mod:`lfsam.geometry`) and
 labels ``G[s, t, u, v]`` (int32, 0 = no label); either may be given for the center view only, as
@@ -38,7 +38,7 @@ NEGATIVE_TOLERANCE = 0.5 / 255
 def snake_order(grid_shape: tuple[int, int]) -> list[tuple[int, int]]:
     """Views in snake (lawnmower) order: row 0 left to right, row 1 right to left, ...
 
-    This is the frame order of the SAM 2 video baseline (paper section 4; DESIGN.md section 4):
+    This is the frame order of the SAM 2 video baseline (paper section 4; docs/design.md section 4):
     consecutive frames are always neighbouring views.
 
     Parameters
@@ -50,6 +50,11 @@ def snake_order(grid_shape: tuple[int, int]) -> list[tuple[int, int]]:
     -------
     order : list of (s, t)
         Every view exactly once.
+
+    Examples
+    --------
+    >>> snake_order((2, 3))
+    [(0, 0), (0, 1), (0, 2), (1, 2), (1, 1), (1, 0)]
     """
     s_count, t_count = grid_shape
     order = []
@@ -87,6 +92,15 @@ class LightField:
     ------
     LfsamError
         If an array has the wrong shape or dtype, or float views are non-finite or out of range.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> lf = LightField(np.zeros((3, 5, 4, 6, 3), dtype=np.uint8))
+    >>> lf.grid_shape, lf.view_shape, lf.center
+    ((3, 5), (4, 6), (1, 2))
+    >>> lf.center_view.shape
+    (4, 6, 3)
     """
 
     views: np.ndarray
@@ -169,7 +183,7 @@ class LightField:
 
     @property
     def center(self) -> tuple[int, int]:
-        """The reference view ``(S // 2, T // 2)`` (DESIGN.md section 1)."""
+        """The reference view ``(S // 2, T // 2)`` (docs/design.md section 1)."""
         return self.grid_shape[0] // 2, self.grid_shape[1] // 2
 
     @property

@@ -48,7 +48,6 @@ from lfsam.pipeline.occlusion import semantic_occlusion, source_features, unifor
 from lfsam.pipeline.propagation import (
     ForwardWarp,
     forward_warp,
-    mask_disparities,
     propagate_masks,
 )
 from lfsam.pipeline.refinement import refine_masks
@@ -73,7 +72,6 @@ class _Reference:
     mask: torch.Tensor  # (U, V) bool on the device
     score: float
     feature: torch.Tensor | None = None  # (C,) unit source feature (semantic occluding)
-    disparity: torch.Tensor | None = None  # mean/median mask disparity (whole-mask modes)
 
 
 @dataclass
@@ -381,18 +379,12 @@ class LightFieldPredictor:
                     if self.config.semantic
                     else None
                 )
-                whole = (
-                    mask_disparities(stacked, self.disparity(view))
-                    if self.config.propagation != "pixel"
-                    else None
-                )
             for k, i in enumerate(members):
                 self._objects[i].reference = _Reference(
                     view=view,
                     mask=stacked[k],
                     score=scores[i],
                     feature=None if features is None else features[k],
-                    disparity=None if whole is None else whole[k],
                 )
 
     def _decode_references(
@@ -553,7 +545,7 @@ class LightFieldPredictor:
         }
         views = list(lf.view_indices(present_only=True))
         needs_embedding = refine or config.semantic
-        batch_size = max(1, int(config.encode_batch_size or 1))
+        batch_size = config.batch_size_for(self.device)
         bar = tqdm(
             total=len(views), desc="views", unit="view", disable=not self.progress or None,
             leave=False,
@@ -612,19 +604,11 @@ class LightFieldPredictor:
             ds, dt = view[0] - ref_view[0], view[1] - ref_view[1]
             warp = self._warp(ref_view, view)
             with self.timer("propagate"):
-                keep = None
-                if config.geometric and config.propagation == "pixel":
-                    keep = warp.visible(disp, config.zbuffer_tolerance)
                 coarse = propagate_masks(
-                    source_masks, disp, ds, dt, config.propagation, warp=warp, keep=keep,
+                    source_masks, disp, ds, dt, config.propagation, warp=warp,
                     fill_holes=config.fill_holes,
+                    occlusion_tolerance=config.zbuffer_tolerance if config.geometric else None,
                 )
-                if config.geometric and config.propagation != "pixel":
-                    whole = torch.stack([r.disparity for r in refs])
-                    hidden = warp.zbuffer.reshape(height, width)[None] > (
-                        whole[:, None, None] + config.zbuffer_tolerance
-                    )
-                    coarse &= ~hidden
             with self.timer("occlude"):
                 weights = None
                 if config.semantic:
@@ -643,7 +627,7 @@ class LightFieldPredictor:
                 continue
             with self.timer("refine"):
                 seen = warp.seen((height, width))
-                extra = self._carried_points(members, view)
+                extra = self._carried_points(members, view, coarse)
                 outcome = refine_masks(
                     self.segmenter, embedding, coarse, weights, config.t_iou,
                     seen=seen, frame_runs=warp.frame_runs((height, width), seen),
@@ -663,16 +647,27 @@ class LightFieldPredictor:
                 out[i].iou[view] = iou[k]
 
     def _carried_points(
-        self, members: list[int], view: View
+        self, members: list[int], view: View, coarse: torch.Tensor
     ) -> tuple[np.ndarray, np.ndarray] | None:
-        """The members' own clicks carried into ``view``, padded with label -1."""
+        """The members' own clicks carried into ``view``, padded with label -1.
+
+        A carried click must agree with the object's surviving coarse mask there: a positive
+        click is kept only inside it and a negative one only outside it (a click carried by a
+        slightly wrong disparity onto a neighbour would otherwise merge or cut objects).
+        """
+        height, width = self.lightfield.view_shape
         carried = []
-        for i in members:
+        for k, i in enumerate(members):
             prompts = self._objects[i].prompts
             if prompts is None or not prompts.points:
                 carried.append((np.zeros((0, 2), np.float32), np.zeros(0, np.int64)))
-            else:
-                carried.append(self._points_in_view(prompts, view))
+                continue
+            xy, kinds = self._points_in_view(prompts, view)
+            rows = np.clip(np.rint(xy[:, 1]).astype(np.int64), 0, height - 1)
+            cols = np.clip(np.rint(xy[:, 0]).astype(np.int64), 0, width - 1)
+            inside = coarse[k].cpu().numpy()[rows, cols]
+            agree = inside == (kinds == 1)
+            carried.append((xy[agree], kinds[agree]))
         width = max(len(labels) for _, labels in carried)
         if width == 0:
             return None
@@ -729,26 +724,76 @@ class LightFieldPredictor:
 
     # --- automatic mode -----------------------------------------------------------------------
     def generate(self, references: str = "center") -> list[int]:
-        """Automatic mask generation in the center view (paper section 4, implementation
-        details); each mask becomes an object (ids in order of decreasing area, after the ids in
-        use). Returns the new ids.
+        """Automatic mask generation; each mask becomes an object (returns the new ids).
+
+        ``center`` is the paper's setting (section 4, implementation details): masks of the
+        center view, ids in order of decreasing area. ``corners``, ``ring`` and ``all`` then
+        visit further reference views (:func:`lfsam.pipeline.references.reference_views`): in
+        each, the objects found so far are propagated there (steps 1-3), the generator asks
+        only at its grid points where no mask lands, and a new mask that mostly overlaps the
+        existing ones is dropped; each genuinely new object is propagated from its own view
+        (docs/design.md section 8: objects that the center view cannot see).
         """
+        from lfsam.pipeline.references import (
+            drop_covered_masks,
+            reference_views,
+            uncovered_points,
+        )
+
         lf = self._require()
-        if references != "center":
-            raise LfsamError(f"--references {references}: use center")
-        view = lf.center
-        embedding = self.embedding(view)
-        with self.timer("initial"):
-            source = initial_segmentation(self.segmenter, embedding, lf.views[view], None)
-        first = self.next_id()
-        masks = source.masks.cpu().numpy()
-        ids = []
-        for k in range(len(source)):
-            obj_id = first + k
-            self.add_mask(obj_id, masks[k], view=view, score=float(source.scores[k]))
-            self._objects[obj_id].extra["auto"] = True
-            ids.append(obj_id)
-        return ids
+        views = [v for v in reference_views(lf.grid_shape, references) if lf.present[v]]
+        per_side = int(getattr(self.segmenter, "amg_options", {}).get("points_per_side") or 32)
+        new_ids: list[int] = []
+        for k, view in enumerate(views):
+            embedding = self.embedding(view)
+            points = covered = None
+            if k > 0:
+                covered = self._coarse_in_view(self.object_ids, view).any(axis=0)
+                points = uncovered_points(per_side, covered)
+                if len(points) == 0:
+                    continue
+            with self.timer("initial"):
+                source = initial_segmentation(
+                    self.segmenter, embedding, lf.views[view], None, points=points
+                )
+            masks = source.masks.cpu().numpy()
+            keep = (
+                np.ones(len(masks), dtype=bool)
+                if covered is None
+                else drop_covered_masks(masks, covered)
+            )
+            first = self.next_id()
+            for n, index in enumerate(np.flatnonzero(keep)):
+                obj_id = first + n
+                self.add_mask(obj_id, masks[index], view=view, score=float(source.scores[index]))
+                self._objects[obj_id].extra["auto"] = True
+                new_ids.append(obj_id)
+        return new_ids
+
+    def _coarse_in_view(self, ids: list[int], view: View) -> np.ndarray:
+        """Steps 1-3 of the objects ``ids`` in one view, ``(N, U, V)`` bool (not stored)."""
+        lf = self._require()
+        height, width = lf.view_shape
+        if not ids:
+            return np.zeros((0, height, width), dtype=bool)
+        self._ensure_references(ids)
+        nbytes = (height * width + 7) // 8
+        s_count, t_count = lf.grid_shape
+
+        def blank() -> _Views:
+            return _Views(
+                bits=np.zeros((s_count, t_count, nbytes), dtype=np.uint8),
+                fallback=np.zeros((s_count, t_count), dtype=bool),
+                iou=np.zeros((s_count, t_count), dtype=np.float32),
+            )
+
+        out = {i: blank() for i in ids}
+        coarse = {i: blank() for i in ids}
+        embedding = self.embedding(view) if self.config.semantic else None
+        self._view_step(view, ids, embedding, False, out, coarse)
+        packed = np.stack([coarse[i].bits[view] for i in ids])
+        bits = np.unpackbits(packed, axis=1, count=height * width)
+        return bits.reshape(len(ids), height, width).astype(bool)
 
     # --- results ------------------------------------------------------------------------------
     def to_result(self) -> SegmentationResult:

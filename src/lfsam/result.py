@@ -3,7 +3,7 @@
 A result holds N masks over all views, ``M[n, s, t, u, v]``, bit-packed (never dense for large N:
 200 masks x 81 views x 480 x 640 is 5 GB as bool, 0.6 GB packed), and the derived label field
 ``labels[s, t, u, v]`` (int32, 0 = unlabeled, mask ``n`` has label ``n + 1``). It is saved as one
-``.npz`` written atomically, with a JSON ``meta`` (DESIGN.md section 1), and read back by
+``.npz`` written atomically, with a JSON ``meta`` (docs/design.md section 1), and read back by
 :func:`load_result`.
 """
 
@@ -86,7 +86,7 @@ class SegmentationResult:
     ----------
     labels : (S, T, U, V) int32 ndarray
         Label field, 0 = unlabeled, mask ``n`` is label ``n + 1`` (larger masks written first,
-        smaller on top; DESIGN.md section 3.6).
+        smaller on top; docs/design.md section 3.6).
     masks : PackedMasks or None
         The N masks before label fusion (overlaps kept).
     scores : (N,) float32 ndarray
@@ -155,6 +155,10 @@ def save_result(result: SegmentationResult, path: str | os.PathLike) -> Path:
     -------
     path : Path
         The written file.
+
+    Examples
+    --------
+    See :func:`load_result`, which reads it back.
     """
     arrays: dict[str, np.ndarray] = {
         "format_version": np.array(FORMAT_VERSION),
@@ -182,6 +186,19 @@ def load_result(path: str | os.PathLike) -> SegmentationResult:
     ------
     LfsamError
         If the file is missing, unreadable or has no ``labels`` of shape ``(S, T, U, V)``.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> result = SegmentationResult(
+    ...     labels=np.ones((1, 2, 3, 4), dtype=np.int32), meta={"method": "example"}
+    ... )
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     path = save_result(result, os.path.join(folder, "result.npz"))
+    ...     loaded = load_result(path)
+    >>> loaded.labels.shape, loaded.num_masks, loaded.meta["method"]
+    ((1, 2, 3, 4), 1, 'example')
     """
     path = Path(path)
     if not path.is_file():
@@ -271,6 +288,14 @@ def check_present(present: Any, grid_shape: tuple[int, ...], where: str) -> np.n
 
 
 def _json_default(value: Any) -> Any:
+    """``json.dump``'s ``default`` hook for metadata: NumPy scalars and arrays, tuples, paths.
+
+    Raises
+    ------
+    TypeError
+        For any other type, as ``json`` requires of the hook (metadata is built by lfsam itself,
+        so this is a fault of the calling code).
+    """
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, (np.ndarray, tuple)):

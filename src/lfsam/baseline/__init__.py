@@ -1,4 +1,4 @@
-"""The SAM 2 video-tracking baseline of the paper (section 4; DESIGN.md section 4).
+"""The SAM 2 video-tracking baseline of the paper (section 4; docs/design.md section 4).
 
 - :func:`video_baseline` — views in snake order as video frames, SAM 2 tracking of the start
   view's masks, the same result format as LFSAM;

@@ -87,17 +87,8 @@ def quiet_sam2_video() -> Iterator[None]:
     skips filling small holes in the tracked masks (``fill_hole_area``, a post-processing step);
     tracking is otherwise the same. Both are restored on exit.
     """
-    import sam2.sam2_video_predictor as video_module
+    from lfsam.segmenters.sam2_adapter import quiet_video_progress
 
-    original = video_module.tqdm
-    video_module.tqdm = _no_bar
-    try:
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message=r"cannot import name '_C'")
-            yield
-    finally:
-        video_module.tqdm = original
-
-
-def _no_bar(iterable: Any, *args: Any, **kwargs: Any) -> Any:
-    return iterable
+    with quiet_video_progress(), warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"cannot import name '_C'")
+        yield

@@ -2,8 +2,8 @@
 
 The baseline of the paper (section 4) starts tracking on the first view of the snake. When the
 user prompts the center view, the prompts are carried to the start view with the package's
-disparity convention (:mod:`lfsam.geometry`; DESIGN.md section 1): a center pixel ``(u, v)`` with
-disparity ``d`` is seen in view ``(s, t)`` at ``(u - d (s - s_c), v - d (t - t_c))``.
+disparity convention (:mod:`lfsam.geometry`; docs/design.md section 1): a center pixel ``(u, v)``
+with disparity ``d`` is seen in view ``(s, t)`` at ``(u - d (s - s_c), v - d (t - t_c))``.
 
 - A point moves by the disparity of the center pixel under it (nearest pixel).
 - A box moves rigidly by the median disparity of the center pixels inside it (a box holds its

@@ -1,6 +1,6 @@
 """The paper's baseline: SAM 2 video tracking through the views of a light field.
 
-Paper section 4 (implementation details) and DESIGN.md section 4: the views, ordered as a snake
+Paper section 4 (implementation details) and docs/design.md section 4: the views, ordered as a snake
 (row 0 left to right, row 1 right to left, ...; :func:`lfsam.lightfield.snake_order`), are the
 frames of a video; the first view is segmented by SAM 2's automatic mask generation; every mask
 is added as an object on that frame (``add_new_mask``) and tracked through all frames by Meta's

@@ -1,12 +1,21 @@
-"""Helpers shared by subcommands: argument types and formatter."""
+"""Helpers shared by subcommands: argument types, the ``--device`` option and the formatter.
+
+Every command that computes on a device takes ``--device`` from :func:`add_device_argument` (the
+vocabulary of :mod:`lfsam.devices`); :func:`lfsam.cli.main.main` checks it before the command
+runs, so a wrong or unavailable device is one line on stderr and exit status 2 before any input
+is read.
+"""
 
 from __future__ import annotations
 
 import argparse
 import math
 
+from lfsam.devices import DEVICE_HELP
+
 __all__ = [
     "HelpFormatter",
+    "add_device_argument",
     "add_value_range",
     "bounded_int",
     "parse_floats",
@@ -23,13 +32,12 @@ def parse_pair(text: str, sep: str = "x", kind: type = int) -> tuple:
     """Parse ``"9x9"`` or ``"240x320"`` (or ``"a,b"`` with ``sep=","``) into a pair."""
     parts = text.lower().split(sep)
     try:
-        if len(parts) != 2:
-            raise ValueError
-        return kind(parts[0]), kind(parts[1])
+        pair = tuple(kind(part) for part in parts)
     except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected two numbers as A{sep}B, got {text!r}"
-        ) from None
+        pair = ()
+    if len(pair) != 2:
+        raise argparse.ArgumentTypeError(f"expected two numbers as A{sep}B, got {text!r}")
+    return pair
 
 
 def parse_floats(text: str, count: int) -> tuple[float, ...]:
@@ -83,3 +91,13 @@ def bounded_int(low: int, high: int | None = None):
 
     parse.__name__ = "integer"
     return parse
+
+
+def add_device_argument(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """Add ``--device`` (default ``auto``): the one device option of every command.
+
+    The value stays a string (resolved where it is used); :func:`lfsam.cli.main.main` checks it
+    with :func:`lfsam.devices.resolve_device` first (one-line error for a wrong or unavailable
+    device).
+    """
+    parser.add_argument("--device", default="auto", metavar="DEVICE", help=DEVICE_HELP)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from lfsam.cli.common import HelpFormatter
+from lfsam.cli.models import add_model_arguments
 
 DESCRIPTION = """\
 Run lfsam end to end on the bundled synthetic light field (9x9 views of 240x320 with exact
@@ -35,8 +36,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=HelpFormatter,
     )
     parser.add_argument("--out", default="demo_output", help="output folder")
-    parser.add_argument("--model", help="force a segmenter (default: SAM 2 if available)")
-    parser.add_argument("--checkpoint", metavar="FILE", help="SAM 2 weights file")
+    add_model_arguments(
+        parser, default=None, model_help="; not given: sam2.1-hiera-small if its weights can "
+        "be had, else the oracle",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     parser.set_defaults(func=run)
 
@@ -46,7 +49,13 @@ def run(args: argparse.Namespace) -> int:
     from lfsam.demo import run_demo
 
     report = run_demo(
-        args.out, model=args.model, checkpoint=args.checkpoint, progress=not args.quiet
+        args.out,
+        model=args.model,
+        checkpoint=args.checkpoint,
+        random_weights=args.random_weights,
+        amg_options=dict(args.amg) or None,
+        device=args.device,
+        progress=not args.quiet,
     )
     print(f"Segmenter: {report.model} — {report.reason}.\n")
     print(report.table)

@@ -6,7 +6,7 @@ import argparse
 import json
 import time
 
-from lfsam.cli.common import HelpFormatter, parse_pair
+from lfsam.cli.common import HelpFormatter, add_device_argument, parse_pair
 
 DESCRIPTION = """\
 Estimate the disparity of one view (the center view unless --view is given) with the structure
@@ -56,7 +56,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--preview", metavar="PNG", help="also write a colour-mapped picture")
     parser.add_argument("--format", dest="input_format", help="input format (default: detect)")
-    parser.add_argument("--device", default=None, help="cpu, cuda, mps (default: best)")
+    add_device_argument(parser)
     parser.set_defaults(func=run)
 
 

@@ -7,6 +7,7 @@ import functools
 import sys
 
 from lfsam.cli.common import HelpFormatter
+from lfsam.cli.models import add_model_arguments
 from lfsam.errors import LfsamError
 
 DESCRIPTION = """\
@@ -16,8 +17,10 @@ DATASET_DIR holds one scene per sub-folder or file (anything `lfsam info` can re
 ground-truth disparity and labels for every view (UrbanLF-Syn val, the paper's benchmark, or
 scenes made by `lfsam synth`). Entries that are not light fields are skipped with a note. For each
 scene, OUT gets <scene>.npz (the result) and <scene>.metrics.json; then metrics.csv (one row per
-scene and a `mean` row) and table.md (the layout of the paper's Table 1: SIoU, LPP, AA, UE, C, T;
-see `lfsam metrics --help` for their definitions).
+scene and a `mean` row) and table.md (the layout of the paper's Table 1: SIoU, LPP, AA, UE, C, T,
+then object recall and SIoU over center-present masks; see `lfsam metrics --help` for their
+definitions). --references corners|ring|all also generates masks in those views (`lfsam segment
+--help`), to find objects the center view cannot see.
 
 Runs resume: scenes whose result and metrics are in OUT are not run again (use --force). A scene
 that fails gets a row with its error; the others still run.
@@ -35,6 +38,7 @@ examples:
   lfsam evaluate --compare runs/baseline runs/ours            # paper Table 1
   lfsam evaluate --compare runs/none runs/ref runs/ours       # paper Table 2
   lfsam evaluate scenes --model oracle --disparity gt --out runs/oracle   # upper bound
+  lfsam evaluate hidden_scenes --model oracle --disparity gt --references corners --out runs/c
 """
 
 
@@ -53,15 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--method", choices=["lfsam", "video-baseline"], default="lfsam",
         help="our method or the SAM 2 video baseline",
     )
-    parser.add_argument(
-        "--model", default="sam2.1-hiera-small",
-        help="segmenter: a SAM 2 name (see `lfsam models`) or 'oracle' (ground-truth labels)",
-    )
-    parser.add_argument("--checkpoint", metavar="FILE", help="SAM 2 weights file (.pt)")
-    parser.add_argument(
-        "--random-weights", action="store_true",
-        help="untrained SAM 2: timings only, the scores are meaningless",
-    )
+    add_model_arguments(parser)
     parser.add_argument(
         "--disparity", choices=["estimate", "gt"], default="estimate",
         help="center-view disparity for propagation: estimated or the scene's ground truth",
@@ -70,7 +66,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--ablation", choices=["none", "ref", "ref+occ"], default="ref+occ",
         help="row of paper Table 2: no refinement or occluding, refinement only, or both",
     )
-    parser.add_argument("--device", choices=["cuda", "mps", "cpu"], help="default: best available")
+    parser.add_argument(
+        "--references",
+        default="center",
+        metavar="MODE",
+        help="views where masks are generated: center (paper), corners, ring or all",
+    )
     parser.add_argument(
         "--label", metavar="TEXT", help="method name in the tables (default: built from options)"
     )
@@ -92,6 +93,8 @@ def method_label(args: argparse.Namespace) -> str:
         details.append("gt disparity")
     if args.random_weights:
         details.append("random weights")
+    if getattr(args, "references", "center") != "center":
+        details.append(f"references {args.references}")
     return f"{head} ({', '.join(details)})"
 
 
@@ -109,6 +112,11 @@ def run(args: argparse.Namespace) -> int:
             "lfsam evaluate needs DATASET_DIR and --out DIR (or --compare DIR1 DIR2 ...); "
             "see `lfsam evaluate --help`"
         )
+    from lfsam.pipeline.references import check_references
+
+    check_references(args.references)
+    if args.references != "center" and args.method != "lfsam":
+        raise LfsamError(f"--references {args.references} needs --method lfsam")
     try:
         from lfsam.api import run_segmentation
     except ImportError as exc:
@@ -120,14 +128,17 @@ def run(args: argparse.Namespace) -> int:
         model=args.model,
         checkpoint=args.checkpoint,
         random_weights=args.random_weights,
+        amg_options=dict(args.amg) or None,
         disparity=args.disparity,
         ablation=args.ablation if args.method == "lfsam" else None,
         prompts=None,
         device=args.device,
         progress=False,
+        references=args.references,
     )
     table = evaluate_dataset(
-        args.dataset, args.out, segment_fn, method_label=method_label(args), force=args.force
+        args.dataset, args.out, segment_fn, method_label=method_label(args), force=args.force,
+        device=args.device,
     )
     print(table.summary_markdown(), end="")
     ok = len(table.rows) - len(table.failed)

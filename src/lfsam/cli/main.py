@@ -14,6 +14,7 @@ import sys
 from collections.abc import Sequence
 
 from lfsam import __version__
+from lfsam.devices import resolve_device
 from lfsam.errors import LfsamError
 
 # Subcommand modules, in the order `lfsam --help` lists them.
@@ -80,6 +81,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 0
     try:
+        if getattr(args, "device", None) is not None:  # --device: checked before any input is read
+            resolve_device(args.device)
         return int(args.func(args) or 0)
     except LfsamError as exc:
         print(f"lfsam: error: {exc}", file=sys.stderr)

@@ -6,7 +6,7 @@ import argparse
 import json
 import math
 
-from lfsam.cli.common import HelpFormatter
+from lfsam.cli.common import HelpFormatter, add_device_argument
 
 DESCRIPTION = """\
 Score a segmentation result with the paper's metrics (section 4.1) and print them as JSON.
@@ -66,7 +66,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--gt", required=True, metavar="PATH",
         help="the light field with per-view ground-truth disparity and labels",
     )
-    parser.add_argument("--device", choices=["cuda", "cpu"], help="default: CUDA when available")
+    add_device_argument(parser)
     parser.add_argument(
         "--min-area",
         type=_positive,

@@ -13,11 +13,11 @@ import ast
 import json
 from typing import Any
 
-from lfsam.cli.common import HelpFormatter
+from lfsam.cli.common import HelpFormatter, add_device_argument
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.segmenters.base import Segmenter
-from lfsam.segmenters.factory import available_models, load_segmenter
+from lfsam.segmenters.factory import available_models
 from lfsam.segmenters.registry import DEFAULT_MODEL, MODELS, ORACLE
 
 __all__ = [
@@ -58,15 +58,22 @@ def parse_option(text: str) -> tuple[str, Any]:
     return key.strip(), parsed
 
 
-def add_model_arguments(parser: argparse.ArgumentParser, default: str = DEFAULT_MODEL) -> None:
-    """Add ``--model``, ``--checkpoint``, ``--random-weights``, ``--device`` and ``--amg``."""
+def add_model_arguments(
+    parser: argparse.ArgumentParser, default: str | None = DEFAULT_MODEL, model_help: str = ""
+) -> None:
+    """Add ``--model``, ``--checkpoint``, ``--random-weights``, ``--device`` and ``--amg``.
+
+    The one set of model and device options of every command that segments (``segment``,
+    ``evaluate``, ``demo``); ``model_help`` is appended to the help of ``--model`` (e.g. what
+    a ``None`` default means).
+    """
     group = parser.add_argument_group("segmenter")
     group.add_argument(
         "--model",
         default=default,
         choices=available_models(),
         metavar="NAME",
-        help="SAM 2 model or 'oracle' (ground-truth labels); see `lfsam models`",
+        help="SAM 2 model or 'oracle' (ground-truth labels); see `lfsam models`" + model_help,
     )
     group.add_argument(
         "--checkpoint",
@@ -78,9 +85,7 @@ def add_model_arguments(parser: argparse.ArgumentParser, default: str = DEFAULT_
         action="store_true",
         help="untrained SAM 2 of the same architecture (speed tests only: masks are meaningless)",
     )
-    group.add_argument(
-        "--device", default="auto", help="auto (CUDA, then MPS, then CPU), cpu, cuda, cuda:N, mps"
-    )
+    add_device_argument(group)
     group.add_argument(
         "--amg",
         action="append",
@@ -89,6 +94,66 @@ def add_model_arguments(parser: argparse.ArgumentParser, default: str = DEFAULT_
         metavar="KEY=VALUE",
         help="override an automatic-mask-generation setting of the paper, e.g. "
         "points_per_side=32 (repeatable)",
+    )
+    oracle = parser.add_argument_group("oracle imperfections (--model oracle)")
+    oracle.add_argument(
+        "--oracle-merge", type=probability, default=0.0, metavar="P",
+        help="probability that an answer also takes the neighbour with the longest shared "
+        "border (a negative click on it undoes that)",
+    )
+    oracle.add_argument(
+        "--oracle-jitter", type=non_negative_int, default=0, metavar="R",
+        help="answers dilated or eroded by a random radius in [-R, R] pixels",
+    )
+    oracle.add_argument(
+        "--oracle-seed", type=non_negative_int, default=0, metavar="N",
+        help="seed of the imperfections (each draw depends on the seed, view and prompt)",
+    )
+
+
+def probability(text: str) -> float:
+    """A number in [0, 1] (argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1], got {text!r}")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    """A whole number >= 0 (argparse type)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    return value
+
+
+def oracle_options_from_args(args: argparse.Namespace) -> dict[str, Any] | None:
+    """The oracle's imperfections asked for on the command line (None when none)."""
+    options = {
+        "merge_prob": float(getattr(args, "oracle_merge", 0.0) or 0.0),
+        "boundary_jitter": int(getattr(args, "oracle_jitter", 0) or 0),
+    }
+    return options if any(options.values()) else None
+
+
+def model_options_from_args(args: argparse.Namespace) -> Any:
+    """:class:`lfsam.api.ModelOptions` from the options of :func:`add_model_arguments`."""
+    from lfsam.api import ModelOptions
+
+    return ModelOptions(
+        name=getattr(args, "model", DEFAULT_MODEL),
+        checkpoint=getattr(args, "checkpoint", None),
+        random_weights=bool(getattr(args, "random_weights", False)),
+        device=getattr(args, "device", None),
+        amg=dict(getattr(args, "amg", None) or []) or None,
+        oracle=oracle_options_from_args(args),
+        seed=int(getattr(args, "oracle_seed", 0) or getattr(args, "seed", 0) or 0),
     )
 
 
@@ -102,27 +167,13 @@ def segmenter_from_args(
     LfsamError
         With a one-line message, e.g. when weights are not cached and cannot be downloaded.
     """
-    model = getattr(args, "model", DEFAULT_MODEL)
-    amg = dict(getattr(args, "amg", None) or [])
-    return load_segmenter(
-        model,
-        checkpoint=getattr(args, "checkpoint", None),
-        random_weights=bool(getattr(args, "random_weights", False)),
-        device=getattr(args, "device", None),
-        lightfield=lightfield,
-        amg_options=amg or None,
-        seed=int(getattr(args, "seed", 0) or 0),
-    )
+    return model_options_from_args(args).build(lightfield)
 
 
 def list_models() -> dict[str, Any]:
     """What ``lfsam models`` shows, as a JSON-ready dict (no network, no model built)."""
-    from lfsam.segmenters.sam2_build import (
-        autocast_dtype,
-        cached_checkpoint,
-        hub_cache_dir,
-        resolve_device,
-    )
+    from lfsam.devices import resolve_device
+    from lfsam.segmenters.sam2_build import autocast_dtype, cached_checkpoint, hub_cache_dir
 
     device = resolve_device(None)
     rows = []

@@ -1,4 +1,4 @@
-"""``lfsam segment``: segment a light field from center-view prompts or automatically."""
+"""``lfsam segment``: segment a light field from prompts in any view or automatically."""
 
 from __future__ import annotations
 
@@ -6,38 +6,47 @@ import argparse
 import json
 import sys
 
-from lfsam.cli.common import (
-    HelpFormatter,
-    add_value_range,
-    bounded_int,
-    parse_floats,
-    unit_interval,
-)
-from lfsam.cli.models import add_model_arguments
+from lfsam.cli.common import HelpFormatter, add_value_range, bounded_int, unit_interval
+from lfsam.cli.models import add_model_arguments, model_options_from_args
+from lfsam.cli.prompts import PROMPT_PARSERS, PromptAction, objects_from_items
 
 DESCRIPTION = """\
 Segment a light field consistently across all views (paper section 3).
 
-The center view is segmented with SAM 2 from your prompts (each --point or --box is one object)
-or automatically (--auto); every mask is moved into every other view with the scene's disparity,
-occluded parts are removed with SAM 2's features, and SAM 2 is re-prompted in each view with a
-point and a box. The result (.npz) holds the label field labels[s,t,u,v] (0 = unlabeled), the
-bit-packed masks, per-view fallback flags and IoUs, stage timings and metadata; read it with
-lfsam.load_result() or `lfsam show` / `lfsam metrics`.
+Each object is segmented with SAM 2 in the view you prompted it in (the center view unless a
+prompt says @S,T), or the center view is segmented automatically (--auto); every mask is moved
+into every other view with that view's disparity, occluded parts are removed with SAM 2's
+features, and SAM 2 is re-prompted in each view with a point and a box (plus your own clicks,
+carried there by the disparity). The result (.npz) holds the label field labels[s,t,u,v]
+(0 = unlabeled; an object's label is its id), the bit-packed masks, per-view fallback flags and
+IoUs, stage timings and metadata; read it with lfsam.load_result() or `lfsam show`/`metrics`.
 
-Points are X,Y in center-view pixels (X = column, Y = row). When as many --point as --box are
-given, point i and box i prompt object i together.
+Points are X,Y in view pixels (X = column, Y = row), boxes X0,Y0,X1,Y1; add @S,T to give them in
+view (S, T) (0-based view row, view column). Each --point or --box starts a new object; a --neg
+(negative click) belongs to the object started last, so `--point A --neg B --point C` is two
+objects with the negative click on the first. --prompts FILE.json gives objects with any number
+of points and a box each (format: README, "Prompt files"). The prompts are saved in the result,
+so it can be reopened and edited (lfsam view --result). --cache DIR keeps the image encoder's
+output on disk: a second run on the same views encodes nothing (the result's views_encoded).
+
+--references (with --auto) sets where masks are generated: center (the paper's setting), or also
+the corner views (corners), the outer ring's corners and edge midpoints (ring), or every view
+(all), there only where no mask lands yet, to find objects the center view cannot see.
 """
 
 EPILOG = """\
 examples:
   lfsam segment scene --point 160,120 --point 60,40 --out result.npz
+  lfsam segment scene --point 160,120 --neg 180,120 --point 60,40@0,8 --out result.npz
+  lfsam segment scene --prompts objects.json --cache ~/.cache/lfsam --out result.npz
+  lfsam segment scene --point 150,90 --model oracle --oracle-merge 1 --disparity gt --out m.npz
   lfsam segment scene --box 20,30,120,140 --disparity gt --out result.npz
   lfsam segment scene --auto --model oracle --disparity gt --out result.npz
   lfsam segment ../shared/data/hci_antinous --auto --model sam2.1-hiera-tiny --random-weights \\
       --out antinous.npz            # untrained weights: a speed check, not a segmentation
   lfsam segment scene --auto --no-refine --occlusion none --out ablation_none.npz
   lfsam segment scene --auto --amg points_per_side=32 --out coarser_auto.npz
+  lfsam segment hidden.npz --auto --references corners --out all_objects.npz
 """
 
 
@@ -51,17 +60,27 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=HelpFormatter,
     )
     parser.add_argument("path", help="light field: a folder of views, .npz/.npy/.h5/.mat, ...")
-    prompt = parser.add_argument_group("prompts (center view; one of them)")
+    prompt = parser.add_argument_group("prompts (any view; prompts or --auto)")
+    for flag, kind, metavar, text in (
+        ("--point", "point", "X,Y[@S,T]", "a positive click; starts a new object"),
+        ("--neg", "neg", "X,Y[@S,T]", "a negative click of the object started last"),
+        ("--box", "box", "X0,Y0,X1,Y1[@S,T]", "a box; starts a new object"),
+    ):
+        prompt.add_argument(
+            flag, action=PromptAction, dest="prompt_items", default=[], metavar=metavar,
+            type=PROMPT_PARSERS[kind], help=text,
+        )
     prompt.add_argument(
-        "--point", action="append", default=[], metavar="X,Y",
-        type=lambda s: parse_floats(s, 2), help="a positive point; each makes one object",
-    )
-    prompt.add_argument(
-        "--box", action="append", default=[], metavar="X0,Y0,X1,Y1",
-        type=lambda s: parse_floats(s, 4), help="a box; each makes one object",
+        "--prompts", metavar="FILE.json", help="objects from a prompt file (README: Prompt files)"
     )
     prompt.add_argument(
         "--auto", action="store_true", help="automatic mask generation (the paper's setting)"
+    )
+    prompt.add_argument(
+        "--references",
+        default="center",
+        metavar="MODE",
+        help="with --auto: center (paper), corners, ring or all: views where masks are generated",
     )
     parser.add_argument(
         "--method", choices=["lfsam", "video-baseline"], default="lfsam",
@@ -102,6 +121,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="video baseline: start on the first view of the snake, or on the center view "
         "and track outwards both ways",
     )
+    parser.add_argument(
+        "--cache", metavar="DIR",
+        help="on-disk cache of view embeddings (keyed by view content and model)",
+    )
     parser.add_argument("--format", dest="input_format", help="input format (default: detect)")
     parser.add_argument("--out", required=True, metavar="RESULT.npz", help="result file")
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
@@ -111,23 +134,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``lfsam segment``."""
-    from lfsam.api import make_prompts, run_segmentation
+    from lfsam.api import RunOptions, SegmentOptions, segment
     from lfsam.errors import LfsamError
     from lfsam.fileutil import check_output_path
     from lfsam.io import read_lightfield
     from lfsam.pipeline import PipelineConfig
+    from lfsam.pipeline.references import check_references
+    from lfsam.prompts import load_prompts
     from lfsam.result import save_result
 
-    has_prompts = bool(args.point or args.box)
+    check_references(args.references)
+    has_prompts = bool(args.prompt_items or args.prompts)
     if has_prompts == args.auto:
         raise LfsamError(
-            "give prompts (--point X,Y and/or --box X0,Y0,X1,Y1) or --auto, not both and not "
-            "neither"
+            "give prompts (--point X,Y, --box X0,Y0,X1,Y1 or --prompts FILE.json) or --auto, "
+            "not both and not neither"
         )
-    check_output_path(args.out)
-    lightfield = read_lightfield(
-        args.path, format=args.input_format, value_range=args.value_range
-    )
     config = PipelineConfig(
         refine=not args.no_refine,
         occlusion=args.occlusion,
@@ -135,30 +157,41 @@ def run(args: argparse.Namespace) -> int:
         t_sim=args.t_sim,
         t_iou=args.t_iou,
     )
-    amg = dict(args.amg) or None
-    result = run_segmentation(
-        lightfield,
-        method=args.method,
-        model=args.model,
-        checkpoint=args.checkpoint,
-        random_weights=args.random_weights,
-        disparity=args.disparity,
-        config=config,
-        prompts=make_prompts(args.point, args.box),
-        device=None if args.device == "auto" else args.device,
-        amg_options=amg,
-        baseline_options={
-            "objects_per_pass": args.objects_per_pass,
-            "start": args.baseline_start,
-        },
-        progress=not args.quiet,
+    check_output_path(args.out)
+    lightfield = read_lightfield(
+        args.path, format=args.input_format, value_range=args.value_range
     )
+    objects = None
+    if has_prompts:
+        objects = (
+            load_prompts(args.prompts, lightfield.grid_shape, lightfield.view_shape)
+            if args.prompts
+            else []
+        )
+        first = max((o.obj_id for o in objects), default=0) + 1
+        objects += objects_from_items(args.prompt_items, first_id=first)
+    options = SegmentOptions(
+        pipeline=config,
+        model=model_options_from_args(args),
+        run=RunOptions(
+            method=args.method,
+            references=args.references,
+            cache_dir=args.cache,
+            progress=not args.quiet,
+            baseline={
+                "objects_per_pass": args.objects_per_pass,
+                "start": args.baseline_start,
+            },
+        ),
+    )
+    result = segment(lightfield, objects, disparity=args.disparity, options=options)
     save_result(result, args.out)
     if not args.quiet:
         summary = {
             "out": args.out,
             "masks": result.num_masks,
             "views": int(result.labels.shape[0] * result.labels.shape[1]),
+            "views_encoded": result.meta.get("views_encoded"),
             "seconds": round(result.timings.get("total", float("nan")), 3),
             "ms_per_mask_view": None
             if result.ms_per_mask_view is None

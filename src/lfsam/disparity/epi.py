@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from lfsam.devices import resolve_device
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 
@@ -83,13 +84,6 @@ class EpiStack:
     def to_center_layout(self, image: torch.Tensor) -> torch.Tensor:
         """Bring a ``(rows, cols)`` map of this stack back to the reference view's ``(U, V)``."""
         return image.transpose(-1, -2) if self.direction == "vertical" else image
-
-
-def resolve_device(device: str | torch.device | None) -> torch.device:
-    """``device`` as a torch device; ``None`` picks CUDA when present, else the CPU."""
-    if device is None:
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    return torch.device(device)
 
 
 def as_views(views: LightField | np.ndarray) -> np.ndarray:
@@ -178,7 +172,7 @@ def epi_stacks(
     views : LightField or ndarray, shape (S, T, U, V, 3), uint8
         The light field (a LightField's ``present`` mask marks the views that exist).
     device : str or torch.device, optional
-        Where to put the stacks; default CUDA when present, else the CPU.
+        Where to put the stacks; default ``auto`` (:func:`lfsam.devices.resolve_device`).
     color : bool
         Keep the three colour channels (``C`` = 3) instead of converting to gray (``C`` = 1).
     view : (s, t), optional

@@ -41,6 +41,11 @@ def smooth_axis(image: torch.Tensor, kernel: torch.Tensor, axis: int) -> torch.T
     Borders are reflected (replicated when the axis is shorter than the kernel radius). Computed
     as a weighted sum of shifted slices, one per tap: for the short kernels used here this is
     several times faster on a CPU than a one-channel ``conv2d``, on any device.
+
+    Raises
+    ------
+    ValueError
+        If ``axis`` is neither -1 nor -2 (a fault of the calling code).
     """
     if axis not in (-1, -2):
         raise ValueError("axis must be -1 (columns) or -2 (rows)")

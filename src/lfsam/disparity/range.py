@@ -4,7 +4,7 @@ The sheared structure tensor needs to know which disparities to shear to. This m
 from the data with a cheap plane sweep (Collins, "A space-sweep approach to true multi-image
 matching", CVPR 1996): for candidate disparities ``d`` on a coarse grid, every view of the center
 row and column is shifted back onto the center view (center pixel ``x`` is seen in view ``n`` at
-``x - d (n - n_c)``, DESIGN.md section 1), the mean absolute difference to the center view is
+``x - d (n - n_c)``, docs/design.md section 1), the mean absolute difference to the center view is
 box-filtered, and each pixel takes the winner. The range is the 1st to 99th percentile of the
 winners over pixels with a clear minimum, widened by one search step on both sides.
 """
@@ -86,7 +86,7 @@ def estimate_disparity_range(
     views : LightField or ndarray, shape (S, T, U, V, 3), uint8
         The light field (at least three views in a row or column).
     device : str or torch.device, optional
-        Where to compute; default CUDA when present, else the CPU.
+        Where to compute; default ``auto`` (:func:`lfsam.devices.resolve_device`).
     max_disparity : float
         Largest |disparity| searched, pixels per view step (also capped so that the outermost
         view's shift stays below a quarter of the image).

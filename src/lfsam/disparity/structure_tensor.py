@@ -1,10 +1,10 @@
 """A view's disparity from the structure tensor on sheared EPIs (torch, vectorised).
 
-This is the disparity step of the pipeline (paper section 3.2; DESIGN.md section 3.2).
+This is the disparity step of the pipeline (paper section 3.2; docs/design.md section 3.2).
 
 Orientation. On an epipolar-plane image ``E(n, x)`` (view ``n`` along one direction, pixel ``x``
 along the same direction) a scene point of disparity ``d`` draws the line ``x = x_0 - d (n - n_c)``
-(DESIGN.md section 1), so ``E(n, x) = f(x + d (n - n_c))``. The structure tensor
+(docs/design.md section 1), so ``E(n, x) = f(x + d (n - n_c))``. The structure tensor
 
     J = G_outer * (grad E  grad E^T),   grad E = (dE/dn, dE/dx)
 
@@ -357,7 +357,7 @@ def estimate_disparity(
         Disparities to search, in pixels per view step; estimated from the data when omitted
         (:func:`lfsam.disparity.range.estimate_disparity_range`). The result is clipped to it.
     device : str or torch.device, optional
-        Where to compute; default CUDA when present, else the CPU.
+        Where to compute; default ``auto`` (:func:`lfsam.devices.resolve_device`).
     inner_scale : float
         Standard deviation (pixels) of the Gaussian pre-smoothing of the EPIs.
     outer_scale : float

@@ -2,11 +2,11 @@
 
 :func:`read_lightfield` detects the layout from the path (or takes it by name, see
 :data:`FORMATS`) and returns a :class:`~lfsam.lightfield.LightField` whose views are ordered and
-whose ground truth is signed in the package's one convention (DESIGN.md section 1), with
+whose ground truth is signed in the package's one convention (docs/design.md section 1), with
 ``meta["source"]`` and ``meta["format"]`` set. :func:`write_lightfield` writes the package's scene
 folder (:mod:`lfsam.io.native`) or an ``.npz`` archive (:mod:`lfsam.io.arrays`).
 
-Formats (DESIGN.md section 2):
+Formats (docs/design.md section 2):
 
 ==========  ============================================================================
 name        layout

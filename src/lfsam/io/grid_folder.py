@@ -1,6 +1,6 @@
 """Folders of sub-aperture images named by their position on the view grid.
 
-Three naming schemes are recognised from the file names themselves (DESIGN.md section 2):
+Three naming schemes are recognised from the file names themselves (docs/design.md section 2):
 
 ``pair``
     ``[prefix_]ROW_COL.ext``: ``2067_05_09.png`` (prefix ``2067``), ``t_rex_00_04.png``,

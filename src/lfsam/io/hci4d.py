@@ -5,7 +5,7 @@ from the top-left view of a 9x9 grid, 512x512 pixels), ``gt_disp_lowres.pfm`` (d
 center view, PFM rows bottom-to-top), optionally ``gt_disp_lowres_CamNNN.pfm`` for other views and
 ``parameters.cfg`` (an INI file with ``num_cams_x``, ``num_cams_y``, ``baseline_mm``, ...).
 
-The benchmark's files follow the package convention as stored (DESIGN.md section 1; checked by
+The benchmark's files follow the package convention as stored (docs/design.md section 1; checked by
 photo-consistency in ``tests/test_convention.py``): view ``(s, t)`` sees center pixel ``(u, v)``
 at ``(u - d (s - 4), v - d (t - 4))``.
 """

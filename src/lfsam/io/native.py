@@ -12,8 +12,8 @@ Layout of a scene folder (version 1)::
 ``view_size`` [U, V], ``center``, ``views`` (the file-name pattern), ``disparity`` and ``labels``
 (``"all views"``, ``"center"`` or null), the disparity ``convention`` in words, and ``meta``
 (free JSON: where the scene came from, the orientation applied on import, generator settings).
-Disparity is always in the package's convention (DESIGN.md section 1), so a scene converted from
-any data set reads back without further checks.
+Disparity is always in the package's convention (docs/design.md section 1), so a scene converted
+from any data set reads back without further checks.
 
 A scene is written into a temporary folder next to the target and renamed onto it only when
 complete, so a failed write leaves no partial scene.

@@ -1,6 +1,7 @@
 """Establishing how a data set's view grid and disparity map onto the package's convention.
 
-The convention (DESIGN.md section 1, :mod:`lfsam.geometry`): a point at pixel ``(u, v)`` of view
+The convention (docs/design.md section 1, :mod:`lfsam.geometry`): a point at pixel ``(u, v)`` of
+view
 ``(s, t)`` with disparity ``d`` is at ``(u - d (s' - s), v - d (t' - t))`` in view ``(s', t')``;
 ``s`` grows downwards, ``t`` rightwards, and larger disparity is closer.
 

@@ -8,7 +8,7 @@ views and a center-view ``label.npy`` only.
 Labels: the files' classes start at 0, so 1 is added and 0 keeps its package meaning, "no label"
 (the authors add 1 too).
 
-Orientation (DESIGN.md section 2): how the files' view grid and disparity sign relate to the
+Orientation (docs/design.md section 2): how the files' view grid and disparity sign relate to the
 package convention is not documented, and the authors' loader and metric disagree. With
 ground-truth disparity the reader settles it from the data
 (:func:`lfsam.io.orientation.detect_orientation`): photo-consistency picks the arrangement of the

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from lfsam.devices import resolve_device
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.metrics.consistency import ConsistencyScores, consistency_metrics
@@ -121,12 +122,6 @@ def check_ground_truth(shape: tuple[int, ...], gt: LightField) -> None:
         )
 
 
-def _default_device(device: str | torch.device | None) -> torch.device:
-    if device is not None:
-        return torch.device(device)
-    return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-
-
 def evaluate_labels(
     labels: np.ndarray | torch.Tensor,
     gt: LightField,
@@ -155,7 +150,7 @@ def evaluate_labels(
     num_masks : int, optional
         N for T; defaults to the number of distinct non-zero labels.
     device : str or torch.device, optional
-        Where to compute; CUDA when available, else CPU.
+        Where to compute; default ``auto`` (:func:`lfsam.devices.resolve_device`).
     min_area : int, optional
         Pixels a ground-truth object must show in some view to count for recall (default
         :func:`lfsam.metrics.recall.default_min_area`).
@@ -174,12 +169,32 @@ def evaluate_labels(
     ------
     LfsamError
         If the ground truth is incomplete or the shapes differ (:func:`check_ground_truth`).
+
+    Examples
+    --------
+    A 1 x 3 grid of 2 x 5 views at disparity 0: an object (label 1, 4 pixels per view) on a
+    background (label 2). The ground truth scores perfectly; one label over everything maps to
+    the background (AA = 18 / 30) and crosses both regions (UE = (12/12 + 12/18) / 2):
+
+    >>> import numpy as np
+    >>> from lfsam.lightfield import LightField
+    >>> gt = np.full((1, 3, 2, 5), 2, dtype=np.int32)
+    >>> gt[..., 1:3] = 1
+    >>> lf = LightField(
+    ...     np.zeros((1, 3, 2, 5, 3), np.uint8), disparity=np.zeros(gt.shape, np.float32), labels=gt
+    ... )
+    >>> scores = evaluate_labels(gt, lf, device="cpu")
+    >>> [scores[k] for k in ("siou", "lpp", "aa", "ue", "coverage")]
+    [1.0, 1.0, 1.0, 0.0, 1.0]
+    >>> scores = evaluate_labels(np.ones_like(gt), lf, device="cpu")
+    >>> round(scores["aa"], 4), round(scores["ue"], 4), scores["num_masks"]
+    (0.6, 0.8333, 1)
     """
     shape = tuple(labels.shape)
     if len(shape) != 4:
         raise LfsamError(f"labels must have shape (S, T, U, V), got {shape}")
     check_ground_truth(shape, gt)
-    dev = _default_device(device)
+    dev = resolve_device(device)
     views = np.asarray(gt.present, dtype=bool)
     if present is not None:
         views = views & np.asarray(present, dtype=bool)

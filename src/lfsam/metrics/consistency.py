@@ -13,7 +13,7 @@ mean over masks. Choices made here:
   constant 1 and inflate small grids (the authors' self-similarity also divided by the number of
   views minus one).
 - A mask absent from the center view has IoU 0 in every view where it appears, so it scores 0
-  (DESIGN.md section 5).
+  (docs/design.md section 5).
 - A mask with no non-empty projected mask outside the center view (seen only in the center, or
   only in pixels that project out of the center frame) has nothing to be compared with and is
   left out of the mean. With no such comparable mask at all, SIoU is NaN.

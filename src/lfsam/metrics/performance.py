@@ -33,7 +33,9 @@ def coverage(labels: torch.Tensor) -> float:
 def ms_per_mask_view(
     timings: Mapping[str, float] | None, num_masks: int, grid_shape: tuple[int, int]
 ) -> float | None:
-    """T: wall-clock milliseconds per mask per view, ``1000 total / (N S T)`` (DESIGN.md section 5).
+    """T: wall-clock milliseconds per mask per view, ``1000 total / (N S T)``.
+
+    Defined in docs/design.md section 5.
 
     Parameters
     ----------

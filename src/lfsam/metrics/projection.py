@@ -3,10 +3,10 @@
 The cross-view metrics of paper section 4.1 compare masks in one frame: "we first backproject the
 masks from each view into the reference view using the ground truth disparity". A pixel ``(u, v)``
 of view ``(s, t)`` with disparity ``d`` is seen in the center view ``(s_c, t_c)`` at
-``(u + d (s - s_c), v + d (t - t_c))`` (:func:`lfsam.geometry.project_pixels` with the step
-``(s_c - s, t_c - t)``; DESIGN.md section 1). Here each landing point is rounded to the nearest
-pixel (halves round up), pixels landing outside the frame are dropped, and so are pixels with a
-non-finite disparity. Label 0 means "unlabeled" and is never projected.
+``(u + d (s - s_c), v + d (t - t_c))`` (:func:`lfsam.warp.landing_pixels` with the step
+``(s_c - s, t_c - t)``; docs/design.md section 1). Here each landing point is rounded to the
+nearest pixel (halves round up), pixels landing outside the frame are dropped, and so are pixels
+with a non-finite disparity. Label 0 means "unlabeled" and is never projected.
 
 A projected view is a *set* of ``(center pixel, label)`` pairs: several pixels of one view may
 land on the same center pixel (a surface hidden in the center view lands on its occluder), so one
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import torch
 
-from lfsam.geometry import project_pixels
+from lfsam.warp import landing_pixels
 
 __all__ = [
     "ProjectedViews",
@@ -89,21 +89,15 @@ def project_views_to_center(
     count, height, width = labels.shape
     npix = height * width
     device = labels.device
-    disparity = disparity.float()
+    # The step from view (s, t) to the center is (s_c - s, t_c - t) = (-ds, -dt).
     steps = torch.as_tensor(ds, dtype=torch.float32, device=device).view(count, 1, 1)
     steps_t = torch.as_tensor(dt, dtype=torch.float32, device=device).view(count, 1, 1)
-    rows = torch.arange(height, dtype=torch.float32, device=device).view(1, height, 1)
-    cols = torch.arange(width, dtype=torch.float32, device=device).view(1, 1, width)
-    # The step from view (s, t) to the center is (s_c - s, t_c - t) = (-ds, -dt).
-    row_c, col_c = project_pixels(rows, cols, disparity, -steps, -steps_t)
-    row_c = torch.floor(row_c + 0.5)
-    col_c = torch.floor(col_c + 0.5)
-    # NaN and infinite disparities fail these comparisons (or give NaN), so they drop out.
-    keep = (labels > 0) & (row_c >= 0) & (row_c <= height - 1) & (col_c >= 0)
-    keep &= col_c <= width - 1
-    view = torch.arange(count, device=device).view(count, 1, 1).expand(count, height, width)
-    cell = view[keep] * npix + row_c[keep].long() * width + col_c[keep].long()
-    keys = distinct(cell * num_labels + labels[keep].long())
+    target, valid = landing_pixels(disparity.float(), -steps, -steps_t, halves="up")
+    flat_labels = labels.reshape(count, npix)
+    keep = (flat_labels > 0) & valid
+    view = torch.arange(count, device=device).view(count, 1).expand(count, npix)
+    cell = view[keep] * npix + target[keep]
+    keys = distinct(cell * num_labels + flat_labels[keep].long())
     cell = torch.div(keys, num_labels, rounding_mode="floor")
     view_out = torch.div(cell, npix, rounding_mode="floor")
     return view_out, cell - view_out * npix, keys - cell * num_labels

@@ -5,7 +5,11 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, replace
 from typing import Any
 
+import torch
+
+from lfsam.devices import default_encode_batch_size
 from lfsam.errors import LfsamError
+from lfsam.pipeline.propagation import PROPAGATION_MODES
 
 __all__ = ["ABLATIONS", "OCCLUSION_MODES", "PipelineConfig"]
 
@@ -43,8 +47,14 @@ class PipelineConfig:
         than this lands on the same spot (pixels per view step).
     fill_holes : bool
         Close the gaps of per-pixel forward warping.
-    encode_batch_size : int
-        Views encoded per encoder call (larger helps on a GPU).
+    encode_batch_size : int, optional
+        Views encoded per encoder call; None (default) decides from the segmenter's device
+        (:func:`lfsam.devices.default_encode_batch_size`: batched on CUDA, 1 on a CPU).
+
+    Raises
+    ------
+    LfsamError
+        An unknown occluding or propagation mode, or an encode batch size below 1.
     """
 
     refine: bool = True
@@ -54,15 +64,23 @@ class PipelineConfig:
     t_iou: float = 0.1
     zbuffer_tolerance: float = 0.2
     fill_holes: bool = True
-    encode_batch_size: int = 1
+    encode_batch_size: int | None = None
 
     def __post_init__(self) -> None:
         if self.occlusion not in OCCLUSION_MODES:
-            raise ValueError(f"occlusion must be one of {OCCLUSION_MODES}, got {self.occlusion!r}")
-        if self.propagation not in ("pixel", "mean", "median"):
-            raise ValueError(f"unknown propagation {self.propagation!r}")
-        if self.encode_batch_size < 1:
-            raise ValueError("encode_batch_size must be >= 1")
+            raise LfsamError(
+                f"unknown occlusion {self.occlusion!r}; use one of {', '.join(OCCLUSION_MODES)}"
+            )
+        if self.propagation not in PROPAGATION_MODES:
+            raise LfsamError(
+                f"unknown propagation {self.propagation!r}; use one of "
+                f"{', '.join(PROPAGATION_MODES)}"
+            )
+        if self.encode_batch_size is not None and self.encode_batch_size < 1:
+            raise LfsamError(
+                f"encode_batch_size must be at least 1, got {self.encode_batch_size}; "
+                "or None to decide from the device"
+            )
         for name in ("t_sim", "t_iou"):
             value = getattr(self, name)
             if not isinstance(value, (int, float)) or not 0.0 <= value <= 1.0:  # NaN fails too
@@ -73,10 +91,23 @@ class PipelineConfig:
 
     @classmethod
     def from_ablation(cls, name: str, **overrides: Any) -> PipelineConfig:
-        """The configuration of a row of the paper's Table 2 (``none``, ``ref``, ``ref+occ``)."""
+        """The configuration of a row of the paper's Table 2 (``none``, ``ref``, ``ref+occ``).
+
+        Raises
+        ------
+        LfsamError
+            If ``name`` is not a row of Table 2.
+        """
         if name not in ABLATIONS:
-            raise ValueError(f"unknown ablation {name!r}; use one of {sorted(ABLATIONS)}")
+            raise LfsamError(f"unknown ablation {name!r}; use one of {', '.join(ABLATIONS)}")
         return replace(cls(**ABLATIONS[name]), **overrides)
+
+    def batch_size_for(self, device: str | torch.device) -> int:
+        """Views per encoder call on ``device``: :attr:`encode_batch_size`, else the device's
+        default (:func:`lfsam.devices.default_encode_batch_size`)."""
+        if self.encode_batch_size is not None:
+            return int(self.encode_batch_size)
+        return default_encode_batch_size(device)
 
     @property
     def semantic(self) -> bool:

@@ -1,8 +1,8 @@
 """Label fusion: N possibly overlapping masks of a view into one label image.
 
-DESIGN.md section 3.6: larger masks are written first and smaller ones on top, so a small object
-in front of (or inside) a large one keeps its label; mask ``n`` gets label ``n + 1`` and 0 means
-unlabeled.
+docs/design.md section 3.6: larger masks are written first and smaller ones on top, so a small
+object in front of (or inside) a large one keeps its label; mask ``n`` gets label ``n + 1`` and 0
+means unlabeled.
 """
 
 from __future__ import annotations

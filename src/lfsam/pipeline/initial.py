@@ -2,7 +2,7 @@
 
 Paper section 3.1, equation (1): ``M[s_m, t_m] = SAM2_img(L[s_m, t_m], P[s_m, t_m])`` for a user
 prompt (points with labels and/or a box), or SAM 2's automatic mask generation (paper section 4,
-implementation details; DESIGN.md section 3.1).
+implementation details; docs/design.md section 3.1).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ class SourceMasks:
         The segmenter's quality estimate of each mask.
     paint_order : (N,) int64 ndarray
         Mask indices from the largest to the smallest center area: label fusion writes them in
-        this order so smaller masks end on top (DESIGN.md section 3.6).
+        this order so smaller masks end on top (docs/design.md section 3.6).
     """
 
     masks: torch.Tensor
@@ -79,6 +79,7 @@ def initial_segmentation(
     prompts: Sequence[Prompts] | None = None,
     *,
     min_area: int = 1,
+    points: np.ndarray | None = None,
 ) -> SourceMasks:
     """Segment the prompted (center) view: equation (1) of the paper.
 
@@ -94,6 +95,8 @@ def initial_segmentation(
         prompt of a single point is ambiguous, so SAM 2's three candidates are asked for and the
         one with the highest predicted IoU kept; other prompts ask for one mask. None: automatic
         mask generation, keeping masks of at least ``min_area`` pixels.
+    points : (P, 2) float ndarray, optional
+        Automatic generation only: ask at these pixels instead of the generator's own grid.
 
     Returns
     -------
@@ -101,7 +104,7 @@ def initial_segmentation(
     """
     height, width = embedding.image_size
     if prompts is None:
-        auto = segmenter.generate(embedding, image)
+        auto = segmenter.generate(embedding, image, points=points)
         masks = torch.as_tensor(np.asarray(auto.masks, dtype=bool)).reshape(-1, height, width)
         scores = np.asarray(auto.scores, dtype=np.float32).reshape(-1)
         areas = masks.flatten(1).sum(1).cpu().numpy()

@@ -6,8 +6,10 @@ embedding over the center-view mask (the embedding brought to image resolution);
 feature. Pixels below ``t_sim`` (0.7 in the paper, section 4) get weight 0 and are dropped; the
 others keep their similarity as a weight, used later to place the refinement prompt.
 
-Geometric occluding (DESIGN.md section 3, beyond the paper) is a z-buffer test on the center
-disparity: see :meth:`lfsam.pipeline.propagation.ForwardWarp.visible`.
+Geometric occluding (docs/design.md section 3, beyond the paper) is a z-buffer test on the center
+disparity, done during propagation (:func:`lfsam.pipeline.propagation.propagate_masks` with
+``occlusion_tolerance``; :meth:`lfsam.warp.ForwardWarp.visible` and
+:meth:`lfsam.warp.ForwardWarp.hides`).
 
 Masks are handled as (mask index, pixel index) pairs so memory follows the masks' total area,
 not N x U x V features; the features themselves are the segmenter's business

@@ -20,10 +20,23 @@ import torch
 from lfsam.errors import LfsamError
 from lfsam.precision import wide_float
 
-__all__ = ["REFERENCE_MODES", "drop_covered_masks", "reference_views", "uncovered_points"]
+__all__ = [
+    "REFERENCE_MODES",
+    "check_references",
+    "drop_covered_masks",
+    "reference_views",
+    "uncovered_points",
+]
 
 #: Modes of ``--references``, from the paper's setting to every view.
 REFERENCE_MODES = ("center", "corners", "ring", "all")
+
+
+def check_references(mode: str) -> str:
+    """``mode`` if it is one of :data:`REFERENCE_MODES`, else a one-line :class:`LfsamError`."""
+    if mode not in REFERENCE_MODES:
+        raise LfsamError(f"--references {mode}: use one of {', '.join(REFERENCE_MODES)}")
+    return mode
 
 
 def reference_views(grid_shape: tuple[int, int], mode: str) -> list[tuple[int, int]]:
@@ -50,8 +63,7 @@ def reference_views(grid_shape: tuple[int, int], mode: str) -> list[tuple[int, i
     LfsamError
         For an unknown mode.
     """
-    if mode not in REFERENCE_MODES:
-        raise LfsamError(f"--references {mode}: use one of {', '.join(REFERENCE_MODES)}")
+    check_references(mode)
     s_count, t_count = int(grid_shape[0]), int(grid_shape[1])
     if s_count < 1 or t_count < 1:
         raise ValueError(f"grid shape must be positive, got {grid_shape}")

@@ -1,6 +1,6 @@
 """Step 4 of the pipeline: segmentation refinement by re-prompting SAM 2 in each view.
 
-Paper section 3.4 with the details of DESIGN.md section 3.5: in view ``(s, t)`` each mask is
+Paper section 3.4 with the details of docs/design.md section 3.5: in view ``(s, t)`` each mask is
 prompted with the box around its surviving coarse pixels and one positive point, the surviving
 pixel nearest to their similarity-weighted centroid (a plain centroid can fall outside a
 non-convex mask). Of the three multimask outputs the one with the highest IoU against the coarse
@@ -16,9 +16,9 @@ import numpy as np
 import torch
 
 from lfsam.pipeline.occlusion import OcclusionWeights
-from lfsam.pipeline.propagation import FrameRuns
 from lfsam.precision import wide_float
 from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
+from lfsam.warp import FrameRuns
 
 __all__ = ["RefinementOutcome", "mask_iou", "refine_masks", "refinement_prompts"]
 
@@ -53,7 +53,7 @@ def refinement_prompts(
         Surviving coarse pixels (weight > 0) and their weights.
     frame_runs : FrameRuns, optional
         Strips at the view's frame border that the center view does not see
-        (:meth:`lfsam.pipeline.propagation.ForwardWarp.frame_runs`). A box edge reaching such
+        (:meth:`lfsam.warp.ForwardWarp.frame_runs`). A box edge reaching such
         a strip within the box's extent is moved to the frame edge: the object may continue
         into content that was outside the center view's frame, which no propagated pixel can
         reach (beyond the paper, which leaves the frame border implicit).

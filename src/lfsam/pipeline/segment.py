@@ -13,6 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.pipeline.config import PipelineConfig
 from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
@@ -30,6 +31,7 @@ def segment_lightfield(
     config: PipelineConfig | None = None,
     *,
     progress: bool = True,
+    references: str = "center",
 ) -> SegmentationResult:
     """Segment a light field from its center view (paper section 3).
 
@@ -49,6 +51,9 @@ def segment_lightfield(
         occluding, ``t_sim = 0.7``, ``t_iou = 0.1``).
     progress : bool
         Show a progress bar over views.
+    references : {"center", "corners", "ring", "all"}
+        Automatic mode only: the reference views where masks are generated
+        (:func:`lfsam.pipeline.references.reference_views`; ``center`` is the paper's setting).
 
     Returns
     -------
@@ -60,11 +65,14 @@ def segment_lightfield(
 
     height, width = lightfield.view_shape
     if np.shape(disparity) != (height, width):
-        raise ValueError(f"disparity has shape {np.shape(disparity)}, expected {(height, width)}")
+        raise LfsamError(
+            f"disparity has shape {np.shape(disparity)}, expected {(height, width)}; give the "
+            "center view's (U, V) disparity of this light field"
+        )
     predictor = LightFieldPredictor(segmenter, config, progress=progress)
     predictor.set_lightfield(lightfield, disparity=np.asarray(disparity, dtype=np.float32))
     if prompts is None:
-        predictor.generate()
+        predictor.generate(references=references)
     else:
         for group in prompts:
             for obj in objects_from_prompts(group, first_id=predictor.next_id()):
@@ -73,6 +81,8 @@ def segment_lightfield(
     result.timings.pop("disparity", None)
     result.timings["total"] = predictor.seconds
     result.meta["prompt_mode"] = "auto" if prompts is None else "prompts"
+    if prompts is None:
+        result.meta["references"] = references
     return result
 
 

@@ -1,8 +1,8 @@
 """The promptable-segmenter interface the pipeline talks to.
 
 Its life cycle follows Meta's ``SAM2ImagePredictor`` (``set_image`` then ``predict``), split so a
-view is encoded once and its embedding serves every later step (DESIGN.md section 3, "efficiency
-facts"): :meth:`Segmenter.encode` a batch of views once, then for each
+view is encoded once and its embedding serves every later step (docs/design.md section 3,
+"efficiency facts"): :meth:`Segmenter.encode` a batch of views once, then for each
 :class:`ViewEmbedding` :meth:`Segmenter.predict` a batch of N prompts in one call,
 :meth:`Segmenter.generate` masks automatically, or :meth:`Segmenter.sample_features` per-pixel
 features for semantic occluding (paper section 3.3).
@@ -20,6 +20,8 @@ from typing import Any
 import numpy as np
 import torch
 import torch.nn.functional as F
+
+from lfsam.errors import LfsamError
 
 __all__ = [
     "AutoMasks",
@@ -42,6 +44,12 @@ class Prompts:
         1 = positive (object), 0 = negative (background); required with ``points``.
     boxes : (N, 4) float array, optional
         Boxes ``(x0, y0, x1, y1)`` in view pixels.
+
+    Raises
+    ------
+    LfsamError
+        Neither points nor boxes, points without labels, or different numbers of point and box
+        prompts.
     """
 
     points: np.ndarray | None = None
@@ -50,13 +58,15 @@ class Prompts:
 
     def __post_init__(self) -> None:
         if self.points is None and self.boxes is None:
-            raise ValueError("a prompt needs points, a box, or both")
+            raise LfsamError("a prompt needs points, a box, or both; give at least one")
         if self.points is not None:
             self.points = np.asarray(self.points, dtype=np.float32).reshape(
                 len(self.points), -1, 2
             )
             if self.point_labels is None:
-                raise ValueError("points need point_labels (1 = positive, 0 = negative)")
+                raise LfsamError(
+                    "points need point_labels (1 = positive, 0 = negative); give one per point"
+                )
             self.point_labels = np.asarray(self.point_labels, dtype=np.int64).reshape(
                 self.points.shape[:2]
             )
@@ -64,7 +74,10 @@ class Prompts:
             self.boxes = np.asarray(self.boxes, dtype=np.float32).reshape(-1, 4)
         if self.points is not None and self.boxes is not None:
             if len(self.points) != len(self.boxes):
-                raise ValueError("points and boxes must describe the same number of prompts")
+                raise LfsamError(
+                    f"{len(self.points)} point prompts but {len(self.boxes)} boxes; give as many "
+                    "of each (prompt i = point i + box i) or only one kind"
+                )
 
     def __len__(self) -> int:
         return len(self.points) if self.points is not None else len(self.boxes)
@@ -191,8 +204,14 @@ class Segmenter(abc.ABC):
         """
 
     @abc.abstractmethod
-    def generate(self, embedding: ViewEmbedding, image: np.ndarray) -> AutoMasks:
+    def generate(
+        self, embedding: ViewEmbedding, image: np.ndarray, points: np.ndarray | None = None
+    ) -> AutoMasks:
         """Automatic mask generation on one encoded view (paper section 4, implementation details).
+
+        ``points`` ``(P, 2)`` (x, y pixels) replaces the generator's regular point grid (the
+        multi-reference automatic mode asks only where no mask lands yet; docs/design.md
+        section 8); None = the backend's own grid.
 
         Parameters
         ----------

@@ -49,7 +49,7 @@ def load_segmenter(
     random_weights : bool
         SAM 2 architecture without trained weights (tests and speed measurements only).
     device : str or torch.device, optional
-        Default: CUDA, then MPS, then CPU.
+        Default ``auto``: CUDA, then MPS, then CPU (:func:`lfsam.devices.resolve_device`).
     lightfield : LightField, optional
         Required for ``"oracle"`` (it must carry ground-truth labels).
     amg_options : dict, optional

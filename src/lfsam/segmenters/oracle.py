@@ -1,10 +1,11 @@
 """A segmenter that answers prompts from ground-truth labels: the upper bound of any backend.
 
-The oracle (DESIGN.md section 6) stands in for SAM 2 where a light field has ground-truth labels,
-so every geometric step of the pipeline can be tested with exact numbers: a positive point selects
-the ground-truth region under it, negative points remove the regions under them, a box restricts
-the answer to the box (a box alone selects the region covering most of it), automatic generation
-returns every region, and the "features" are one-hot labels, so semantic occluding (paper section
+The oracle (docs/design.md section 6) stands in for SAM 2 where a light field has ground-truth
+labels, so every geometric step of the pipeline can be tested with exact numbers: a positive point
+selects the ground-truth region under it, negative points remove the regions under them, a box
+restricts the answer to the box (a box alone selects the region covering most of it), automatic
+generation returns every region, and the "features" are one-hot labels, so semantic occluding (paper
+section
 3.3) separates objects perfectly. Optional, seeded imperfections (boundary jitter, merges with a
 neighbouring region) make it a noisy segmenter for robustness tests; they are off by default.
 
@@ -22,10 +23,10 @@ import torch
 import torch.nn.functional as F
 from skimage.measure import label as connected_components
 
+from lfsam.devices import resolve_device
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.segmenters.base import AutoMasks, MaskPrediction, Prompts, Segmenter, ViewEmbedding
-from lfsam.segmenters.sam2_build import resolve_device
 
 __all__ = ["OracleSegmenter", "OracleView"]
 
@@ -84,7 +85,7 @@ class OracleSegmenter(Segmenter):
         the prompt selects, so an answer does not depend on what was asked before (an
         interactive edit reproduces a full run exactly).
     device : str or torch.device, optional
-        Default: CUDA, then MPS, then CPU.
+        Default ``auto``: CUDA, then MPS, then CPU (:func:`lfsam.devices.resolve_device`).
 
     Raises
     ------
@@ -372,8 +373,11 @@ class OracleSegmenter(Segmenter):
         return out
 
     # --- automatic generation -----------------------------------------------------------------
-    def generate(self, embedding: ViewEmbedding, image: np.ndarray) -> AutoMasks:
-        """Every ground-truth region of the view with at least :attr:`min_area` pixels.
+    def generate(
+        self, embedding: ViewEmbedding, image: np.ndarray, points: np.ndarray | None = None
+    ) -> AutoMasks:
+        """Every ground-truth region of the view with at least :attr:`min_area` pixels (with
+        ``points``: only the regions under at least one of them).
 
         Returns
         -------
@@ -385,6 +389,13 @@ class OracleSegmenter(Segmenter):
         labels = view.labels
         ids, areas = torch.unique(labels, return_counts=True)
         keep = (ids > 0) & (areas >= max(self.min_area, 1))
+        if points is not None:
+            pts = torch.as_tensor(np.asarray(points, dtype=np.float32).reshape(-1, 2))
+            rows = pts[:, 1].floor().long().clamp(0, labels.shape[0] - 1)
+            cols = pts[:, 0].floor().long().clamp(0, labels.shape[1] - 1)
+            under = torch.zeros(int(labels.max()) + 1, dtype=torch.bool, device=labels.device)
+            under[labels[rows.to(labels.device), cols.to(labels.device)]] = True
+            keep &= under[ids]
         ids = ids[keep]
         if len(ids) == 0:
             u_size, v_size = embedding.image_size

@@ -3,12 +3,13 @@
 The names follow the model hub (``facebook/<name>``) and Meta's ``sam2.build_sam``
 (``HF_MODEL_ID_TO_FILENAMES``): SAM 2.1 and SAM 2.0 in four sizes each (Ravi et al. 2024, "SAM 2:
 Segment Anything in Images and Videos", model table of the ``sam2`` README). The paper uses
-``sam2.1-hiera-small`` (paper section 4, implementation details; DESIGN.md section 3), the default.
+``sam2.1-hiera-small`` (paper section 4, implementation details; docs/design.md section 3.1), the
+default.
 
 ``sam2-tiny-test`` is the same SAM 2.1 architecture shrunk by hydra overrides of the tiny config to
-about 0.9 M parameters and a 256-pixel input (DESIGN.md section 6). It has no published weights:
-it runs with random weights (or a checkpoint the tests write) so the whole SAM 2 code path can be
-exercised in tests on a CPU.
+about 0.9 M parameters and a 256-pixel input (docs/design.md section 6). It has no published
+weights: it runs with random weights (or a checkpoint the tests write) so the whole SAM 2 code path
+can be exercised in tests on a CPU.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ ORACLE = "oracle"
 TINY_TEST_MODEL = "sam2-tiny-test"
 """A 0.9 M-parameter SAM 2.1 for tests and quick demos (random weights)."""
 
-# Hydra overrides that shrink the SAM 2.1 tiny config (DESIGN.md section 6). Widths must agree:
+# Hydra overrides that shrink the SAM 2.1 tiny config (docs/design.md section 6). Widths must agree:
 # the neck width (32) is the SAM heads' and memory attention's width and the memory encoder's
 # input; the memory encoder's output (16) is the cross-attention key width; the position
 # encodings match the widths they are added to; RoPE feature sizes are image_size / 16. Hiera

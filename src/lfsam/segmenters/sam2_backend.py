@@ -8,7 +8,7 @@ and its embedding then serves every prompt batch (:meth:`~Sam2Segmenter.predict`
 generation (:meth:`~Sam2Segmenter.generate`: ``SAM2AutomaticMaskGenerator`` fed the cached
 embedding instead of re-encoding) and the features for semantic occluding
 (:meth:`~Sam2Segmenter.sample_features`, :meth:`~Sam2Segmenter.feature_sums`,
-:meth:`~Sam2Segmenter.feature_similarity`, paper section 3.3) (DESIGN.md section 3, "efficiency
+:meth:`~Sam2Segmenter.feature_similarity`, paper section 3.3) (docs/design.md section 3, "efficiency
 facts").
 """
 
@@ -25,25 +25,24 @@ from typing import Any
 import numpy as np
 import torch
 import torch.nn.functional as F
-from sam2.sam2_image_predictor import SAM2ImagePredictor
 
+from lfsam.devices import default_encode_batch_size
 from lfsam.errors import LfsamError
 from lfsam.segmenters.base import AutoMasks, MaskPrediction, Prompts, Segmenter, ViewEmbedding
 from lfsam.segmenters.feature_grid import grid_cosine_similarity, grid_feature_sums
 from lfsam.segmenters.registry import DEFAULT_MODEL
+from lfsam.segmenters.sam2_adapter import (
+    CachedFeaturePredictor,
+    backbone_features,
+    image_transforms,
+)
 from lfsam.segmenters.sam2_build import (
     autocast_dtype,
     build_sam2,
     inference_context,
     make_image_predictor,
 )
-from lfsam.segmenters.sam2_decoder import (
-    DEFAULT_CHUNK_SIZE,
-    LOGIT_CLAMP,
-    decode_prompts,
-    default_chunk_size,
-    prepare_image,
-)
+from lfsam.segmenters.sam2_decoder import default_chunk_size
 
 __all__ = ["PAPER_AMG_OPTIONS", "CachedFeaturePredictor", "Sam2Features", "Sam2Segmenter"]
 
@@ -55,7 +54,7 @@ PAPER_AMG_OPTIONS: dict[str, Any] = {
     "box_nms_thresh": 0.7,
     "min_mask_region_area": 0,
 }
-"""Automatic mask generation settings of the paper (section 4; DESIGN.md section 3, step 1)."""
+"""Automatic mask generation settings of the paper (section 4; docs/design.md section 3.1)."""
 
 
 @dataclass
@@ -79,73 +78,6 @@ class Sam2Features:
         return {"image_embed": self.image_embed, "high_res_feats": list(self.high_res_feats)}
 
 
-class CachedFeaturePredictor(SAM2ImagePredictor):
-    """``SAM2ImagePredictor`` whose ``set_image`` reuses a cached embedding for the whole view.
-
-    ``SAM2AutomaticMaskGenerator`` calls ``set_image`` on each crop; the first crop is the whole
-    view, whose embedding :meth:`Sam2Segmenter.encode` already made. Other crops
-    (``crop_n_layers > 0``) are encoded here and counted in :attr:`encoder_passes`.
-    """
-
-    cached: tuple[Sam2Features, tuple[int, int]] | None = None
-    encoder_passes: int = 0
-    #: Prompts decoded together by :func:`~lfsam.segmenters.sam2_decoder.decode_prompts`.
-    decode_chunk_size: int = DEFAULT_CHUNK_SIZE
-    _image_state: Any = None
-
-    def reset_predictor(self) -> None:
-        """Forget the image (and its decoder state)."""
-        super().reset_predictor()
-        self._image_state = None
-
-    def set_image(self, image: Any) -> None:
-        """Take the cached features if ``image`` is the cached view, else encode it."""
-        hw = tuple(np.asarray(image).shape[:2])
-        if self.cached is not None and hw == self.cached[1]:
-            self.reset_predictor()
-            self._orig_hw = [hw]
-            self._features = self.cached[0].as_predictor_features()
-            self._is_image_set = True
-            return
-        self.encoder_passes += 1
-        super().set_image(image)
-
-    def _predict(
-        self,
-        point_coords: torch.Tensor | None,
-        point_labels: torch.Tensor | None,
-        boxes: torch.Tensor | None = None,
-        mask_input: torch.Tensor | None = None,
-        multimask_output: bool = True,
-        return_logits: bool = False,
-        img_idx: int = -1,
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """``SAM2ImagePredictor._predict`` through the restructured decoder (same results, the
-        image side shared across the prompts: :mod:`lfsam.segmenters.sam2_decoder`); with a mask
-        input (the generator's optional mask-to-mask pass) Meta's own code runs."""
-        if mask_input is not None:
-            return super()._predict(
-                point_coords, point_labels, boxes, mask_input, multimask_output, return_logits,
-                img_idx,
-            )
-        if not self._is_image_set:
-            raise RuntimeError("An image must be set with .set_image(...) before mask prediction.")
-        image_embed = self._features["image_embed"][img_idx].unsqueeze(0)
-        high_res = [level[img_idx].unsqueeze(0) for level in self._features["high_res_feats"]]
-        if self._image_state is None:  # once per image: the prompt-independent part
-            self._image_state = prepare_image(self.model, image_embed, high_res)
-        low_res, iou = decode_prompts(
-            self.model, image_embed, high_res, point_coords, point_labels, boxes,
-            multimask_output, chunk_size=self.decode_chunk_size, clamp=False,
-            state=self._image_state,
-        )
-        masks = self._transforms.postprocess_masks(low_res, self._orig_hw[img_idx])
-        low_res = torch.clamp(low_res, -LOGIT_CLAMP, LOGIT_CLAMP)
-        if not return_logits:
-            masks = masks > self.mask_threshold
-        return masks, iou, low_res
-
-
 class Sam2Segmenter(Segmenter):
     """Meta's SAM 2 image model as an lfsam :class:`Segmenter`.
 
@@ -161,8 +93,8 @@ class Sam2Segmenter(Segmenter):
     max_prompts_per_batch : int
         Prompts decoded together in :meth:`predict`; bounds memory (N x 3 x U x V logits).
     encode_batch_size : int, optional
-        Views run through the image encoder together in :meth:`encode`; default 4 on CUDA
-        (batching pays off there) and 1 elsewhere (it saves nothing on a CPU, only memory).
+        Views run through the image encoder together in :meth:`encode`; default from the device
+        (:func:`lfsam.devices.default_encode_batch_size`: batched on CUDA, 1 elsewhere).
     mask_threshold : float
         Logit threshold of the masks (SAM 2's default 0).
 
@@ -184,7 +116,7 @@ class Sam2Segmenter(Segmenter):
     ) -> None:
         super().__init__()
         if encode_batch_size is None:
-            encode_batch_size = 4 if model.device.type == "cuda" else 1
+            encode_batch_size = default_encode_batch_size(model.device)
         if max_prompts_per_batch < 1 or encode_batch_size < 1:
             raise LfsamError("max_prompts_per_batch and encode_batch_size must be at least 1")
         self.model = model.eval()
@@ -289,9 +221,8 @@ class Sam2Segmenter(Segmenter):
         with inference_context(self.device):
             x = torch.from_numpy(np.ascontiguousarray(chunk)).to(self.device)
             x = x.permute(0, 3, 1, 2).float().div_(255.0)
-            x = self._predictor._transforms.transforms(x)  # resize + normalise, as set_image
-            backbone_out = model.forward_image(x)
-            _, vision_feats, _, feat_sizes = model._prepare_backbone_features(backbone_out)
+            x = image_transforms(self._predictor).transforms(x)  # resize + normalise, as set_image
+            vision_feats, feat_sizes = backbone_features(model, model.forward_image(x))
             if model.directly_add_no_mem_embed:
                 vision_feats[-1] = vision_feats[-1] + model.no_mem_embed
             batch = len(chunk)
@@ -354,7 +285,7 @@ class Sam2Segmenter(Segmenter):
         return ViewEmbedding(image_size=tuple(image_size), key=tuple(key), data=feats)
 
     @staticmethod
-    def _features(embedding: ViewEmbedding) -> Sam2Features:
+    def _view_features(embedding: ViewEmbedding) -> Sam2Features:
         if not isinstance(embedding.data, Sam2Features):
             raise LfsamError(
                 "this embedding was not made by the SAM 2 backend; encode the view with the "
@@ -362,12 +293,6 @@ class Sam2Segmenter(Segmenter):
             )
         return embedding.data
 
-    def _set_predictor(self, predictor: Any, embedding: ViewEmbedding) -> None:
-        feats = self._features(embedding)
-        predictor.reset_predictor()
-        predictor._orig_hw = [tuple(embedding.image_size)]
-        predictor._features = feats.as_predictor_features()
-        predictor._is_image_set = True
 
     # --- prompting ----------------------------------------------------------------------------
     def predict(
@@ -377,10 +302,10 @@ class Sam2Segmenter(Segmenter):
 
         Computes what ``SAM2ImagePredictor._predict`` computes (points and boxes merged as
         there: box corners first; a point label of -1 marks padding, for prompts with fewer
-        points than others), through :meth:`CachedFeaturePredictor._predict`, i.e. the decoder of
-        :mod:`lfsam.segmenters.sam2_decoder` that shares the prompt-independent part across
-        prompts (issue #5). Prompts go through in groups of :attr:`max_prompts_per_batch` (which
-        also caps how many the decoder takes at once).
+        points than others), through :meth:`CachedFeaturePredictor.predict_prompts`, i.e. the
+        decoder of :mod:`lfsam.segmenters.sam2_decoder` that shares the prompt-independent part
+        across prompts (issue #5). Prompts go through in groups of :attr:`max_prompts_per_batch`
+        (which also caps how many the decoder takes at once).
 
         Returns
         -------
@@ -401,7 +326,9 @@ class Sam2Segmenter(Segmenter):
                 low_res_logits=torch.zeros((0, k, low, low), device=self.device),
             )
         predictor = self._predictor
-        self._set_predictor(predictor, embedding)
+        predictor.use_features(
+            self._view_features(embedding).as_predictor_features(), embedding.image_size
+        )
         predictor.decode_chunk_size = min(
             self.max_prompts_per_batch, default_chunk_size(self.device)
         )
@@ -411,7 +338,7 @@ class Sam2Segmenter(Segmenter):
                 for start in range(0, n, self.max_prompts_per_batch):
                     sub = prompts.subset(slice(start, start + self.max_prompts_per_batch))
                     coords, labels, boxes = self._prompt_tensors(sub, (u_size, v_size))
-                    m, iou, lr = predictor._predict(
+                    m, iou, lr = predictor.predict_prompts(
                         coords, labels, boxes, multimask_output=multimask_output
                     )
                     masks.append(m)
@@ -429,7 +356,7 @@ class Sam2Segmenter(Segmenter):
         self, prompts: Prompts, hw: tuple[int, int]
     ) -> tuple[torch.Tensor | None, torch.Tensor | None, torch.Tensor | None]:
         """Prompts in model-input pixels, as ``SAM2ImagePredictor._prep_prompts`` makes them."""
-        transforms = self._predictor._transforms
+        transforms = image_transforms(self._predictor)
         coords = labels = boxes = None
         if prompts.points is not None:
             pts = torch.as_tensor(prompts.points, dtype=torch.float32, device=self.device)
@@ -461,8 +388,11 @@ class Sam2Segmenter(Segmenter):
             self._generator = generator
         return self._generator
 
-    def generate(self, embedding: ViewEmbedding, image: np.ndarray) -> AutoMasks:
-        """SAM 2 automatic mask generation on an encoded view, reusing its embedding.
+    def generate(
+        self, embedding: ViewEmbedding, image: np.ndarray, points: np.ndarray | None = None
+    ) -> AutoMasks:
+        """SAM 2 automatic mask generation on an encoded view, reusing its embedding (with
+        ``points``, those pixels replace the generator's point grid).
 
         Runs ``SAM2AutomaticMaskGenerator`` with :attr:`amg_options` (the paper's settings by
         default); the whole-view crop takes the cached embedding, so with the default
@@ -481,15 +411,26 @@ class Sam2Segmenter(Segmenter):
             )
         generator = self._mask_generator()
         predictor = generator.predictor
-        predictor.cached = (self._features(embedding), tuple(embedding.image_size))
+        predictor.cached = (self._view_features(embedding), tuple(embedding.image_size))
         before = predictor.encoder_passes
+        grids = generator.point_grids
+        u_size, v_size = embedding.image_size
+        if points is not None:
+            points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+            if len(points) == 0:
+                return AutoMasks(
+                    masks=np.zeros((0, u_size, v_size), dtype=bool),
+                    scores=np.zeros(0, np.float32),
+                )
+            # the generator scales its [0, 1] grids by the crop's (width, height)
+            generator.point_grids = [points / np.array([v_size, u_size])] * len(grids)
         try:
             with inference_context(self.device, inference_mode=False):
                 records = generator.generate(image)
         finally:
+            generator.point_grids = grids
             predictor.cached = None
             self.crop_encode_calls += predictor.encoder_passes - before
-        u_size, v_size = embedding.image_size
         if not records:
             return AutoMasks(
                 masks=np.zeros((0, u_size, v_size), dtype=bool), scores=np.zeros(0, np.float32)
@@ -512,7 +453,7 @@ class Sam2Segmenter(Segmenter):
         -------
         features : (P, C) float32 tensor on :attr:`device` (C = 256 for the real models)
         """
-        feats = self._features(embedding)
+        feats = self._view_features(embedding)
         u_size, v_size = embedding.image_size
         rc = torch.as_tensor(rows_cols, dtype=torch.float32, device=self.device).reshape(-1, 2)
         with torch.no_grad():
@@ -540,7 +481,7 @@ class Sam2Segmenter(Segmenter):
         """Sum of the bilinearly upsampled embedding over each mask, computed on the embedding
         grid (exact; :func:`lfsam.segmenters.feature_grid.grid_feature_sums`)."""
         with torch.no_grad():
-            grid = self._features(embedding).image_embed[0].float()
+            grid = self._view_features(embedding).image_embed[0].float()
             return grid_feature_sums(
                 grid, mask_index.to(self.device), pixel_index.to(self.device), num_masks,
                 tuple(embedding.image_size),
@@ -557,7 +498,7 @@ class Sam2Segmenter(Segmenter):
         source, without sampling 256 channels per pixel (exact;
         :func:`lfsam.segmenters.feature_grid.grid_cosine_similarity`)."""
         with torch.no_grad():
-            grid = self._features(embedding).image_embed[0].float()
+            grid = self._view_features(embedding).image_embed[0].float()
             sims = grid_cosine_similarity(
                 grid, mask_index, pixel_index, sources.to(self.device),
                 tuple(embedding.image_size),

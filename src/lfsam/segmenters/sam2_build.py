@@ -8,8 +8,9 @@ uses it for the architecture, adding what lfsam needs around it:
   the standard Hugging Face cache; offline or unreachable hub -> one-line :class:`LfsamError` that
   says how to provide the file, raised at once (no 20-second retry loop, no partial files);
 - ``random_weights=True``: the same architecture untrained, seeded (tests and speed benchmarks);
-- the tiny test model (``sam2-tiny-test``, DESIGN.md section 6);
-- device choice (CUDA, then MPS, then CPU) and bf16 autocast on CUDA (:func:`inference_context`).
+- the tiny test model (``sam2-tiny-test``, docs/design.md section 6);
+- the device (:func:`lfsam.devices.resolve_device`, re-exported here) and bf16 autocast on CUDA
+  (:func:`inference_context`).
 
 :func:`build_sam2` gives the image model (``SAM2Base``) used by
 :class:`lfsam.segmenters.sam2_backend.Sam2Segmenter`; :func:`build_sam2_video` gives Meta's
@@ -31,6 +32,7 @@ from urllib.parse import urlparse
 
 import torch
 
+from lfsam.devices import resolve_device
 from lfsam.errors import LfsamError
 from lfsam.segmenters.registry import DEFAULT_MODEL, ModelSpec, get_model_spec
 
@@ -39,6 +41,8 @@ __all__ = [
     "build_sam2_video",
     "cached_checkpoint",
     "hub_cache_dir",
+    "hub_offline",
+    "hub_reachable",
     "inference_context",
     "load_checkpoint",
     "make_image_predictor",
@@ -53,52 +57,6 @@ _TRUE = {"1", "on", "yes", "true"}
 
 
 # --- device ---------------------------------------------------------------------------------
-def resolve_device(device: str | torch.device | None = None) -> torch.device:
-    """The torch device to run on: ``None``/``"auto"`` picks CUDA, then MPS, then CPU.
-
-    Parameters
-    ----------
-    device : str, torch.device or None
-        ``"auto"`` (or None), ``"cpu"``, ``"cuda"``, ``"cuda:N"`` or ``"mps"``.
-
-    Raises
-    ------
-    LfsamError
-        If the name is not a device or the device is not available here.
-    """
-    if device is None or str(device).lower() == "auto":
-        if torch.cuda.is_available():
-            return torch.device("cuda")
-        mps = getattr(torch.backends, "mps", None)
-        if mps is not None and mps.is_available():
-            return torch.device("mps")
-        return torch.device("cpu")
-    try:
-        dev = torch.device(device)
-    except (RuntimeError, TypeError):
-        raise LfsamError(
-            f"unknown device {str(device)!r}; use auto, cpu, cuda, cuda:N or mps"
-        ) from None
-    if dev.type == "cuda":
-        if not torch.cuda.is_available():
-            raise LfsamError(
-                f"device {str(device)!r} asked for but CUDA is not available here; "
-                "use --device cpu (or auto)"
-            )
-        if dev.index is not None and dev.index >= torch.cuda.device_count():
-            raise LfsamError(
-                f"device {str(device)!r} does not exist (this machine has "
-                f"{torch.cuda.device_count()} CUDA device(s)); use cuda:0 or auto"
-            )
-    elif dev.type == "mps":
-        mps = getattr(torch.backends, "mps", None)
-        if mps is None or not mps.is_available():
-            raise LfsamError("device 'mps' asked for but MPS is not available; use --device cpu")
-    elif dev.type != "cpu":
-        raise LfsamError(f"unsupported device {str(device)!r}; use auto, cpu, cuda, cuda:N or mps")
-    return dev
-
-
 def autocast_dtype(device: torch.device) -> torch.dtype | None:
     """The autocast dtype used on ``device``: bfloat16 on CUDA GPUs that support it, else None.
 
@@ -151,13 +109,13 @@ def hub_cache_dir() -> Path:
     return Path(os.path.expandvars(os.path.expanduser(home))) / "hub"
 
 
-def _offline() -> bool:
+def hub_offline() -> bool:
     """Whether downloads are switched off (``HF_HUB_OFFLINE`` or ``TRANSFORMERS_OFFLINE``)."""
     flags = (os.environ.get("HF_HUB_OFFLINE"), os.environ.get("TRANSFORMERS_OFFLINE"))
     return any((flag or "").strip().lower() in _TRUE for flag in flags)
 
 
-def _hub_reachable(timeout: float = HUB_TIMEOUT_S) -> bool:
+def hub_reachable(timeout: float = HUB_TIMEOUT_S) -> bool:
     """A quick TCP check that the hub (or the HTTPS proxy in use) answers within ``timeout``."""
     proxy = os.environ.get("HTTPS_PROXY") or os.environ.get("https_proxy")
     url = urlparse(proxy or os.environ.get("HF_ENDPOINT") or "https://huggingface.co")
@@ -241,12 +199,12 @@ def resolve_checkpoint(
     cached = cached_checkpoint(name)
     if cached is not None:
         return cached
-    if _offline():
+    if hub_offline():
         raise LfsamError(
             f"no cached weights for {name} and downloads are off (HF_HUB_OFFLINE is set); "
             + _how_to_provide(spec)
         )
-    if not _hub_reachable(timeout):
+    if not hub_reachable(timeout):
         raise LfsamError(
             f"no cached weights for {name} and the model hub cannot be reached; "
             + _how_to_provide(spec)
@@ -421,7 +379,7 @@ def build_sam2(
         meaningless). Implied for models without published weights (``sam2-tiny-test``) when no
         checkpoint is given.
     device : str or torch.device, optional
-        Default: CUDA, then MPS, then CPU.
+        Default ``auto``: CUDA, then MPS, then CPU (:func:`lfsam.devices.resolve_device`).
     seed : int
         Seed of the random initialisation (the result is deterministic per seed).
 
@@ -463,7 +421,7 @@ def make_image_predictor(
     """A ``SAM2ImagePredictor`` for ``model`` whose backbone feature sizes fit its input size.
 
     ``SAM2ImagePredictor`` hard-codes the feature sizes of a 1024-pixel input; they are
-    image_size / 4, / 8 and / 16 (DESIGN.md section 6).
+    image_size / 4, / 8 and / 16 (docs/design.md section 6).
 
     Parameters
     ----------
@@ -475,9 +433,10 @@ def make_image_predictor(
     """
     from sam2.sam2_image_predictor import SAM2ImagePredictor
 
+    from lfsam.segmenters.sam2_adapter import fit_feature_sizes
+
     with warnings.catch_warnings():  # SAM2Transforms uses torch.jit.script (deprecated)
         warnings.filterwarnings("ignore", message=".*torch.jit.script.*", category=FutureWarning)
         predictor = (predictor_class or SAM2ImagePredictor)(model, **kwargs)
-    size = int(model.image_size)
-    predictor._bb_feat_sizes = [(size // k, size // k) for k in (4, 8, 16)]
+    fit_feature_sizes(predictor, int(model.image_size))
     return predictor

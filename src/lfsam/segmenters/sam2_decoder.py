@@ -531,7 +531,9 @@ def _decode_chunk(
         return masks, iou_pred[:, 1:]
     if dynamic:
         single, best_mask = masks[:, 0:1], masks[:, 1:2]
-        stable = dec._get_stability_scores(single) >= dec.dynamic_multimask_stability_thresh
+        from lfsam.segmenters.sam2_adapter import stability_scores  # (it imports this module)
+
+        stable = stability_scores(dec, single) >= dec.dynamic_multimask_stability_thresh
         masks = torch.where(stable[..., None, None], single, best_mask)
         iou = torch.where(stable, iou_pred[:, 0:1], iou_pred[rows, best].unsqueeze(1))
         return masks, iou

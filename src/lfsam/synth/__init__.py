@@ -1,4 +1,4 @@
-"""Synthetic light fields with exact ground truth (DESIGN.md section 6).
+"""Synthetic light fields with exact ground truth (docs/design.md section 6).
 
 No public data set can be downloaded where this package is developed and tested, so it ships a
 generator: textured planar patches at different depths, seen by a grid of cameras, rendered with

@@ -3,8 +3,8 @@
 Each sample position ``(u', v')`` of the view at offset ``(ds, dt)`` is mapped to every patch's
 local coordinates and disparity by the patch's affine view maps
 (:meth:`lfsam.synth.scene.PlanarObject.view_maps`); among the patches whose outline contains the
-sample, the one with the largest disparity (the closest, DESIGN.md section 1) wins. Ties keep the
-earlier patch.
+sample, the one with the largest disparity (the closest, docs/design.md section 1) wins. Ties keep
+the earlier patch.
 
 Samples are given either as a regular grid, ``us`` of shape ``(rows, 1)`` and ``vs`` of shape
 ``(1, cols)`` (then each patch is evaluated on its bounding box only, and the affine maps are

@@ -1,6 +1,6 @@
 """Rendering a synthetic scene into a light field with exact ground truth.
 
-For each view (DESIGN.md section 6):
+For each view (docs/design.md section 6):
 
 - **RGB**, anti-aliased: ``k x k`` samples per pixel (``supersample = k``) at offsets
   ``(j + 0.5) / k - 0.5``; each sample is z-buffered (:func:`lfsam.synth.raster.zbuffer`) and
@@ -20,6 +20,7 @@ import torch
 import torch.nn.functional as F
 from tqdm import tqdm
 
+from lfsam.devices import resolve_device
 from lfsam.lightfield import LightField
 from lfsam.synth.raster import region, zbuffer
 from lfsam.synth.scene import PlanarObject, SceneSpec, random_scene
@@ -112,7 +113,7 @@ def render_scene(
     supersample : int
         Samples per pixel along each axis for the RGB (1 = no anti-aliasing).
     device : str or torch.device, optional
-        Where to compute (default CPU).
+        Where to compute (default CPU; any spelling of :func:`lfsam.devices.resolve_device`).
 
     Returns
     -------
@@ -120,7 +121,7 @@ def render_scene(
         ``views`` uint8, ``disparity`` [S, T, U, V] float32 and ``labels`` [S, T, U, V] int32
         in the package convention; ``meta["generator"]`` describes the scene.
     """
-    device = torch.device(device or "cpu")
+    device = resolve_device("cpu" if device is None else device)
     supersample = max(1, int(supersample))
     s_count, t_count = spec.grid
     height, width = spec.size
@@ -214,8 +215,8 @@ def generate_scene(
     ``disparity_range``; anti-aliased RGB. Deterministic per ``seed``.
 
     The background is labelled by default so that every pixel carries a label, which makes the
-    coverage of the ground-truth label field (DESIGN.md section 7) meaningful and lets the oracle
-    segmenter reach full coverage.
+    coverage of the ground-truth label field (docs/design.md section 7) meaningful and lets the
+    oracle segmenter reach full coverage.
 
     Parameters
     ----------
@@ -237,7 +238,7 @@ def generate_scene(
     supersample : int
         RGB samples per pixel along each axis.
     device : str or torch.device, optional
-        Torch device for rendering.
+        Torch device for rendering (default CPU; see :func:`render_scene`).
     hidden_objects : int
         Extra small objects that the center view cannot see (entirely behind nearer objects
         there) but that at least one corner view sees with at least

@@ -7,7 +7,7 @@ A scene is a stack of textured planar patches seen by a grid of cameras. Each pa
 - an outline (:mod:`lfsam.synth.shapes`) and a texture (:mod:`lfsam.synth.textures`) in its own
   local coordinates ``(y, x) in [-1, 1]^2``, placed by a center, half sizes and a rotation.
 
-By the package convention (DESIGN.md section 1) the patch point seen at center pixel ``(u, v)``
+By the package convention (docs/design.md section 1) the patch point seen at center pixel ``(u, v)``
 is seen in the view at offset ``(ds, dt)`` at ``u' = u - d(u, v) ds``, ``v' = v - d(u, v) dt``.
 For a plane this map is affine,
 

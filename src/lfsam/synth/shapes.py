@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import torch
 
+from lfsam.errors import LfsamError
+
 __all__ = ["SHAPES", "inside"]
 
 #: Bounded outlines (``"plane"`` is the unbounded background).
@@ -68,6 +70,11 @@ def inside(
     Returns
     -------
     Tensor of bool, the shape of ``x``
+
+    Raises
+    ------
+    LfsamError
+        If ``shape`` is not one of :data:`SHAPES`.
     """
     if shape == "plane":
         return torch.ones_like(x, dtype=torch.bool)
@@ -77,4 +84,4 @@ def inside(
         return _rounded_rect(x, y, corner)
     if shape == "polygon":
         return _polygon(x, y, vertices)
-    raise ValueError(f"unknown shape {shape!r}")
+    raise LfsamError(f"unknown shape {shape!r}; use plane or one of {', '.join(SHAPES)}")

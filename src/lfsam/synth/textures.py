@@ -15,6 +15,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from lfsam.errors import LfsamError
+
 __all__ = ["GRAY_PHOTOS", "PHOTOS", "PROCEDURAL", "TEXTURES", "make_texture"]
 
 #: Colour photographs from :mod:`skimage.data`.
@@ -130,7 +132,7 @@ def _procedural(
         radius = period * rng.uniform(0.2, 0.4)
         pattern = (cell_r**2 + cell_c**2 <= radius**2).float()[None]
     else:
-        raise ValueError(f"unknown procedural texture {name!r}")
+        raise LfsamError(f"unknown procedural texture {name!r}; use one of {', '.join(PROCEDURAL)}")
     # Mix in noise so that no two patches of the pattern look alike (helps matching).
     base = _tint(pattern, rng)
     return (0.75 * base + 0.25 * _tint(noise, rng)).clamp(0, 1)
@@ -155,6 +157,11 @@ def make_texture(name: str, seed: int, size: tuple[int, int], zoom: float = 1.0)
     Returns
     -------
     texture : Tensor, float32, ``[3, rows, columns]`` in [0, 1]
+
+    Raises
+    ------
+    LfsamError
+        If ``name`` is not one of :data:`TEXTURES`.
     """
     size = (max(2, int(size[0])), max(2, int(size[1])))
     rng = np.random.default_rng(seed)
@@ -162,4 +169,4 @@ def make_texture(name: str, seed: int, size: tuple[int, int], zoom: float = 1.0)
         return _photo_crop(name, rng, size, zoom).contiguous()
     if name in PROCEDURAL:
         return _procedural(name, rng, size, zoom).contiguous()
-    raise ValueError(f"unknown texture {name!r}; choose one of {', '.join(TEXTURES)}")
+    raise LfsamError(f"unknown texture {name!r}; choose one of {', '.join(TEXTURES)}")

@@ -2,8 +2,9 @@
 
 The paper's supplementary material shows results as video; playing the views in snake order
 (row 0 left to right, row 1 right to left, ...; :func:`lfsam.lightfield.snake_order`, the frame
-order of the SAM 2 video baseline, DESIGN.md section 4) makes every frame step a single view step,
-so a consistent segmentation moves smoothly with the parallax and a flickering label stands out.
+order of the SAM 2 video baseline, docs/design.md section 4) makes every frame step a single view
+step, so a consistent segmentation moves smoothly with the parallax and a flickering label stands
+out.
 
 Each frame is the view's overlay with, below it, a small map of the view grid on which the
 current view is lit (:func:`indicator_strip`). Besides telling the viewer where they are, it makes

@@ -3,7 +3,7 @@
 The colour of label ``k`` depends on ``k`` alone (never on how many labels a result has), so the
 same id is drawn in the same colour across views, across figures and across two compared results
 (paper Figure 2 compares ours and the video baseline side by side). Label 0 means "no label"
-(DESIGN.md section 1) and gets no colour.
+(docs/design.md section 1) and gets no colour.
 
 The hues follow the golden-angle sequence ``h_k = frac(k / phi)`` with ``phi = (1 + sqrt 5) / 2``
 (the low-discrepancy sequence used for phyllotaxis and for quasi-random colour generation, see
@@ -101,6 +101,11 @@ def colorize_labels(labels: ArrayLike) -> np.ndarray:
     Returns
     -------
     image : ndarray, shape ``labels.shape + (3,)``, uint8
+
+    Raises
+    ------
+    ValueError
+        If a label id is negative (a fault of the calling code; label fields are never negative).
     """
     labels = np.asarray(labels)
     if labels.size == 0:

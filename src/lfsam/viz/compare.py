@@ -47,6 +47,13 @@ def side_by_side(
         Horizontal: ``(max(h_i) + c, sum(w_i) + gap * (n - 1), 3)``; vertical:
         ``(sum(h_i + c) + gap * (n - 1), max(w_i), 3)``, with ``c = CAPTION_HEIGHT`` when
         ``names`` are given, else 0.
+
+    Raises
+    ------
+    ValueError
+        If ``names`` and ``images`` differ in length (a fault of the calling code).
+    LfsamError
+        If ``direction`` is neither ``"horizontal"`` nor ``"vertical"``.
     """
     images = list(images)
     if names is not None:

@@ -2,9 +2,9 @@
 
 An EPI stacks one pixel row (or column) of every view along a line of the view grid
 (Bolles, Baker & Marimont, "Epipolar-plane image analysis", IJCV 1987). With the package's
-convention (DESIGN.md section 1; :mod:`lfsam.geometry`) a scene point at ``(u, v)`` of the center
-view ``(s_c, t_c)`` with disparity ``d`` lies at column ``v - d (t - t_c)`` of view ``(s_c, t)``
-and at row ``u - d (s - s_c)`` of view ``(s, t_c)``. So
+convention (docs/design.md section 1; :mod:`lfsam.geometry`) a scene point at ``(u, v)`` of the
+center view ``(s_c, t_c)`` with disparity ``d`` lies at column ``v - d (t - t_c)`` of view ``(s_c,
+t)`` and at row ``u - d (s - s_c)`` of view ``(s, t_c)``. So
 
 - the *horizontal* EPI ``E_h[t, v] = L[s_c, t, u*, v]`` (one row per view column ``t``) shows the
   point as a straight line of slope ``dv/dt = -d``;

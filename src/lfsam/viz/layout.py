@@ -56,6 +56,11 @@ def as_rgb_uint8(image) -> np.ndarray:
 
     Grey ``(H, W)`` images are repeated over three channels; float images in ``[0, 1]`` are scaled
     by 255 (otherwise clipped to ``[0, 255]``); torch tensors are moved to the CPU.
+
+    Raises
+    ------
+    ValueError
+        If ``image`` is neither ``(H, W, 3)`` nor ``(H, W)`` (a fault of the calling code).
     """
     image = _to_numpy(image)
     if image.ndim == 2:
@@ -123,6 +128,12 @@ def tile(
     Returns
     -------
     figure : ndarray, shape (rows * h + (rows + 1) * pad, cols * w + (cols + 1) * pad, 3), uint8
+
+    Raises
+    ------
+    ValueError
+        No image, more images than cells, or images of different sizes (faults of the calling
+        code).
     """
     present = [as_rgb_uint8(im) for im in images if im is not None]
     if not present:
@@ -184,6 +195,12 @@ def rescale(image: np.ndarray, scale: float) -> np.ndarray:
     Returns
     -------
     out : ndarray, shape (max(1, round(H * scale)), max(1, round(W * scale)), 3), uint8
+
+    Raises
+    ------
+    ValueError
+        If ``scale`` is not positive (a fault of the calling code; ``lfsam show --scale`` is
+        checked with a one-line :class:`~lfsam.errors.LfsamError` first).
     """
     image = as_rgb_uint8(image)
     if scale <= 0:

@@ -51,7 +51,8 @@ def mask_boundaries(masks: ArrayLike, width: int = 1) -> np.ndarray:
     """Inner boundaries of N possibly overlapping masks, as the label id drawn at each pixel.
 
     Mask ``n`` has label ``n + 1`` (:class:`lfsam.result.SegmentationResult`). Where boundaries of
-    several masks meet, the highest id wins (smaller masks are written on top, DESIGN.md 3.6).
+    several masks meet, the highest id wins (smaller masks are written on top,
+    docs/design.md section 3.6).
 
     Parameters
     ----------
@@ -63,6 +64,11 @@ def mask_boundaries(masks: ArrayLike, width: int = 1) -> np.ndarray:
     -------
     ids : (U, V) int32 ndarray
         ``n + 1`` on the boundary of mask ``n``, 0 elsewhere.
+
+    Raises
+    ------
+    ValueError
+        If ``masks`` is not three-dimensional (a fault of the calling code).
     """
     masks = _to_numpy(masks).astype(bool)
     if masks.ndim != 3:
@@ -122,6 +128,13 @@ def overlay_labels(
     -------
     out : (U, V, 3) uint8 ndarray
         Same size as ``image``.
+
+    Raises
+    ------
+    ValueError
+        ``alpha`` outside ``[0, 1]``, labels or masks of another size than the image, or a
+        negative label id: faults of the calling code (``lfsam show`` checks its options and
+        inputs with one-line :class:`~lfsam.errors.LfsamError` messages first).
     """
     if not 0.0 <= alpha <= 1.0:
         raise ValueError(f"alpha must lie in [0, 1], got {alpha}")

@@ -1,0 +1,124 @@
+"""One device vocabulary for the whole package: ``auto``, ``cpu``, ``cuda``, ``cuda:N``, ``mps``.
+
+Every place that takes a device (the CLI's ``--device``, :func:`lfsam.segmenters.load_segmenter`,
+:func:`lfsam.disparity.estimate_disparity`, the metrics, the synthetic renderer) turns it into a
+``torch.device`` with :func:`resolve_device`, so the same spelling means the same device
+everywhere and a wrong one gives the same one-line :class:`~lfsam.errors.LfsamError`.
+``auto`` (the default, also ``None``) picks CUDA, then MPS, then the CPU.
+
+What depends on the device is decided here too: :func:`default_encode_batch_size`, the number of
+views the SAM 2 image encoder takes at once (docs/design.md section 3, "efficiency facts").
+"""
+
+from __future__ import annotations
+
+import re
+
+import torch
+
+from lfsam.errors import LfsamError
+
+__all__ = [
+    "CUDA_ENCODE_BATCH_SIZE",
+    "DEVICE_HELP",
+    "check_device_spec",
+    "default_encode_batch_size",
+    "resolve_device",
+]
+
+DEVICE_HELP = "auto (CUDA, then MPS, then CPU), cpu, cuda, cuda:N or mps"
+"""The vocabulary, as the CLI's help and the error messages spell it."""
+
+CUDA_ENCODE_BATCH_SIZE = 4
+"""Views per image-encoder call on CUDA (batching pays off there; on a CPU it only costs memory)."""
+
+_SPEC = re.compile(r"auto|cpu|mps|cuda(:\d+)?")
+
+
+def check_device_spec(spec: str) -> str:
+    """``spec`` normalised (stripped, lower case) if it is a word of the vocabulary.
+
+    Only the spelling is checked (availability is :func:`resolve_device`'s job), so the CLI can
+    reject ``--device gpu`` before reading any input.
+
+    Raises
+    ------
+    LfsamError
+        If ``spec`` is not ``auto``, ``cpu``, ``cuda``, ``cuda:N`` or ``mps``.
+    """
+    text = str(spec).strip().lower()
+    if not _SPEC.fullmatch(text):
+        raise LfsamError(f"--device {spec}: unknown device; use {DEVICE_HELP}")
+    return text
+
+
+def resolve_device(spec: str | torch.device | None = None) -> torch.device:
+    """The torch device ``spec`` names, checked to be available here.
+
+    Parameters
+    ----------
+    spec : str, torch.device or None
+        ``"auto"`` (or None: CUDA, then MPS, then CPU), ``"cpu"``, ``"cuda"``, ``"cuda:N"`` or
+        ``"mps"``; a ``torch.device`` of one of these types is checked the same way.
+
+    Returns
+    -------
+    torch.device
+
+    Raises
+    ------
+    LfsamError
+        One line naming the device and the fix, if ``spec`` is not in the vocabulary or the device
+        is not available here (e.g. ``--device cuda`` without a CUDA device).
+
+    Examples
+    --------
+    >>> resolve_device("cpu")
+    device(type='cpu')
+    """
+    if isinstance(spec, torch.device):
+        dev = spec
+        name = str(spec)
+        if dev.type not in ("cpu", "cuda", "mps"):
+            raise LfsamError(f"--device {name}: unsupported device type; use {DEVICE_HELP}")
+    else:
+        name = check_device_spec("auto" if spec is None else spec)
+        if name == "auto":
+            if torch.cuda.is_available():
+                return torch.device("cuda")
+            if _mps_available():
+                return torch.device("mps")
+            return torch.device("cpu")
+        dev = torch.device(name)
+    if dev.type == "cuda":
+        if not torch.cuda.is_available():
+            raise LfsamError(
+                f"--device {name}: CUDA is not available here; use --device auto or cpu"
+            )
+        count = torch.cuda.device_count()
+        if dev.index is not None and dev.index >= count:
+            raise LfsamError(
+                f"--device {name}: this machine has {count} CUDA device(s); use cuda:0 or auto"
+            )
+    elif dev.type == "mps" and not _mps_available():
+        raise LfsamError(f"--device {name}: MPS is not available here; use --device auto or cpu")
+    return dev
+
+
+def default_encode_batch_size(device: str | torch.device) -> int:
+    """Views the SAM 2 image encoder takes at once on ``device``: 4 on CUDA, 1 elsewhere.
+
+    The single source of this choice: :class:`lfsam.pipeline.PipelineConfig` (``None`` = from the
+    device) and :class:`lfsam.segmenters.sam2_backend.Sam2Segmenter` both ask here.
+
+    Examples
+    --------
+    >>> default_encode_batch_size("cpu")
+    1
+    """
+    return CUDA_ENCODE_BATCH_SIZE if torch.device(device).type == "cuda" else 1
+
+
+def _mps_available() -> bool:
+    mps = getattr(torch.backends, "mps", None)
+    return bool(mps is not None and mps.is_available())

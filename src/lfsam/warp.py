@@ -1,0 +1,468 @@
+"""Moving pixels and masks from one view into another: the package's only warp.
+
+Everything that carries pixels between views by disparity goes through this module: disparity
+propagation (:mod:`lfsam.pipeline.propagation`), geometric occluding
+(:mod:`lfsam.pipeline.segment`) and the metrics' projection into the center view
+(:mod:`lfsam.metrics.projection`). It is reference-agnostic: a *source* view (any view whose
+disparity is known, not only the center) is warped into a *target* view at offset
+``(ds, dt) = (s_target - s_source, t_target - t_source)`` by the convention of
+:func:`lfsam.geometry.project_pixels` (docs/design.md sections 1 and 8).
+
+* :func:`landing_pixels` — the nearest target pixel of each source pixel (batched);
+* :func:`forward_warp` — that, plus the z-buffer (largest disparity landing on each target pixel),
+  in a :class:`ForwardWarp`, which answers visibility (:meth:`ForwardWarp.visible`,
+  :meth:`ForwardWarp.hides`), hole filling (:meth:`ForwardWarp.fill_holes`) and which target
+  pixels the source sees at all (:meth:`ForwardWarp.seen`, :meth:`ForwardWarp.frame_runs`);
+* :func:`shift_masks` — the whole-mask alternative: each mask translated by one sub-pixel shift,
+  optionally carrying its own disparity along (:func:`shift_masks_with_disparity`).
+
+Rounding to the nearest pixel is explicit (``halves``): the pipeline rounds exact halves to even
+(``torch.round``), the metrics round them up (``floor(x + 0.5)``, which keeps a constant
+half-pixel shift a translation); both are kept so that results are unchanged
+(docs/design.md section 5).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+import torch.nn.functional as F
+
+from lfsam.geometry import project_pixels
+
+__all__ = [
+    "HALVES",
+    "ForwardWarp",
+    "FrameRuns",
+    "fill_warp_holes",
+    "forward_warp",
+    "landing_pixels",
+    "shift_masks",
+    "shift_masks_with_disparity",
+    "splat_masks",
+]
+
+HALVES = ("even", "up")
+
+
+def _nearest(x: torch.Tensor, halves: str) -> torch.Tensor:
+    if halves == "even":
+        return torch.round(x)
+    if halves == "up":
+        return torch.floor(x + 0.5)
+    raise ValueError(f"unknown rounding of halves {halves!r}; use one of {HALVES}")
+
+
+def landing_pixels(
+    disparity: torch.Tensor,
+    ds: float | torch.Tensor,
+    dt: float | torch.Tensor,
+    *,
+    halves: str = "even",
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The nearest target pixel of every source pixel (forward warping without a z-buffer).
+
+    Source pixel ``(u, v)`` with disparity ``d`` lands at ``(u - d ds, v - d dt)``
+    (:func:`lfsam.geometry.project_pixels`), rounded to the nearest pixel.
+
+    Parameters
+    ----------
+    disparity : (..., U, V) float tensor
+        Disparity of the source view(s). Non-finite values never land.
+    ds, dt : float or tensor
+        Offsets of the target view from the source view; tensors broadcast against
+        ``disparity`` (e.g. ``(B, 1, 1)`` for a batch of views).
+    halves : {"even", "up"}
+        How exact halves round: to even (``torch.round``) or up (``floor(x + 0.5)``).
+
+    Returns
+    -------
+    target : (..., U * V) int64 tensor
+        Flat index ``u' * V + v'`` of the landing pixel; ``-1`` where not valid.
+    valid : (..., U * V) bool tensor
+        The pixel lands inside the target view.
+
+    Examples
+    --------
+    >>> import torch
+    >>> target, valid = landing_pixels(torch.full((2, 3), 1.0), 0, 1)
+    >>> target.tolist(), valid.tolist()
+    ([-1, 0, 1, -1, 3, 4], [False, True, True, False, True, True])
+    """
+    height, width = disparity.shape[-2:]
+    dtype = disparity.dtype if disparity.is_floating_point() else torch.float32
+    disparity = disparity.to(dtype)
+    rows = torch.arange(height, device=disparity.device, dtype=dtype)[:, None]
+    cols = torch.arange(width, device=disparity.device, dtype=dtype)[None, :]
+    target_u, target_v = project_pixels(rows, cols, disparity, ds, dt)
+    target_u = _nearest(target_u, halves)
+    target_v = _nearest(target_v, halves)
+    # NaN and infinite disparities fail these comparisons (or give NaN), so they drop out.
+    valid = (target_u >= 0) & (target_u <= height - 1) & (target_v >= 0)
+    valid &= target_v <= width - 1
+    # Invalid entries (possibly NaN converted to an arbitrary integer) are overwritten with -1.
+    index = target_u.long() * width + target_v.long()
+    target = torch.where(valid, index, torch.full_like(index, -1))
+    lead = target.shape[:-2]
+    return target.reshape(*lead, -1), valid.reshape(*lead, -1)
+
+
+@dataclass
+class FrameRuns:
+    """Widths of the strips at a target view's frame border that the source view does not see.
+
+    Attributes
+    ----------
+    top, bottom : (V,) int tensor
+        Unseen pixels from the top / bottom edge, per column.
+    left, right : (U,) int tensor
+        Unseen pixels from the left / right edge, per row.
+    """
+
+    top: torch.Tensor
+    bottom: torch.Tensor
+    left: torch.Tensor
+    right: torch.Tensor
+
+
+@dataclass
+class ForwardWarp:
+    """Where every source pixel lands in one target view, and the z-buffer there.
+
+    Built by :func:`forward_warp`. Source and target views have the same size ``(U, V)``.
+
+    Attributes
+    ----------
+    target : (U * V,) int64 tensor
+        Flat index of the nearest target pixel of each source pixel (``-1`` where not valid).
+    valid : (U * V,) bool tensor
+        The source pixel lands inside the target view.
+    zbuffer : (U * V,) float tensor
+        Largest (closest) source disparity landing on each target pixel; ``-inf`` where none.
+    ds, dt : float
+        Offset of the target view from the source view.
+    """
+
+    target: torch.Tensor
+    valid: torch.Tensor
+    zbuffer: torch.Tensor
+    ds: float = 0.0
+    dt: float = 0.0
+
+    def hole_disparity(self, view_size: tuple[int, int]) -> torch.Tensor:
+        """Disparity at each target pixel: the z-buffer, with holes filled from neighbours.
+
+        Forward-warping holes (pixels no source pixel lands on) next to landed pixels take the
+        smallest (farthest) disparity of their landed 3 x 3 neighbours: a hole opened by a
+        stretched surface has that surface around it, and one opened by a disocclusion shows
+        what lies behind, i.e. the farther side. Pixels with no landed neighbour stay ``-inf``.
+
+        Returns
+        -------
+        (U, V) float tensor
+        """
+        zbuffer = self.zbuffer.reshape(view_size)
+        landed = torch.isfinite(zbuffer)
+        # Min over landed neighbours = -max over -z, with unlanded pixels at -inf (ignored).
+        negated = torch.where(landed, -zbuffer, torch.full_like(zbuffer, float("-inf")))
+        neighbour_min = -F.max_pool2d(negated[None, None], 3, stride=1, padding=1)[0, 0]
+        return torch.where(landed, zbuffer, neighbour_min.nan_to_num(neginf=float("-inf")))
+
+    def hole_sources(
+        self, view_size: tuple[int, int]
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Fillable holes and the source pixel each one shows (backward lookup).
+
+        A hole ``q`` with disparity ``d`` (:meth:`hole_disparity`) shows source pixel
+        ``q + d (ds, dt)`` under the convention of :mod:`lfsam.geometry`, rounded to even like
+        :func:`forward_warp`'s default; holes whose source lies outside the source view are not
+        fillable.
+
+        Returns
+        -------
+        hole_u, hole_v, source_u, source_v : (K,) int64 tensors
+        """
+        height, width = view_size
+        filled = self.hole_disparity(view_size)
+        landed = torch.isfinite(self.zbuffer).reshape(view_size)
+        hole_u, hole_v = torch.nonzero(~landed & torch.isfinite(filled), as_tuple=True)
+        d = filled[hole_u, hole_v]
+        src_u = torch.round(hole_u + d * self.ds).long()
+        src_v = torch.round(hole_v + d * self.dt).long()
+        ok = (src_u >= 0) & (src_u < height) & (src_v >= 0) & (src_v < width)
+        return hole_u[ok], hole_v[ok], src_u[ok], src_v[ok]
+
+    def seen(self, view_size: tuple[int, int]) -> torch.Tensor:
+        """Target pixels the warp reaches: landed on or fillable holes, ``(U, V)`` bool.
+
+        The rest of the target view shows content the source view does not see (mostly a strip
+        entering at the frame border), about which a propagated mask knows nothing.
+        """
+        seen = torch.isfinite(self.zbuffer).reshape(view_size).clone()
+        hole_u, hole_v, _, _ = self.hole_sources(view_size)
+        seen[hole_u, hole_v] = True
+        return seen
+
+    def frame_runs(
+        self, view_size: tuple[int, int], seen: torch.Tensor | None = None
+    ) -> FrameRuns:
+        """Unseen runs from each frame edge (see :meth:`seen`), per row or column.
+
+        ``seen`` may be passed when already computed.
+
+        Returns
+        -------
+        FrameRuns
+            ``top`` and ``bottom`` per column ``(V,)``, ``left`` and ``right`` per row ``(U,)``:
+            the number of unseen pixels from that edge inwards.
+        """
+        if seen is None:
+            seen = self.seen(view_size)
+        unseen = (~seen).to(torch.int32)
+
+        def run(edge_first: torch.Tensor) -> torch.Tensor:
+            return torch.cumprod(edge_first, dim=1).sum(dim=1)
+
+        return FrameRuns(
+            top=run(unseen.T),
+            bottom=run(unseen.flip(0).T),
+            left=run(unseen),
+            right=run(unseen.flip(1)),
+        )
+
+    def visible(self, disparity: torch.Tensor, tolerance: float) -> torch.Tensor:
+        """Source pixels not hidden in the target view by a closer source pixel (z-buffer test).
+
+        A pixel is occluded when a source pixel with a disparity larger by more than
+        ``tolerance`` lands on the same target pixel (docs/design.md section 3, beyond the
+        paper). Each pixel is compared with its own disparity.
+
+        Parameters
+        ----------
+        disparity : (U, V) float tensor
+            The source disparity the warp was built from.
+        tolerance : float
+            Pixels per view step.
+
+        Returns
+        -------
+        (U * V,) bool tensor
+        """
+        flat = disparity.reshape(-1)
+        landed = self.zbuffer[self.target.clamp(min=0)]
+        return self.valid & (flat >= landed - tolerance)
+
+    def hides(self, disparity: torch.Tensor, tolerance: float) -> torch.Tensor:
+        """Target pixels where a source pixel closer than ``disparity`` lands (z-buffer test).
+
+        The target-side form of :meth:`visible`, for masks already placed in the target view
+        (whole-mask propagation): ``disparity`` is, at each target pixel, the disparity of the
+        surface the mask puts there (:func:`shift_masks_with_disparity`), so a slanted surface
+        is compared with its own disparity pixel by pixel and never hides itself.
+
+        Parameters
+        ----------
+        disparity : (..., U, V) float tensor
+            Disparity of what a mask shows at each target pixel.
+        tolerance : float
+            Pixels per view step.
+
+        Returns
+        -------
+        (..., U, V) bool tensor
+        """
+        return self.zbuffer.reshape(disparity.shape[-2:]) > disparity + tolerance
+
+    def splat(self, masks: torch.Tensor, keep: torch.Tensor | None = None) -> torch.Tensor:
+        """:func:`splat_masks` with this warp."""
+        return splat_masks(masks, self, keep)
+
+    def fill_holes(
+        self, coarse: torch.Tensor, masks: torch.Tensor, keep: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """:func:`fill_warp_holes` with this warp."""
+        return fill_warp_holes(coarse, masks, self, keep)
+
+
+def forward_warp(
+    disparity: torch.Tensor, ds: float, dt: float, *, halves: str = "even"
+) -> ForwardWarp:
+    """Forward-warp a source view's pixel grid into the target view at offset ``(ds, dt)``.
+
+    Parameters
+    ----------
+    disparity : (U, V) float tensor
+        Disparity of the source view (package convention), any reference view.
+    ds, dt : float
+        View-row and view-column offsets of the target view from the source view.
+    halves : {"even", "up"}
+        Rounding of exact halves (:func:`landing_pixels`).
+
+    Returns
+    -------
+    ForwardWarp
+
+    Examples
+    --------
+    A closer pixel (disparity 2) lands on the same target pixel as a background pixel:
+
+    >>> import torch
+    >>> disparity = torch.tensor([[0.0, 0.0, 2.0]])
+    >>> warp = forward_warp(disparity, 0, 1)
+    >>> warp.target.tolist(), warp.zbuffer.tolist()
+    ([0, 1, 0], [2.0, 0.0, -inf])
+    >>> warp.visible(disparity, tolerance=0.2).tolist()
+    [False, True, True]
+    """
+    target, valid = landing_pixels(disparity, ds, dt, halves=halves)
+    zbuffer = torch.full(
+        (disparity.numel(),), float("-inf"), device=disparity.device, dtype=disparity.dtype
+    )
+    zbuffer.scatter_reduce_(
+        0, target[valid], disparity.reshape(-1)[valid], reduce="amax", include_self=True
+    )
+    return ForwardWarp(target=target, valid=valid, zbuffer=zbuffer, ds=float(ds), dt=float(dt))
+
+
+def splat_masks(
+    masks: torch.Tensor, warp: ForwardWarp, keep: torch.Tensor | None = None
+) -> torch.Tensor:
+    """Move every pixel of each mask to its target pixel (nearest-pixel forward warping).
+
+    Parameters
+    ----------
+    masks : (N, U, V) bool tensor
+        Source-view masks.
+    warp : ForwardWarp
+    keep : (U * V,) bool tensor, optional
+        Only these source pixels are moved (e.g. the pixels visible in the target view).
+
+    Returns
+    -------
+    (N, U, V) bool tensor
+    """
+    n, height, width = masks.shape
+    source = warp.valid if keep is None else (warp.valid & keep)
+    mask_idx, pix_idx = torch.nonzero(masks.reshape(n, -1) & source[None], as_tuple=True)
+    out = torch.zeros((n, height * width), dtype=torch.bool, device=masks.device)
+    out[mask_idx, warp.target[pix_idx]] = True
+    return out.reshape(n, height, width)
+
+
+def fill_warp_holes(
+    coarse: torch.Tensor,
+    masks: torch.Tensor,
+    warp: ForwardWarp,
+    keep: torch.Tensor | None = None,
+) -> torch.Tensor:
+    """Fill forward-warping holes by looking their source up in the source masks.
+
+    A hole pixel ``q`` gets the disparity ``d`` of :meth:`ForwardWarp.hole_disparity`; under the
+    convention of :mod:`lfsam.geometry` it shows source pixel ``q + d (ds, dt)``
+    (:meth:`ForwardWarp.hole_sources`), and takes that pixel's mask memberships (forward-warp
+    the depth, backward-warp the masks). Cost is O(N x holes); no N x U x V filtering.
+
+    Parameters
+    ----------
+    coarse : (N, U, V) bool tensor
+        Splatted masks of the target view (a modified copy is returned).
+    masks : (N, U, V) bool tensor
+        Source-view masks.
+    warp : ForwardWarp
+    keep : (U * V,) bool tensor, optional
+        Source pixels allowed to contribute (e.g. visible ones).
+
+    Returns
+    -------
+    (N, U, V) bool tensor
+    """
+    n, height, width = coarse.shape
+    hole_u, hole_v, src_u, src_v = warp.hole_sources((height, width))
+    if hole_u.numel() == 0 or n == 0:
+        return coarse
+    values = masks[:, src_u, src_v]
+    if keep is not None:
+        values = values & keep.reshape(height, width)[src_u, src_v][None]
+    out = coarse.clone()
+    out[:, hole_u, hole_v] = values
+    return out
+
+
+def _shift(planes: torch.Tensor, shifts_uv: torch.Tensor) -> torch.Tensor:
+    """Bilinear translation of ``(N, C, U, V)`` float planes, each of the N by its own shift."""
+    n, _, height, width = planes.shape
+    rows = torch.arange(height, device=planes.device, dtype=torch.float32)
+    cols = torch.arange(width, device=planes.device, dtype=torch.float32)
+    src_u = rows[None, :, None] - shifts_uv[:, 0, None, None]
+    src_v = cols[None, None, :] - shifts_uv[:, 1, None, None]
+    grid = torch.stack(
+        [
+            (2.0 * src_v / max(width - 1, 1) - 1.0).expand(n, height, width),
+            (2.0 * src_u / max(height - 1, 1) - 1.0).expand(n, height, width),
+        ],
+        dim=-1,
+    )
+    return F.grid_sample(
+        planes, grid, mode="bilinear", align_corners=True, padding_mode="zeros"
+    )
+
+
+def shift_masks(masks: torch.Tensor, shifts_uv: torch.Tensor) -> torch.Tensor:
+    """Translate each mask by its own sub-pixel shift (bilinear resampling, threshold 0.5).
+
+    Parameters
+    ----------
+    masks : (N, U, V) bool tensor
+    shifts_uv : (N, 2) float tensor
+        Row and column shift of each mask: output pixel ``(u, v)`` takes input ``(u - du, v - dv)``.
+
+    Returns
+    -------
+    (N, U, V) bool tensor
+
+    Examples
+    --------
+    >>> import torch
+    >>> mask = torch.tensor([[[True, False, False, False]]])
+    >>> shift_masks(mask, torch.tensor([[0.0, 2.0]])).int().tolist()
+    [[[0, 0, 1, 0]]]
+    """
+    if masks.shape[0] == 0:
+        return masks
+    return _shift(masks[:, None].to(torch.float32), shifts_uv)[:, 0] >= 0.5
+
+
+def shift_masks_with_disparity(
+    masks: torch.Tensor, disparity: torch.Tensor, shifts_uv: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """:func:`shift_masks`, carrying each mask's own disparity along.
+
+    The disparity a shifted mask shows at a target pixel is the bilinear average of the source
+    disparity over the mask's own pixels around the point it came from (the same weights as the
+    mask), so a slanted surface keeps its slant and nothing outside the mask leaks in.
+
+    Parameters
+    ----------
+    masks : (N, U, V) bool tensor
+    disparity : (U, V) float tensor
+        Source-view disparity.
+    shifts_uv : (N, 2) float tensor
+        As in :func:`shift_masks`.
+
+    Returns
+    -------
+    shifted : (N, U, V) bool tensor
+        Equal to ``shift_masks(masks, shifts_uv)``.
+    shifted_disparity : (N, U, V) float tensor
+        The mask's disparity at each pixel of ``shifted`` (``-inf`` outside it).
+    """
+    n, height, width = masks.shape
+    if n == 0:
+        return masks, torch.empty((0, height, width), device=masks.device)
+    weight = masks.to(torch.float32)
+    planes = torch.stack([weight, weight * disparity.to(torch.float32)[None]], dim=1)
+    sampled = _shift(planes, shifts_uv)
+    shifted = sampled[:, 0] >= 0.5
+    values = sampled[:, 1] / sampled[:, 0].clamp(min=1e-6)
+    return shifted, torch.where(shifted, values, torch.full_like(values, float("-inf")))
