@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.lfsam-installed
 
-.PHONY: install demo test lint bench clean
+.PHONY: install demo test lint bench clean system-deps
 
 install: $(STAMP)
 
@@ -22,15 +22,33 @@ $(STAMP): pyproject.toml constraints.txt
 demo: $(STAMP)
 	$(VENV)/bin/lfsam demo --out demo_output
 
-test: $(STAMP)
+test: $(STAMP) system-deps
 	$(VENV)/bin/ruff check src tests benchmarks
-	$(VENV)/bin/python -m pytest -q
+	xvfb-run -a $(VENV)/bin/python -m pytest -q
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks
 
 bench: $(STAMP)
 	$(VENV)/bin/python benchmarks/run_all.py
+
+# System packages the viewer tests need (napari under a virtual X display with Mesa's OpenGL;
+# Qt's offscreen platform has no OpenGL). Installed with apt-get only when some are missing.
+SYSTEM_DEPS := xvfb xauth libgl1-mesa-dri libglx-mesa0 libegl1 libxcb-icccm4 libxcb-image0 \
+	libxcb-keysyms1 libxcb-randr0 libxcb-render-util0 libxcb-xinerama0 libxcb-xfixes0 \
+	libxcb-shape0 libxkbcommon-x11-0 libxcb-cursor0 libdbus-1-3
+
+system-deps:
+	@if ! command -v dpkg-query >/dev/null 2>&1; then \
+		command -v xvfb-run >/dev/null 2>&1 || { echo "make: xvfb-run not found; install Xvfb, xauth, Mesa GL and the Qt xcb libraries (see README)" >&2; exit 1; }; \
+		echo "system-deps: no dpkg here; using the xvfb-run found on PATH"; exit 0; \
+	fi; \
+	missing=$$(for p in $(SYSTEM_DEPS); do dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q 'install ok installed' || echo $$p; done); \
+	if [ -z "$$missing" ]; then echo "system-deps: all present"; exit 0; fi; \
+	missing=$$(echo $$missing); \
+	if [ "$$(id -u)" != 0 ]; then echo "make: missing system packages: $$missing; run as root: apt-get install $$missing" >&2; exit 1; fi; \
+	echo "system-deps: installing $$missing"; \
+	apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing >/dev/null
 
 clean:
 	rm -rf $(VENV) demo_output .pytest_cache

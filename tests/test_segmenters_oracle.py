@@ -264,6 +264,15 @@ def test_merge_adds_the_neighbour_with_the_longest_border(lightfield):
     assert np.array_equal(_np(off.predict(emb, prompts, False).masks[0, 0]), G == 3)
 
 
+def test_merge_never_adds_a_region_under_a_negative_point(lightfield):
+    seg = OracleSegmenter(lightfield, merge_prob=1.0, device="cpu")
+    emb = seg.encode(lightfield.views[0, :1], keys=[(0, 0)])[0]
+    # positive on label 3, negative on label 2 (the neighbour a merge would add): no merge
+    prompts = Prompts(points=[[[10, 4], [9, 1]]], point_labels=[[1, 0]])
+    masks = _np(seg.predict(emb, prompts, multimask_output=False).masks[:, 0])
+    assert np.array_equal(masks[0], G == 3)
+
+
 def test_describe(oracle):
     info = oracle.describe()
     assert info["backend"] == "oracle" and info["num_labels"] == 3

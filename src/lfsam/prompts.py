@@ -247,6 +247,8 @@ def prompts_from_json(data: Any) -> list[ObjectPrompts]:
         name = f"object {index + 1}"
         if not isinstance(entry, dict):
             raise LfsamError(f"{name}: must be a JSON object, got {type(entry).__name__}")
+        if isinstance(entry.get("id"), int) and not isinstance(entry.get("id"), bool):
+            name = f"object {entry['id']}"
         unknown = sorted(set(entry) - _OBJECT_KEYS)
         if unknown:
             raise LfsamError(

@@ -30,6 +30,7 @@ SUBCOMMANDS = [
     "evaluate",
     "show",
     "demo",
+    "view",
 ]
 
 DESCRIPTION = """\

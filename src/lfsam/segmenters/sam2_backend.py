@@ -263,7 +263,7 @@ class Sam2Segmenter(Segmenter):
 
     def embedding_state(self, embedding: ViewEmbedding) -> dict[str, np.ndarray]:
         """The image embedding and both high-resolution levels, widened to float32 (exact)."""
-        feats = self._features(embedding)
+        feats = self._view_features(embedding)
         tensors = [feats.image_embed, *feats.high_res_feats]
         state = {f"level{i}": t.detach().float().cpu().numpy() for i, t in enumerate(tensors)}
         state["dtype"] = np.array(str(feats.image_embed.dtype))

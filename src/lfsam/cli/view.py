@@ -1,0 +1,105 @@
+"""``lfsam view``: open a light field in napari and segment it by clicking."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from lfsam.cli.common import HelpFormatter
+
+DESCRIPTION = """\
+Open a light field in napari: the views are one image layer with the view row s and column t on
+two sliders; click an object in any view and see its mask in every view.
+
+The dock widget drives lfsam's interactive predictor (docs/design.md section 8) in a worker
+thread, so the window never freezes: the clicked view's mask appears first, then every view's.
+Keys: S segment, C commit the object, T toggle positive/negative clicks (Ctrl-click adds the
+other kind), Shift-C clear, Ctrl-Z / Ctrl-Shift-Z undo/redo prompt edits. Draw a rectangle in
+"box prompts" for a box. "Segment everything" runs the automatic mode. The Views / EPI buttons
+switch between the views and the epipolar-plane images through the current pixel row or column.
+Save writes a normal lfsam result (prompts included, so it reopens editable with --result).
+
+Needs the viewer extra: pip install 'lfsam[viewer]'.
+"""
+
+EPILOG = """\
+examples:
+  lfsam view scene --model oracle --disparity gt         # a synthetic scene with ground truth
+  lfsam view ../shared/data/hci_antinous --cache ~/.cache/lfsam-embeddings
+  lfsam view scene --result result.npz --model oracle    # reopen a result and correct it
+  lfsam view                                             # empty viewer; File > Open a light field
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``view`` subcommand."""
+    parser = subparsers.add_parser(
+        "view",
+        help="open a light field in napari and segment it interactively",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=HelpFormatter,
+    )
+    parser.add_argument(
+        "path", nargs="?", help="light field: a folder of views, .npz/.npy/.h5/.mat, ..."
+    )
+    parser.add_argument("--result", metavar="R.npz", help="reopen this result's objects to edit")
+    parser.add_argument(
+        "--model", default=None, help="segmenter: a SAM 2 model name or 'oracle' (default: "
+        "the package's default SAM 2 model)"
+    )
+    parser.add_argument(
+        "--disparity", default="estimate", metavar="estimate|gt|FILE.npy",
+        help="disparity source of the predictor",
+    )
+    parser.add_argument("--cache", metavar="DIR", help="embedding cache folder")
+    parser.add_argument("--format", dest="input_format", help="input format (default: detect)")
+    parser.set_defaults(func=run)
+
+
+def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
+    """The napari viewer and the docked widget for ``args`` (without starting the event loop).
+
+    Raises
+    ------
+    LfsamError
+        Without napari (naming the install command), or for an unreadable light field or
+        result; nothing is opened then.
+    """
+    from lfsam.viewer import require_napari
+
+    require_napari()
+    from lfsam.errors import LfsamError
+    from lfsam.io import read_lightfield
+    from lfsam.result import load_result
+
+    lightfield = read_lightfield(args.path, format=args.input_format) if args.path else None
+    if args.result and lightfield is None:
+        raise LfsamError("--result needs its light field: give the light field's path too")
+    result = load_result(args.result) if args.result else None
+
+    import napari
+
+    from lfsam.viewer.widget import LightFieldWidget
+
+    viewer = napari.Viewer(title="lfsam", show=show)
+    widget = LightFieldWidget(
+        viewer,
+        lightfield=lightfield,
+        model=args.model,
+        disparity=args.disparity,
+        cache_dir=args.cache,
+    )
+    viewer.window.add_dock_widget(widget, name="lfsam", area="right")
+    if result is not None:
+        widget.open_result(result)
+    return viewer, widget
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``lfsam view``: returns when the window is closed."""
+    open_viewer(args)
+    import napari
+
+    napari.run()
+    return 0

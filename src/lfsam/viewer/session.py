@@ -1,0 +1,448 @@
+"""The state behind the viewer's widget, free of Qt and napari: objects, prompts, undo, results.
+
+The widget (:mod:`lfsam.viewer.widget`) is a thin layer over this module: it turns napari layer
+data into prompts and back (:func:`prompts_from_layers`, :func:`layers_from_prompts`), and runs
+the slow calls of a :class:`ViewerSession` (loading the model, the coarse-to-fine prediction,
+automatic segmentation) in a worker thread. All segmentation is done by
+:class:`lfsam.predictor.LightFieldPredictor` (docs/design.md section 8); this module only keeps
+track of which object is being edited, which are committed and which came from the automatic
+mode, and of the prompt history for undo and redo.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lfsam.errors import LfsamError
+from lfsam.lightfield import LightField
+
+__all__ = [
+    "DISPARITY_SOURCES",
+    "PromptHistory",
+    "ViewerSession",
+    "layers_from_prompts",
+    "prompts_from_layers",
+    "select_labels",
+]
+
+#: Disparity sources the widget offers besides a file (``set_lightfield(disparity=...)``).
+DISPARITY_SOURCES = ("estimate", "gt")
+
+
+def prompts_from_layers(
+    obj_id: int,
+    points: np.ndarray,
+    positive: np.ndarray,
+    boxes: list[np.ndarray],
+    grid_shape: tuple[int, int],
+) -> Any | None:
+    """The prompts of one object from the point and box layers' data.
+
+    Parameters
+    ----------
+    obj_id : int
+        Object id (>= 1).
+    points : (N, 4) float ndarray
+        Points in layer coordinates ``(s, t, u, v)``: the view, then pixel row and column.
+    positive : (N,) bool ndarray
+        Whether each point is positive.
+    boxes : list of (K, 4) float ndarrays
+        Rectangles' vertices in ``(s, t, u, v)``; the last one is the object's box (an object has
+        at most one, docs/design.md section 8).
+    grid_shape : (S, T)
+        The grid, to clip view indices.
+
+    Returns
+    -------
+    ObjectPrompts or None
+        None when there is no prompt at all.
+    """
+    from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
+
+    points = np.asarray(points, dtype=float).reshape(-1, 4)
+    positive = np.asarray(positive, dtype=bool).reshape(-1)
+    limit = np.array(grid_shape) - 1
+    views = np.clip(np.rint(points[:, :2]).astype(int), 0, limit)
+    point_prompts = tuple(
+        PointPrompt(x=float(p[3]), y=float(p[2]), positive=bool(pos), view=(int(v[0]), int(v[1])))
+        for p, pos, v in zip(points, positive, views, strict=True)
+    )
+    box = None
+    if boxes:
+        verts = np.asarray(boxes[-1], dtype=float).reshape(-1, 4)
+        s, t = np.clip(np.rint(verts[0, :2]).astype(int), 0, limit)
+        (y0, x0), (y1, x1) = verts[:, 2:].min(0), verts[:, 2:].max(0)
+        box = BoxPrompt(float(x0), float(y0), float(x1), float(y1), view=(int(s), int(t)))
+    if not point_prompts and box is None:
+        return None
+    return ObjectPrompts(obj_id, points=point_prompts, box=box)
+
+
+def layers_from_prompts(
+    obj: Any | None, center: tuple[int, int]
+) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    """Layer data for one object's prompts: the inverse of :func:`prompts_from_layers`.
+
+    Parameters
+    ----------
+    obj : ObjectPrompts or None
+        The object's prompts (None: no prompts).
+    center : (s, t)
+        The view of prompts without a view tag.
+
+    Returns
+    -------
+    points : (N, 4) float ndarray
+        ``(s, t, u, v)`` of each point.
+    positive : (N,) bool ndarray
+    boxes : list of (4, 4) float ndarrays
+        The box's corners (zero or one rectangle).
+    """
+    if obj is None:
+        return np.zeros((0, 4)), np.zeros(0, dtype=bool), []
+    rows = []
+    for p in obj.points:
+        s, t = p.view if p.view is not None else center
+        rows.append((s, t, p.y, p.x))
+    points = np.array(rows, dtype=float).reshape(-1, 4)
+    positive = np.array([bool(p.positive) for p in obj.points], dtype=bool)
+    boxes = []
+    if obj.box is not None:
+        b = obj.box
+        s, t = b.view if b.view is not None else center
+        boxes.append(
+            np.array(
+                [[s, t, b.y0, b.x0], [s, t, b.y0, b.x1], [s, t, b.y1, b.x1], [s, t, b.y1, b.x0]],
+                dtype=float,
+            )
+        )
+    return points, positive, boxes
+
+
+def select_labels(labels: np.ndarray, ids: set[int] | list[int]) -> np.ndarray:
+    """``labels`` where the label is one of ``ids``, 0 elsewhere (for one display layer)."""
+    ids = sorted(ids)
+    if not ids:
+        return np.zeros_like(labels)
+    return np.where(np.isin(labels, ids), labels, 0).astype(labels.dtype, copy=False)
+
+
+class PromptHistory:
+    """Undo and redo of the prompt edits of the object being edited.
+
+    Each state is an ``ObjectPrompts`` (or None for no prompts); :meth:`push` records a new state
+    after an edit and drops the redo branch.
+    """
+
+    def __init__(self) -> None:
+        self._states: list[Any | None] = [None]
+        self._index = 0
+
+    def reset(self, state: Any | None = None) -> None:
+        """Forget the history; ``state`` is the current one."""
+        self._states = [state]
+        self._index = 0
+
+    @property
+    def current(self) -> Any | None:
+        """The current state."""
+        return self._states[self._index]
+
+    def push(self, state: Any | None) -> bool:
+        """Record ``state`` after an edit; returns False if it equals the current state."""
+        if state == self.current:
+            return False
+        del self._states[self._index + 1 :]
+        self._states.append(state)
+        self._index += 1
+        return True
+
+    @property
+    def can_undo(self) -> bool:
+        """Whether there is an edit to undo."""
+        return self._index > 0
+
+    @property
+    def can_redo(self) -> bool:
+        """Whether there is an undone edit to redo."""
+        return self._index < len(self._states) - 1
+
+    def undo(self) -> Any | None:
+        """Step back; returns the state to show."""
+        if self.can_undo:
+            self._index -= 1
+        return self.current
+
+    def redo(self) -> Any | None:
+        """Step forward; returns the state to show."""
+        if self.can_redo:
+            self._index += 1
+        return self.current
+
+
+@dataclass
+class ViewerSession:
+    """One annotation session on one light field.
+
+    Parameters
+    ----------
+    lightfield : LightField
+        The light field shown.
+    model : str
+        Segmenter name (:func:`lfsam.segmenters.available_models`).
+    disparity : str or path or ndarray
+        ``"estimate"``, ``"gt"``, a ``.npy`` path or a ``(U, V)`` array
+        (``LightFieldPredictor.set_lightfield``).
+    cache_dir : path, optional
+        Embedding cache of the predictor (docs/design.md section 8).
+    segmenter_options : dict
+        Further keywords of :func:`lfsam.segmenters.load_segmenter` (e.g. ``oracle_options``).
+    """
+
+    lightfield: LightField
+    model: str = "sam2.1-hiera-small"
+    disparity: Any = "estimate"
+    cache_dir: str | os.PathLike | None = None
+    segmenter_options: dict[str, Any] = field(default_factory=dict)
+    predictor: Any = None
+    current_id: int = 1
+    committed: set[int] = field(default_factory=set)
+    auto: set[int] = field(default_factory=set)
+    history: PromptHistory = field(default_factory=PromptHistory)
+    _given: tuple | None = field(default=None, repr=False)  # (id, view, mask) being edited
+
+    # --- model --------------------------------------------------------------------------------
+    @property
+    def loaded(self) -> bool:
+        """Whether the predictor is built (the segmenter is loaded)."""
+        return self.predictor is not None
+
+    def load(self) -> None:
+        """Build the segmenter and the predictor (slow: run it in a worker thread).
+
+        Objects of a previous predictor (another model or disparity source) are carried over.
+
+        Raises
+        ------
+        LfsamError
+            Unknown model, weights missing offline, oracle without labels, bad disparity.
+        """
+        from lfsam.predictor import LightFieldPredictor
+        from lfsam.segmenters import load_segmenter
+
+        options = dict(self.segmenter_options)
+        if self.model != "oracle":
+            options.pop("oracle_options", None)
+        segmenter = load_segmenter(self.model, lightfield=self.lightfield, **options)
+        predictor = LightFieldPredictor(segmenter, cache_dir=self.cache_dir)
+        predictor.set_lightfield(self.lightfield, disparity=self.disparity)
+        old = self.predictor
+        if old is not None and old.object_ids:
+            if set(old.objects) == set(old.object_ids):  # every object has prompts
+                for obj in old.objects.values():
+                    predictor.set_object(obj)
+            else:  # automatic or imported objects are carried by their masks
+                predictor.open_result(old.to_result())
+        self.predictor = predictor
+
+    def _require(self) -> Any:
+        if self.predictor is None:
+            raise LfsamError("no model is loaded yet; pick a model and press Load")
+        return self.predictor
+
+    # --- objects ------------------------------------------------------------------------------
+    @property
+    def object_ids(self) -> list[int]:
+        """Ids of every object the predictor holds (prompted, automatic, imported), sorted."""
+        return list(self.predictor.object_ids) if self.predictor is not None else []
+
+    def next_id(self) -> int:
+        """A fresh object id: one more than any id in use."""
+        used = {*self.object_ids, *self.committed, *self.auto, self.current_id}
+        return max(used) + 1
+
+    def sync_current(self) -> Any | None:
+        """Give the predictor the current object's prompts as the history has them.
+
+        An automatic or imported object being edited (no prompts) keeps its mask until it is
+        given prompts, and gets its mask back when every prompt edit is undone.
+
+        Returns
+        -------
+        ObjectPrompts or None
+            The current prompts.
+        """
+        pred = self._require()
+        obj = self.history.current
+        obj_id = self.current_id
+        if obj is not None:
+            if pred.objects.get(obj_id) != obj:
+                pred.set_object(obj)
+        elif self._given is not None and self._given[0] == obj_id:
+            if obj_id in pred.objects:  # prompted meanwhile: back to the given mask
+                pred.add_mask(obj_id, self._given[2], view=self._given[1])
+        elif obj_id in pred.object_ids:
+            pred.remove_object(obj_id)
+        return obj
+
+    def current_prompts(self) -> Any | None:
+        """The current object's prompts, or None."""
+        if self.predictor is None:
+            return None
+        return self.predictor.objects.get(self.current_id)
+
+    def segment_current(self) -> Iterator[tuple[str, Any]]:
+        """Segment the current object, coarse to fine (run it in a worker thread).
+
+        Yields
+        ------
+        ("reference", (view, mask, score))
+            The mask in the view the object is prompted in (``predict_reference``).
+        ("coarse", LightFieldPrediction)
+            Every view, propagated and occluded, not refined (``predict_coarse``).
+        ("final", LightFieldPrediction)
+            Every object, refined (``predict``; unchanged objects are reused).
+        """
+        pred = self._require()
+        obj_id = self.current_id
+        if obj_id not in pred.object_ids:
+            return
+        yield "reference", pred.predict_reference(obj_id)
+        yield "coarse", pred.predict_coarse([obj_id])
+        yield "final", pred.predict()
+
+    def predict_all(self) -> Any:
+        """Every object's masks (unchanged objects are reused; worker thread)."""
+        return self._require().predict()
+
+    def commit(self) -> int:
+        """Commit the current object; returns its id. A new current id is chosen."""
+        obj_id = self.current_id
+        if obj_id not in self.object_ids:
+            raise LfsamError("nothing to commit: add a point or a box to the object first")
+        self.committed.add(obj_id)
+        self.auto.discard(obj_id)
+        self.current_id = self.next_id()
+        self.history.reset()
+        self._given = None
+        return obj_id
+
+    def edit(self, obj_id: int) -> Any | None:
+        """Make object ``obj_id`` the one being edited; returns its prompts.
+
+        The object being edited before, if it has prompts, is committed first.
+        """
+        pred = self._require()
+        if obj_id not in pred.object_ids:
+            raise LfsamError(f"there is no object {obj_id}; pick one from the list")
+        if self.current_id != obj_id and self.current_id in pred.object_ids:
+            self.committed.add(self.current_id)
+        self.committed.discard(obj_id)
+        self.auto.discard(obj_id)
+        self.current_id = obj_id
+        obj = pred.objects.get(obj_id)  # None for an automatic or imported object
+        self._given = None
+        if obj is None:
+            view, mask, _ = pred.predict_reference(obj_id)
+            self._given = (obj_id, tuple(view), np.asarray(mask, dtype=bool))
+        self.history.reset(obj)
+        return obj
+
+    def remove(self, obj_id: int) -> None:
+        """Delete object ``obj_id`` (its prompts and masks)."""
+        pred = self._require()
+        if obj_id in pred.object_ids:
+            pred.remove_object(obj_id)
+        self.committed.discard(obj_id)
+        self.auto.discard(obj_id)
+        if obj_id == self.current_id:
+            self.history.reset()
+
+    def clear_current(self) -> None:
+        """Remove the current object's prompts (Shift-C); the id stays."""
+        if self.predictor is not None and self.current_id in self.predictor.object_ids:
+            self.predictor.remove_object(self.current_id)
+        self.history.reset()
+
+    def generate(self) -> Any:
+        """Automatic mode: add every object found, then predict (worker thread)."""
+        pred = self._require()
+        ids = pred.generate()
+        self.auto.update(int(i) for i in ids)
+        if self.current_id in self.auto:
+            self.current_id = self.next_id()
+        return pred.predict()
+
+    def open_result(self, result: Any) -> list[int]:
+        """Reopen a result's objects for editing (``LightFieldPredictor.open_result``).
+
+        Prompted objects come back with their prompts, the others (automatic, imported) with
+        their reference-view masks; all are committed.
+
+        Returns
+        -------
+        ids : list of int
+            The objects added.
+        """
+        pred = self._require()
+        before = set(pred.object_ids)
+        pred.open_result(result)
+        ids = sorted(set(pred.object_ids) - before)
+        if not ids:
+            raise LfsamError(
+                "this result has no objects to reopen; open a result saved by lfsam or a "
+                "labels layer with objects"
+            )
+        self.committed.update(ids)
+        self.current_id = self.next_id()
+        return ids
+
+    def open_labels(self, labels: np.ndarray) -> list[int]:
+        """Reopen a labels array ``(S, T, U, V)`` (label value = object id) for editing.
+
+        Each label becomes an object given by its mask in the view where it is largest.
+        """
+        from lfsam.result import SegmentationResult
+
+        labels = np.asarray(labels)
+        if labels.shape != self.lightfield.views.shape[:4]:
+            raise LfsamError(
+                f"labels of shape {labels.shape} do not fit the light field "
+                f"{self.lightfield.views.shape[:4]}; open labels of the same light field"
+            )
+        labels = labels.astype(np.int32)
+        ids = [int(i) for i in np.unique(labels) if i > 0]
+        if not ids:
+            raise LfsamError("this labels layer is empty; paint or segment an object first")
+        s_count, t_count = labels.shape[:2]
+        flat = labels.reshape(s_count * t_count, -1)
+        areas = np.stack([np.bincount(row, minlength=ids[-1] + 1) for row in flat])
+        best = areas[:, ids].argmax(axis=0)
+        objects = [
+            {"id": i, "reference_view": [int(b // t_count), int(b % t_count)], "mask": "given"}
+            for i, b in zip(ids, best, strict=True)
+        ]
+        meta = {"object_ids": ids, "objects": objects}
+        return self.open_result(SegmentationResult(labels=labels, meta=meta))
+
+    # --- output -------------------------------------------------------------------------------
+    def to_result(self) -> Any:
+        """The session as a normal lfsam result, prompts included (``predictor.to_result``)."""
+        pred = self._require()
+        if not pred.object_ids:
+            raise LfsamError("nothing to save: segment at least one object first")
+        return pred.to_result()
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the result to ``path`` (``.npz``, atomic)."""
+        from lfsam.fileutil import check_output_path
+        from lfsam.result import save_result
+
+        check_output_path(path)
+        return save_result(self.to_result(), path)

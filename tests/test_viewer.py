@@ -1,0 +1,349 @@
+"""The napari viewer (issue 15): click to segment a light field, correct, save, reopen.
+
+Driven the way a user drives it: clicks go through the points layer's mouse callbacks, keys
+through the canvas's key handler, and the worker is awaited with ``qtbot.waitUntil``. The oracle
+with ground-truth disparity answers exactly, so masks are checked against ground truth in every
+view. Needs a display: ``make test`` runs pytest under ``xvfb-run``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+from napari.utils._proxies import ReadOnlyWrapper  # the dev extra installs napari: no skip
+from napari.utils.interactions import mouse_press_callbacks, mouse_release_callbacks
+from scipy import ndimage
+
+from lfsam.errors import LfsamError
+from lfsam.synth import generate_scene
+from lfsam.viewer import layers as L
+from lfsam.viewer.widget import LightFieldWidget
+
+VIEW = (0, 2)  # a corner view: prompts work in any view, not just the center
+OBJ, NEIGHBOUR = 3, 2  # in VIEW of the scene below, object 3 touches only object 2
+TIMEOUT = 60_000
+
+
+def _register_plugin() -> None:
+    """Our npe2 manifest, as its entry point registers it in an installed package."""
+    import npe2
+
+    manager = npe2.PluginManager.instance()
+    manager.discover()
+    if "lfsam" not in manager._manifests:
+        from importlib.resources import files
+
+        manager.register(npe2.PluginManifest.from_file(files("lfsam.viewer") / "napari.yaml"))
+
+
+_register_plugin()
+
+
+@dataclass
+class _MouseEvent:
+    """The fields napari's mouse callbacks read from a vispy mouse event."""
+
+    type: str
+    position: tuple
+    modifiers: list = field(default_factory=list)
+    is_dragging: bool = False
+    pos: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    view_direction: list | None = None
+    up_direction: list | None = None
+    dims_displayed: list = field(default_factory=lambda: [2, 3])
+
+
+@pytest.fixture(scope="module")
+def scene():
+    """3x3 views of 48x64, three objects, unlabelled background (exact ground truth)."""
+    return generate_scene(grid=(3, 3), size=(48, 64), seed=0, num_objects=3, label_background=False)
+
+
+def _interior(labels: np.ndarray, label: int) -> tuple[int, int]:
+    """The pixel (row, column) of ``label`` farthest from its border."""
+    dist = ndimage.distance_transform_edt(labels == label)
+    return tuple(int(i) for i in np.unravel_index(dist.argmax(), dist.shape))
+
+
+def _click(viewer, layer, view, pixel, modifiers=()):
+    """Press and release the mouse on ``pixel`` (row, column) of ``view``, in the layer's mode."""
+    viewer.dims.current_step = (*view, *viewer.dims.current_step[2:])
+    position = (*view, *pixel)
+    for kind, dispatch in (("mouse_press", mouse_press_callbacks),
+                           ("mouse_release", mouse_release_callbacks)):
+        event = _MouseEvent(kind, position, list(modifiers))
+        dispatch(layer, ReadOnlyWrapper(event, exceptions=("handled",)))
+
+
+def _open(make_napari_viewer, qtbot, scene, **kwargs):
+    viewer = make_napari_viewer()
+    widget = LightFieldWidget(viewer, lightfield=scene, model="oracle", disparity="gt", **kwargs)
+    viewer.window.add_dock_widget(widget)
+    qtbot.waitUntil(lambda: widget.session.loaded and not widget.busy, timeout=TIMEOUT)
+    return viewer, widget
+
+
+def _predictor_answer(scene, prompts) -> np.ndarray:
+    """The mask a predictor of its own gives these prompts (oracle, ground-truth disparity)."""
+    from lfsam.predictor import LightFieldPredictor
+    from lfsam.segmenters import load_segmenter
+
+    predictor = LightFieldPredictor(load_segmenter("oracle", lightfield=scene))
+    predictor.set_lightfield(scene, disparity="gt")
+    predictor.set_object(prompts)
+    return predictor.predict().masks[prompts.obj_id]
+
+
+def _idle(qtbot, widget):
+    qtbot.waitUntil(lambda: not widget.busy and not widget._segment_pending, timeout=TIMEOUT)
+
+
+def test_scene_assumption(scene):
+    g = scene.labels[VIEW]
+    ring = ndimage.binary_dilation(g == OBJ) & (g != OBJ)
+    assert set(np.unique(g[ring])) - {0} == {NEIGHBOUR}
+
+
+def test_click_commit_segment_everything_reopen_labels(make_napari_viewer, qtbot, scene):
+    viewer, widget = _open(make_napari_viewer, qtbot, scene)
+    shown = []
+    original = widget._show_current
+
+    def spy(obj_id, **kwargs):
+        original(obj_id, **kwargs)
+        shown.append(widget.layers[L.CURRENT].data.reshape(9, -1).any(1).reshape(3, 3).copy())
+
+    widget._show_current = spy
+    _click(viewer, widget.layers[L.POINTS], VIEW, _interior(scene.labels[VIEW], OBJ))
+    _idle(qtbot, widget)
+    obj_id = widget.session.current_id
+    current = widget.layers[L.CURRENT].data
+    for s in range(3):
+        for t in range(3):
+            np.testing.assert_array_equal(current[s, t] == obj_id, scene.labels[s, t] == OBJ)
+    # the clicked view's mask was shown first, alone; then every view
+    assert shown[0].sum() == 1 and shown[0][VIEW]
+    assert shown[-1].all()
+    assert widget.stages == ["reference", "coarse", "final"]
+    # commit (C key): the object moves to the committed layer, the next click is a new object
+    viewer.window._qt_viewer.canvas._key_map_handler.press_key("C")
+    _idle(qtbot, widget)
+    np.testing.assert_array_equal(widget.layers[L.COMMITTED].data == obj_id, scene.labels == OBJ)
+    assert not widget.layers[L.CURRENT].data.any() and len(widget.layers[L.POINTS].data) == 0
+    assert widget.session.current_id != obj_id
+    assert widget.objects.count() == 1 and str(obj_id) in widget.objects.item(0).text()
+    # a box drawn in the box layer segments the next object, as the predictor does by itself
+    rows, cols = np.nonzero(scene.labels[VIEW] == OBJ)
+    (r0, c0), (r1, c1) = (rows.min(), cols.min()), (rows.max(), cols.max())
+    box = np.array([[*VIEW, r0, c0], [*VIEW, r0, c1], [*VIEW, r1, c1], [*VIEW, r1, c0]], float)
+    widget.layers[L.BOXES].add_rectangles(box)
+    _idle(qtbot, widget)
+    box_id = widget.session.current_id
+    expected = _predictor_answer(scene, widget.session.current_prompts())
+    np.testing.assert_array_equal(widget.layers[L.CURRENT].data == box_id, expected)
+    np.testing.assert_array_equal(expected[VIEW], scene.labels[VIEW] == OBJ)
+    # segment everything: the automatic mode finds every object of the center view
+    for obj_id in list(widget.session.object_ids):
+        widget.remove_object(obj_id)
+    widget.segment_everything()
+    _idle(qtbot, widget)
+    auto = widget.layers[L.AUTO].data
+    # every ground-truth object of the center view is found, exactly, in every view
+    center = scene.labels[scene.center]
+    assert len(widget.session.auto) == len(np.unique(center[center > 0]))
+    for label in np.unique(center[center > 0]):
+        (found,) = np.unique(auto[scene.center][center == label])
+        assert found in widget.session.auto
+        np.testing.assert_array_equal(auto == found, scene.labels == label)
+    # an automatic object opens for correction: its mask becomes the current object; a click
+    # gives it prompts, and undoing the click gives its automatic mask back
+    (auto_id,) = np.unique(auto[VIEW][scene.labels[VIEW] == OBJ])
+    widget.edit_object(int(auto_id))
+    _idle(qtbot, widget)
+    np.testing.assert_array_equal(widget.layers[L.CURRENT].data == auto_id, scene.labels == OBJ)
+    assert not (widget.layers[L.AUTO].data == auto_id).any()
+    _click(viewer, widget.layers[L.POINTS], VIEW, _interior(scene.labels[VIEW], OBJ))
+    _idle(qtbot, widget)
+    assert widget.session.predictor.objects[auto_id].points
+    widget.undo()
+    _idle(qtbot, widget)
+    assert auto_id not in widget.session.predictor.objects  # a mask-given object again
+    assert auto_id in widget.session.object_ids
+    np.testing.assert_array_equal(widget.layers[L.CURRENT].data == auto_id, scene.labels == OBJ)
+    # a labels layer (here the ground truth) reopens as editable objects (label = object id)
+    for obj_id in list(widget.session.object_ids):
+        widget.remove_object(obj_id)
+    _idle(qtbot, widget)
+    assert not widget.session.object_ids and not widget.layers[L.AUTO].data.any()
+    widget.open_labels(scene.labels)
+    _idle(qtbot, widget)
+    ids = [int(i) for i in np.unique(scene.labels) if i]
+    assert widget.session.object_ids == ids and widget.session.committed == set(ids)
+    np.testing.assert_array_equal(widget.layers[L.COMMITTED].data, scene.labels)
+
+
+def test_negative_click_fixes_a_merge_and_undo_redo(make_napari_viewer, qtbot, scene, tmp_path):
+    viewer, widget = _open(
+        make_napari_viewer, qtbot, scene, segmenter_options={"oracle_options": {"merge_prob": 1.0}}
+    )
+    points = widget.layers[L.POINTS]
+    g = scene.labels
+    _click(viewer, points, VIEW, _interior(g[VIEW], OBJ))
+    _idle(qtbot, widget)
+    obj_id = widget.session.current_id
+    merged = widget.layers[L.CURRENT].data[VIEW] == obj_id
+    np.testing.assert_array_equal(merged, (g[VIEW] == OBJ) | (g[VIEW] == NEIGHBOUR))
+    # Ctrl-click adds a negative point on the wrongly merged neighbour
+    _click(viewer, points, VIEW, _interior(g[VIEW], NEIGHBOUR), modifiers=["Control"])
+    assert points.features["positive"].tolist() == [True, False]
+    _idle(qtbot, widget)
+    np.testing.assert_array_equal(widget.layers[L.CURRENT].data == obj_id, g == OBJ)
+    # undo (Ctrl-Z) brings the merge back, redo (Ctrl-Shift-Z) the fix
+    keys = viewer.window._qt_viewer.canvas._key_map_handler
+    keys.press_key("Control-Z")
+    _idle(qtbot, widget)
+    assert len(points.data) == 1
+    np.testing.assert_array_equal(widget.layers[L.CURRENT].data[VIEW] == obj_id, merged)
+    keys.press_key("Control-Shift-Z")
+    _idle(qtbot, widget)
+    assert len(points.data) == 2
+    np.testing.assert_array_equal(widget.layers[L.CURRENT].data == obj_id, g == OBJ)
+    # Shift-C clears; clicks made while the worker runs are queued, not lost
+    keys.press_key("Shift-C")
+    _idle(qtbot, widget)
+    assert len(points.data) == 0 and not widget.layers[L.CURRENT].data.any()
+    _click(viewer, points, VIEW, _interior(g[VIEW], OBJ))
+    assert widget.busy  # the first click's prediction runs in the worker thread
+    keys.press_key("T")  # T: plain clicks are negative now
+    _click(viewer, points, VIEW, _interior(g[VIEW], NEIGHBOUR))
+    _idle(qtbot, widget)
+    assert points.features["positive"].tolist() == [True, False]
+    np.testing.assert_array_equal(widget.layers[L.CURRENT].data == obj_id, g == OBJ)
+    # save, then reopen the result for editing through `lfsam view --result`
+    out = tmp_path / "result.npz"
+    widget.save(out)
+    from lfsam.cli.view import open_viewer
+    from lfsam.result import load_result
+
+    result = load_result(out)
+    np.testing.assert_array_equal(result.labels == obj_id, g == OBJ)
+    prompts = result.meta["objects"][0]
+    assert prompts["id"] == obj_id and len(prompts["points"]) == 2
+    from lfsam.viewer.widget import _export_module
+
+    if _export_module() is not None:  # the CLI's export code, where this version has it
+        folder = widget.export(tmp_path / "export", "png")
+        assert (folder / "view_00_02.png").is_file()
+    else:
+        assert not widget.export_button.isEnabled()
+    scene_dir = tmp_path / "scene"
+    from lfsam.io import write_lightfield
+
+    write_lightfield(scene, scene_dir)
+    args = argparse.Namespace(
+        path=str(scene_dir), result=str(out), model="oracle", disparity="gt", cache=None,
+        input_format=None,
+    )
+    viewer2, widget2 = open_viewer(args, show=False)
+    try:
+        _idle(qtbot, widget2)
+        qtbot.waitUntil(lambda: widget2.layers[L.COMMITTED].data.any(), timeout=TIMEOUT)
+        np.testing.assert_array_equal(widget2.layers[L.COMMITTED].data, result.labels)
+        widget2.edit_object(obj_id)
+        _idle(qtbot, widget2)
+        assert len(widget2.layers[L.POINTS].data) == 2
+        np.testing.assert_array_equal(widget2.layers[L.CURRENT].data == obj_id, g == OBJ)
+        assert not widget2.layers[L.COMMITTED].data.any()
+    finally:
+        viewer2.close()
+
+
+def test_errors_are_notifications(make_napari_viewer, qtbot, monkeypatch):
+    shown = []
+    monkeypatch.setattr("lfsam.viewer.widget._notify_error", shown.append)
+    unlabelled = generate_scene(grid=(3, 3), size=(24, 32), seed=1, num_objects=1)
+    unlabelled.labels = None
+    viewer = make_napari_viewer()
+    widget = LightFieldWidget(viewer, lightfield=unlabelled, model="oracle", disparity="gt")
+    qtbot.waitUntil(lambda: not widget.busy, timeout=TIMEOUT)
+    assert len(shown) == 1 and "ground-truth labels" in shown[0] and "\n" not in shown[0]
+    assert not widget.session.loaded
+
+
+def test_reader_writer_layers_and_epis(make_napari_viewer, qtbot, scene, tmp_path, monkeypatch):
+    import npe2
+
+    from lfsam.io import write_lightfield
+    from lfsam.result import load_result
+    from lfsam.viewer.plugin_io import get_reader
+
+    viewer = make_napari_viewer()
+    assert "lfsam" in npe2.PluginManager.instance()._manifests
+    path = tmp_path / "scene.npz"
+    write_lightfield(scene, path)
+    layers = viewer.open(str(path), plugin="lfsam")
+    image = layers[0]
+    assert image.rgb and image.data.shape == (3, 3, 48, 64, 3)
+    np.testing.assert_array_equal(image.data, scene.views)
+    lightfield = image.metadata["lfsam_lightfield"]
+    assert image.data is lightfield.views  # the layer shows the views themselves, no copy
+    assert layers[1].data.shape == (3, 3, 48, 64) and not layers[1].visible  # ground truth
+    # writer: a labels layer as a result, and the reader opens results
+    out = tmp_path / "labels.npz"
+    layers[1].save(str(out), plugin="lfsam")
+    np.testing.assert_array_equal(load_result(out).labels, scene.labels)
+    (reread,) = viewer.open(str(out), plugin="lfsam")
+    np.testing.assert_array_equal(reread.data, scene.labels)
+    assert reread.metadata["lfsam_result"].labels.shape == (3, 3, 48, 64)
+    # an unreadable file: a notification with lfsam's one-line message, no layer, no raise
+    shown = []
+    monkeypatch.setattr("napari.utils.notifications.show_error", shown.append)
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a zip")
+    reader = get_reader(str(bad))
+    assert reader(str(bad)) == [] and len(shown) == 1 and "\n" not in shown[0]
+    assert get_reader(str(tmp_path / "missing.npz")) is None
+    # the dock widget (as from the Plugins menu) adopts the light field already open
+    widget = LightFieldWidget(viewer, autoload=False)
+    assert widget.image_layer is image and widget.session.lightfield is lightfield
+    assert viewer.dims.ndim == 4 and viewer.dims.displayed == (2, 3)
+    assert viewer.dims.current_step[:2] == scene.center
+    for name in (L.CURRENT, L.COMMITTED, L.AUTO):
+        assert viewer.layers[name].data.shape == (3, 3, 48, 64)
+    assert viewer.layers[L.POINTS].ndim == viewer.layers[L.BOXES].ndim == 4
+    # a deleted fixed layer comes back, in its place
+    index = viewer.layers.index(L.COMMITTED)
+    viewer.layers.remove(L.COMMITTED)
+    qtbot.waitUntil(lambda: L.COMMITTED in viewer.layers, timeout=5000)
+    assert viewer.layers.index(L.COMMITTED) == index
+    # EPIs: a reorder of the same data's axes
+    viewer.dims.current_step = (1, 1, 20, 30)
+    widget.show_display("epi-row")
+    assert viewer.dims.displayed == (1, 3)  # (t, v) through pixel row u=20 of view row s=1
+    np.testing.assert_array_equal(image._slice.image.raw, scene.views[1, :, 20, :])
+    widget.show_display("epi-column")
+    assert viewer.dims.displayed == (2, 0)  # (u, s) through pixel column v=30 of view column 1
+    np.testing.assert_array_equal(image._slice.image.raw, scene.views[:, 1, :, 30].swapaxes(0, 1))
+    widget.show_display("views")
+    assert viewer.dims.displayed == (2, 3)
+
+
+def test_view_help_and_the_message_without_the_extra(capsys, monkeypatch):
+    from lfsam.cli.main import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["view", "--help"])
+    assert exit_info.value.code == 0
+    assert "lfsam view scene" in capsys.readouterr().out
+    monkeypatch.setitem(sys.modules, "napari", None)  # as if napari were not installed
+    assert main(["view", "scene"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "pip install 'lfsam[viewer]'" in err
+    from lfsam.viewer import require_napari
+
+    with pytest.raises(LfsamError, match=r"lfsam\[viewer\]"):
+        require_napari()
