@@ -45,7 +45,7 @@ def test_info_text_and_json(tmp_path, capsys):
     capsys.readouterr()
     assert main(["info", str(tmp_path / "scene")]) == 0
     text = capsys.readouterr().out
-    assert "3 x 3 views, center view (1, 1)" in text
+    assert "3 x 3 grid, 9 of 9 views present, center view (1, 1)" in text
     assert "24 x 32 pixels" in text
     assert "all views, 3 labels" in text
     assert "format" in text and "lfsam" in text
@@ -132,7 +132,7 @@ def _different_sizes(tmp_path):
 
 def _missing_view(tmp_path):
     folder = _grid(tmp_path)
-    (folder / "0_1.png").unlink()
+    (folder / "1_1.png").unlink()  # the center view: a partial grid needs it
     return folder
 
 
@@ -153,7 +153,7 @@ def _wrong_shape(tmp_path):
         (_missing_path, "no such file or folder"),
         (_empty_folder, "is empty"),
         (_different_sizes, "views differ in size: 1_1.png is 12x20"),
-        (_missing_view, "view missing from the 2x2 grid"),
+        (_missing_view, "the center view 1_1.png of the 2x2 grid"),
         (_unreadable_image, "cannot read image"),
         (_wrong_shape, "needs shape [S, T, U, V, 3]"),
     ],

@@ -5,6 +5,14 @@ column, ``u`` the pixel row, ``v`` the pixel column, ``c`` RGB, stored as uint8.
 present, is a disparity ``D[s, t, u, v]`` (float32, in the convention of :mod:`lfsam.geometry`) and
 labels ``G[s, t, u, v]`` (int32, 0 = no label); either may be given for the center view only, as
 ``[U, V]``.
+
+Floating-point views are converted to uint8 by one documented rule (:func:`float_scale`): values
+must be finite and within [0, 255] (round-off down to -0.5/255 reads as 0); they are read as
+[0, 1] intensities when the 99.9th percentile of the values is at most 2 (so a [0, 1] light field
+with a few values pushed slightly above 1 by processing still reads correctly; those few are
+clipped to 1), otherwise as [0, 255]. A 0..255 light field whose 99.9th percentile is at most 2
+(all but 0.1% of it darker than 2/255) would be misread; give ``value_range=255``
+(``--value-range 255``) for it, or ``value_range=1``.
 """
 
 from __future__ import annotations
@@ -17,7 +25,14 @@ import numpy as np
 
 from lfsam.errors import LfsamError
 
-__all__ = ["LightField", "snake_order"]
+__all__ = ["LightField", "check_result_shape", "float_scale", "snake_order"]
+
+#: Floats are read as [0, 1] when their 99.9th percentile is at most this (see float_scale).
+UNIT_RANGE_LIMIT = 2.0
+#: The percentile the [0, 1] / [0, 255] rule looks at.
+RANGE_PERCENTILE = 99.9
+#: Negative values down to this (float round-off; less than half a level even in [0, 1]) read as 0.
+NEGATIVE_TOLERANCE = 0.5 / 255
 
 
 def snake_order(grid_shape: tuple[int, int]) -> list[tuple[int, int]]:
@@ -66,14 +81,17 @@ class LightField:
         Where the light field came from: ``source`` (path), ``format`` (reader name) and any
         reader-specific notes (e.g. the orientation a reader detected).
     present : ndarray, shape (S, T), bool, optional
-        Which views exist (partial grids such as the HCI "star" subsets,
-        docs/design.md section 8). Absent views hold zeros and are never used as data;
-        default: all present.
+        Which views exist (partial grids such as the HCI "star" subsets, docs/design.md
+        section 8). Absent views hold zeros and are never used as data; default: all present.
+    value_range : {1, 255}, optional
+        For floating-point views: whether they are [0, 1] or [0, 255] intensities. None decides
+        by the rule of :func:`float_scale` (99.9th percentile <= 2 means [0, 1]). Values must be
+        finite and in [0, 255] (in [0, 1] mode, values above 1 are clipped to 1).
 
     Raises
     ------
     LfsamError
-        If an array has the wrong shape or dtype.
+        If an array has the wrong shape or dtype, or float views are non-finite or out of range.
 
     Examples
     --------
@@ -90,6 +108,7 @@ class LightField:
     labels: np.ndarray | None = None
     meta: dict[str, Any] = field(default_factory=dict)
     present: np.ndarray | None = None
+    value_range: float | None = None
 
     def __post_init__(self) -> None:
         views = np.asarray(self.views)
@@ -101,14 +120,17 @@ class LightField:
         if min(views.shape[:4]) < 1:
             raise LfsamError(f"light field has an empty dimension: shape {views.shape}")
         if views.dtype != np.uint8:
-            views = _to_uint8(views)
+            views, note = _to_uint8(views, self.value_range)
+            if note:
+                self.meta = {**self.meta, "value_range": note}
         self.views = np.ascontiguousarray(views)
         if self.present is None:
             self.present = np.ones(views.shape[:2], dtype=bool)
         present = np.asarray(self.present)
-        if present.shape != views.shape[:2]:
+        if present.shape != views.shape[:2] or present.dtype.kind not in "biu":
             raise LfsamError(
-                f"present must have the grid's shape {views.shape[:2]}, got {present.shape}"
+                f"present must be booleans of the grid's shape {views.shape[:2]}, "
+                f"got {present.dtype} {present.shape}"
             )
         self.present = present.astype(bool)
         if not self.present[self.center]:
@@ -116,14 +138,21 @@ class LightField:
                 f"the center view {self.center} is absent; lfsam needs the center view"
             )
         if self.disparity is not None:
-            self.disparity = self._check_gt(self.disparity, "disparity").astype(np.float32)
+            disparity = self._check_gt(self.disparity, "disparity")
+            if disparity.dtype.kind not in "biuf":
+                raise LfsamError(f"disparity must be numbers, got dtype {disparity.dtype}")
+            self.disparity = disparity.astype(np.float32)
         if self.labels is not None:
             labels = self._check_gt(self.labels, "labels")
+            if labels.dtype.kind not in "biuf":
+                raise LfsamError(f"labels must be integers (0 = no label), got {labels.dtype}")
             if not np.issubdtype(labels.dtype, np.integer):
                 if not np.all(np.mod(labels, 1) == 0):
                     raise LfsamError("labels must be integers (0 = no label)")
             if labels.size and labels.min() < 0:
                 raise LfsamError("labels must be >= 0 (0 = no label)")
+            if labels.size and labels.max() > np.iinfo(np.int32).max:
+                raise LfsamError(f"labels must be < 2**31, got {labels.max()}")
             self.labels = labels.astype(np.int32)
 
     def _check_gt(self, array: np.ndarray, name: str) -> np.ndarray:
@@ -240,18 +269,89 @@ class LightField:
         }
 
 
-def _to_uint8(views: np.ndarray) -> np.ndarray:
-    """Convert float views in [0, 1] (or [0, 255]) and 16-bit views to uint8."""
+def check_result_shape(labels_shape: tuple[int, ...], lf: LightField, where: str) -> None:
+    """Check that a result's labels ``(S, T, U, V)`` fit the light field ``lf``.
+
+    Raises
+    ------
+    LfsamError
+        If the grid or the view size differ.
+    """
+    if tuple(labels_shape) != lf.views.shape[:4]:
+        raise LfsamError(
+            f"{where} has labels of shape {tuple(labels_shape)} but the light field "
+            f"{lf.meta.get('source', '')} has views {lf.views.shape[:4]} (S, T, U, V); "
+            "give the light field the result was computed on"
+        )
+
+
+def float_scale(views: np.ndarray, value_range: float | None = None) -> tuple[float, str]:
+    """The factor that maps float views to 0..255, and a note saying why.
+
+    The rule (documented in the module docstring and the README): values must be finite and in
+    [0, 255]; with ``value_range`` None they are [0, 1] intensities when the 99.9th percentile of
+    the values (over an evenly strided sample of at most about 4 million values) is at most 2,
+    else [0, 255].
+
+    Parameters
+    ----------
+    views : ndarray, float
+        The views.
+    value_range : {1, 255} or None
+        Forces the interpretation.
+
+    Returns
+    -------
+    scale : float
+        255.0 for [0, 1] views, 1.0 for [0, 255] views.
+    note : str
+        For ``meta["value_range"]``.
+
+    Raises
+    ------
+    LfsamError
+        For non-finite values, values outside [0, 255], or a ``value_range`` other than 1 or 255.
+    """
+    if value_range is not None and value_range not in (1, 255):
+        raise LfsamError(f"value range must be 1 or 255, got {value_range!r}")
+    bad = views.size - int(np.count_nonzero(np.isfinite(views)))
+    if bad:
+        raise LfsamError(
+            f"{bad} view values are NaN or infinite; fix the light field (views must be finite)"
+        )
+    low, high = (float(views.min()), float(views.max())) if views.size else (0.0, 0.0)
+    if low < -NEGATIVE_TOLERANCE or high > 255:
+        raise LfsamError(
+            f"float view values span {low:.4g}..{high:.4g}, outside [0, 255]; rescale the "
+            "views to [0, 1] or [0, 255]"
+        )
+    if value_range is not None:
+        return (255.0 if value_range == 1 else 1.0), f"[0, {value_range}] (given)"
+    flat = views.reshape(-1)
+    step = max(1, flat.size // 4_000_000)
+    level = float(np.percentile(flat[::step], RANGE_PERCENTILE)) if flat.size else 0.0
+    if level <= UNIT_RANGE_LIMIT:
+        return 255.0, f"[0, 1] (auto: {RANGE_PERCENTILE}th percentile {level:.4g} <= 2)"
+    return 1.0, f"[0, 255] (auto: {RANGE_PERCENTILE}th percentile {level:.4g} > 2)"
+
+
+def _to_uint8(views: np.ndarray, value_range: float | None = None) -> tuple[np.ndarray, str]:
+    """Convert float (see :func:`float_scale`), 16-bit and other integer views to uint8."""
     if views.dtype == np.uint16:
-        return (views // 257).astype(np.uint8)
+        return (views // 257).astype(np.uint8), ""
+    if views.dtype == np.bool_:
+        raise LfsamError("views are booleans; give uint8 RGB (or float) views")
     if np.issubdtype(views.dtype, np.floating):
-        finite = views[np.isfinite(views)]
-        scale = 255.0 if finite.size == 0 or finite.max() <= 1.0 + 1e-6 else 1.0
-        return np.clip(np.rint(np.nan_to_num(views) * scale), 0, 255).astype(np.uint8)
+        scale, note = float_scale(views, value_range)
+        clipped = int(np.count_nonzero(views > 1.0)) if scale == 255.0 else 0
+        if clipped:
+            note += f"; {clipped} values above 1 clipped to 1"
+        out = np.clip(np.rint(views.astype(np.float32) * scale), 0, 255).astype(np.uint8)
+        return out, note
     if np.issubdtype(views.dtype, np.integer):
-        if views.min() < 0 or views.max() > 255:
+        if views.size and (views.min() < 0 or views.max() > 255):
             raise LfsamError(
                 f"integer views must lie in 0..255, got {views.min()}..{views.max()}"
             )
-        return views.astype(np.uint8)
+        return views.astype(np.uint8), ""
     raise LfsamError(f"unsupported view dtype {views.dtype}; use uint8 RGB")

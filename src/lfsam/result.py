@@ -20,7 +20,7 @@ import numpy as np
 from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_output
 
-__all__ = ["PackedMasks", "SegmentationResult", "load_result", "save_result"]
+__all__ = ["PackedMasks", "SegmentationResult", "check_present", "load_result", "save_result"]
 
 FORMAT_VERSION = 1
 
@@ -100,6 +100,9 @@ class SegmentationResult:
     meta : dict
         JSON-serialisable: method, model, random-weights flag, thresholds, disparity source,
         input path, package version.
+    present : (S, T) bool ndarray, optional
+        Which views of the light field exist (partial grids, docs/design.md section 8); absent
+        views hold all-zero labels. None (older files) means every view is present.
     """
 
     labels: np.ndarray
@@ -109,6 +112,18 @@ class SegmentationResult:
     refine_iou: np.ndarray | None = None
     timings: dict[str, float] = field(default_factory=dict)
     meta: dict[str, Any] = field(default_factory=dict)
+    present: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.present is not None:
+            self.present = check_present(self.present, np.shape(self.labels)[:2], "result")
+
+    @property
+    def present_mask(self) -> np.ndarray:
+        """``present`` as an (S, T) bool array (all True when the result has none)."""
+        if self.present is None:
+            return np.ones(self.grid_shape, dtype=bool)
+        return self.present
 
     @property
     def num_masks(self) -> int:
@@ -154,7 +169,7 @@ def save_result(result: SegmentationResult, path: str | os.PathLike) -> Path:
     if result.masks is not None:
         arrays["masks_packed"] = result.masks.data
         arrays["masks_shape"] = np.array(result.masks.shape, dtype=np.int64)
-    for name in ("scores", "fallback", "refine_iou"):
+    for name in ("scores", "fallback", "refine_iou", "present"):
         value = getattr(result, name)
         if value is not None:
             arrays[name] = np.asarray(value)
@@ -191,8 +206,12 @@ def load_result(path: str | os.PathLike) -> SegmentationResult:
     try:
         with np.load(path, allow_pickle=False) as npz:
             contents = {key: npz[key] for key in npz.files}
-    except Exception as exc:  # zipfile/np errors vary
-        raise LfsamError(f"cannot read {str(path)!r} as .npz: {exc}") from exc
+    except Exception as exc:  # zipfile/zlib/NumPy errors on damaged files vary
+        detail = " ".join(str(exc).split())[:160]
+        raise LfsamError(
+            f"cannot read {str(path)!r} as a result .npz ({type(exc).__name__}: {detail}); "
+            "give the .npz written by `lfsam segment --out`"
+        ) from None
     if "labels" not in contents:
         raise LfsamError(
             f"{str(path)!r} holds no 'labels' array (keys: {sorted(contents)}); "
@@ -201,18 +220,71 @@ def load_result(path: str | os.PathLike) -> SegmentationResult:
     labels = contents["labels"]
     if labels.ndim != 4:
         raise LfsamError(f"'labels' in {str(path)!r} has shape {labels.shape}, need (S, T, U, V)")
+    if not np.issubdtype(labels.dtype, np.integer) or (
+        labels.size and (labels.min() < 0 or labels.max() > np.iinfo(np.int32).max)
+    ):
+        raise LfsamError(
+            f"'labels' in {str(path)!r} must be integers >= 0 (0 = unlabeled), got "
+            f"{labels.dtype}; re-create the result"
+        )
     masks = None
     if "masks_packed" in contents and "masks_shape" in contents:
-        masks = PackedMasks(tuple(contents["masks_shape"].tolist()), contents["masks_packed"])
+        try:
+            shape = tuple(int(x) for x in np.asarray(contents["masks_shape"]).ravel())
+            if len(shape) != 5 or min(shape) < 0:
+                raise ValueError
+        except (TypeError, ValueError):
+            raise LfsamError(
+                f"'masks_shape' in {str(path)!r} is not 5 sizes (N, S, T, U, V); "
+                "re-create the result"
+            ) from None
+        if shape[1:] != labels.shape:
+            raise LfsamError(
+                f"masks in {str(path)!r} have shape {shape[1:]} per mask but the labels "
+                f"{labels.shape}; re-create the result"
+            )
+        masks = PackedMasks(shape, contents["masks_packed"])
+    try:
+        timings = json.loads(str(contents["timings"])) if "timings" in contents else {}
+        meta = json.loads(str(contents["meta"])) if "meta" in contents else {}
+    except ValueError:
+        raise LfsamError(
+            f"'timings' or 'meta' in {str(path)!r} is not JSON; re-create the result"
+        ) from None
+    present = contents.get("present")
+    if present is not None:
+        present = check_present(present, labels.shape[:2], repr(str(path)))
     return SegmentationResult(
         labels=labels.astype(np.int32),
         masks=masks,
         scores=contents.get("scores"),
         fallback=contents.get("fallback"),
         refine_iou=contents.get("refine_iou"),
-        timings=json.loads(str(contents["timings"])) if "timings" in contents else {},
-        meta=json.loads(str(contents["meta"])) if "meta" in contents else {},
+        timings=timings if isinstance(timings, dict) else {},
+        meta=meta if isinstance(meta, dict) else {},
+        present=present,
     )
+
+
+def check_present(present: Any, grid_shape: tuple[int, ...], where: str) -> np.ndarray:
+    """Check a ``present`` mask: (S, T), boolean (or 0/1); return it as bool.
+
+    Raises
+    ------
+    LfsamError
+        If it has another shape or values other than 0 and 1.
+    """
+    present = np.asarray(present)
+    if present.shape != tuple(grid_shape):
+        raise LfsamError(
+            f"'present' of {where} has shape {present.shape}, but the grid is "
+            f"{tuple(grid_shape)}; it must be one flag per view"
+        )
+    if present.dtype != bool and not (
+        np.issubdtype(present.dtype, np.number) and np.isin(present, (0, 1)).all()
+    ):
+        raise LfsamError(f"'present' of {where} must hold booleans (True = view exists)")
+    return present.astype(bool)
 
 
 def _json_default(value: Any) -> Any:

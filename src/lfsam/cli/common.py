@@ -9,10 +9,19 @@ is read.
 from __future__ import annotations
 
 import argparse
+import math
 
 from lfsam.devices import DEVICE_HELP
 
-__all__ = ["HelpFormatter", "add_device_argument", "parse_floats", "parse_pair"]
+__all__ = [
+    "HelpFormatter",
+    "add_device_argument",
+    "add_value_range",
+    "bounded_int",
+    "parse_floats",
+    "parse_pair",
+    "unit_interval",
+]
 
 
 class HelpFormatter(argparse.RawDescriptionHelpFormatter, argparse.ArgumentDefaultsHelpFormatter):
@@ -32,16 +41,56 @@ def parse_pair(text: str, sep: str = "x", kind: type = int) -> tuple:
 
 
 def parse_floats(text: str, count: int) -> tuple[float, ...]:
-    """Parse ``count`` comma-separated floats, e.g. ``"10,20"`` for a point."""
+    """Parse ``count`` comma-separated finite floats, e.g. ``"10,20"`` for a point."""
     try:
         values = tuple(float(x) for x in text.split(","))
     except ValueError:
         values = ()
-    if len(values) != count:
+    if len(values) != count or not all(math.isfinite(v) for v in values):
         raise argparse.ArgumentTypeError(
             f"expected {count} comma-separated numbers, got {text!r}"
         )
     return values
+
+
+def unit_interval(text: str) -> float:
+    """Parse a number in [0, 1] (a threshold such as ``--t-sim``)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0.0 <= value <= 1.0:  # also rejects NaN
+        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}")
+    return value
+
+
+def add_value_range(parser: argparse.ArgumentParser) -> None:
+    """Add ``--value-range 1|255``: how floating-point views are scaled (LightField docstring)."""
+    parser.add_argument(
+        "--value-range",
+        type=int,
+        choices=(1, 255),
+        default=None,
+        help="floating-point views are [0, 1] (1) or [0, 255] (255); default: [0, 1] when the "
+        "99.9th percentile of the values is <= 2",
+    )
+
+
+def bounded_int(low: int, high: int | None = None):
+    """An argparse type: an integer in ``[low, high]`` (no upper bound when ``high`` is None)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < low or (high is not None and value > high):
+            bounds = f"in [{low}, {high}]" if high is not None else f">= {low}"
+            raise argparse.ArgumentTypeError(f"expected an integer {bounds}, got {text!r}")
+        return value
+
+    parse.__name__ = "integer"
+    return parse
 
 
 def add_device_argument(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:

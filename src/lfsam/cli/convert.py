@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from lfsam.cli.common import HelpFormatter
+from lfsam.cli.common import HelpFormatter, add_value_range
 from lfsam.io import FORMATS, read_lightfield, resolve_output, write_lightfield
 
 __all__ = ["register", "run"]
@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     """Read ``args.path`` and write it to ``args.out``."""
     if Path(args.path).exists():
         resolve_output(args.out)  # a bad output fails before the input is read
-    lf = read_lightfield(args.path, args.format_in)
+    lf = read_lightfield(args.path, args.format_in, value_range=args.value_range)
     out = write_lightfield(lf, args.out)
     kind = ".npz archive" if out.suffix.lower() == ".npz" else "scene folder"
     s_count, t_count = lf.grid_shape
@@ -70,4 +70,5 @@ def register(subparsers) -> None:
         default=None,
         help="read the input as this format instead of detecting it",
     )
+    add_value_range(parser)
     parser.set_defaults(func=run)

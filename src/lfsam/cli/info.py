@@ -6,7 +6,7 @@ import argparse
 import json
 from typing import Any
 
-from lfsam.cli.common import HelpFormatter
+from lfsam.cli.common import HelpFormatter, add_value_range
 from lfsam.io import FORMATS, read_lightfield
 from lfsam.lightfield import LightField
 
@@ -47,7 +47,11 @@ def _text(summary: dict[str, Any]) -> str:
     lines = [
         ("source", summary.get("source", "?")),
         ("format", summary.get("format", "?")),
-        ("grid", f"{s_count} x {t_count} views, center view {tuple(summary['center'])}"),
+        (
+            "grid",
+            f"{s_count} x {t_count} grid, {summary.get('views_present', s_count * t_count)} of "
+            f"{s_count * t_count} views present, center view {tuple(summary['center'])}",
+        ),
         ("view size", f"{rows} x {cols} pixels (rows x columns)"),
     ]
     if summary["disparity"] is None:
@@ -73,6 +77,7 @@ def _text(summary: dict[str, Any]) -> str:
         "labels",
         "num_labels",
         "label_offset",
+        "views_present",
     }
     for key, value in summary.items():
         if key not in shown:
@@ -85,7 +90,7 @@ def _text(summary: dict[str, Any]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Print the summary of ``args.path``."""
-    lf = read_lightfield(args.path, args.format)
+    lf = read_lightfield(args.path, args.format, value_range=args.value_range)
     summary = summarize(lf)
     print(json.dumps(summary, indent=2) if args.json else _text(summary))
     return 0
@@ -108,4 +113,5 @@ def register(subparsers) -> None:
         help="read as this format instead of detecting it from the path",
     )
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
+    add_value_range(parser)
     parser.set_defaults(func=run)

@@ -26,6 +26,7 @@ SUBCOMMANDS = [
     "models",
     "segment",
     "metrics",
+    "export",
     "evaluate",
     "show",
     "demo",

@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 
-from lfsam.cli.common import HelpFormatter
+from lfsam.cli.common import HelpFormatter, add_value_range, bounded_int, unit_interval
 from lfsam.cli.models import add_model_arguments, model_options_from_args
 from lfsam.cli.prompts import PROMPT_PARSERS, PromptAction, objects_from_items
 
@@ -106,10 +106,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="move each pixel by its disparity (paper eq. 2) or the whole mask by its "
         "mean/median disparity (authors' code)",
     )
-    method.add_argument("--t-sim", type=float, default=0.7, help="semantic occluding threshold")
-    method.add_argument("--t-iou", type=float, default=0.1, help="refinement fallback threshold")
     method.add_argument(
-        "--objects-per-pass", type=int, default=15,
+        "--t-sim", type=unit_interval, default=0.7, help="semantic occluding threshold, in [0, 1]"
+    )
+    method.add_argument(
+        "--t-iou", type=unit_interval, default=0.1, help="refinement fallback threshold, in [0, 1]"
+    )
+    method.add_argument(
+        "--objects-per-pass", type=bounded_int(1), default=15,
         help="video baseline: objects tracked per pass (the authors used 15)",
     )
     method.add_argument(
@@ -124,6 +128,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--format", dest="input_format", help="input format (default: detect)")
     parser.add_argument("--out", required=True, metavar="RESULT.npz", help="result file")
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    add_value_range(parser)
     parser.set_defaults(func=run)
 
 
@@ -153,7 +158,9 @@ def run(args: argparse.Namespace) -> int:
         t_iou=args.t_iou,
     )
     check_output_path(args.out)
-    lightfield = read_lightfield(args.path, format=args.input_format)
+    lightfield = read_lightfield(
+        args.path, format=args.input_format, value_range=args.value_range
+    )
     objects = None
     if has_prompts:
         objects = (

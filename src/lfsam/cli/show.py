@@ -249,14 +249,14 @@ def _check_options(args: argparse.Namespace, scene: _Scene) -> None:
         raise LfsamError(f"--row {args.row} is outside the views (0..{u_count - 1})")
     if args.col is not None and not 0 <= args.col < v_count:
         raise LfsamError(f"--col {args.col} is outside the views (0..{v_count - 1})")
-    if args.upsample < 1:
-        raise LfsamError(f"--upsample must be >= 1, got {args.upsample}")
+    if not 1 <= args.upsample <= 64:
+        raise LfsamError(f"--upsample must be in 1..64, got {args.upsample}")
     if not 0.0 <= args.alpha <= 1.0:
         raise LfsamError(f"--alpha must lie in [0, 1], got {args.alpha}")
-    if args.scale <= 0:
-        raise LfsamError(f"--scale must be > 0, got {args.scale}")
-    if args.fps <= 0:
-        raise LfsamError(f"--fps must be > 0, got {args.fps}")
+    if not 0 < args.scale <= 32:  # NaN fails too
+        raise LfsamError(f"--scale must be > 0 and <= 32, got {args.scale}")
+    if not 0.01 <= args.fps <= 1000:  # a GIF frame lasts at most 655 s
+        raise LfsamError(f"--fps must lie in [0.01, 1000], got {args.fps}")
     if args.mask_outlines and (scene.masks is None or scene.other is not None):
         raise LfsamError("--mask-outlines needs a result that stores its masks, and no --compare")
     if args.match_colors and scene.other is None:

@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import math
 
-from lfsam.cli.common import HelpFormatter, parse_pair
+from lfsam.cli.common import HelpFormatter, bounded_int, parse_pair
+from lfsam.errors import LfsamError
 from lfsam.io import WRITE_FORMATS, resolve_output, write_lightfield
 from lfsam.synth import generate_scene
 
 __all__ = ["register", "run"]
+
+#: Largest RGB rendering (bytes, before downsampling) that `lfsam synth` attempts.
+MAX_RENDER_BYTES = 8 << 30
 
 DESCRIPTION = """\
 Generate a synthetic light field with exact ground truth: a textured background plane and
@@ -39,7 +44,7 @@ examples:
 
 def _disparity_range(text: str) -> tuple[float, float]:
     low, high = parse_pair(text, sep=",", kind=float)
-    if not low < high:
+    if not (low < high and math.isfinite(low) and math.isfinite(high)):
         raise argparse.ArgumentTypeError(f"expected LO,HI with LO < HI, got {text!r}")
     return low, high
 
@@ -64,6 +69,13 @@ def _count(text: str) -> int:
 def run(args: argparse.Namespace) -> int:
     """Generate the scene and write it."""
     resolve_output(args.out, args.format)  # fail before the work, not after
+    rendered = args.grid[0] * args.grid[1] * args.size[0] * args.size[1] * args.supersample**2
+    if rendered * 3 > MAX_RENDER_BYTES:
+        raise LfsamError(
+            f"a {args.grid[0]}x{args.grid[1]} grid of {args.size[0]}x{args.size[1]} views with "
+            f"supersample {args.supersample} needs more than {MAX_RENDER_BYTES >> 30} GiB; "
+            "choose a smaller --grid, --size or --supersample"
+        )
     lf = generate_scene(
         grid=args.grid,
         size=args.size,
@@ -107,8 +119,10 @@ def register(subparsers) -> None:
         metavar="UxV",
         help="pixel rows x columns of each view",
     )
-    parser.add_argument("--seed", type=int, default=0, help="random seed")
-    parser.add_argument("--objects", type=int, default=6, help="objects in front of the background")
+    parser.add_argument("--seed", type=bounded_int(0), default=0, help="random seed (>= 0)")
+    parser.add_argument(
+        "--objects", type=bounded_int(0, 1000), default=6, help="objects in front of the background"
+    )
     parser.add_argument(
         "--hidden-objects",
         type=_count,
@@ -125,7 +139,7 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--supersample",
-        type=int,
+        type=bounded_int(1, 8),
         default=2,
         help="RGB samples per pixel along each axis (anti-aliasing)",
     )

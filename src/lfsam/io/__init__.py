@@ -152,7 +152,9 @@ def detect_format(path: str | os.PathLike) -> str:
     )
 
 
-def read_lightfield(path: str | os.PathLike, format: str | None = None) -> LightField:
+def read_lightfield(
+    path: str | os.PathLike, format: str | None = None, value_range: int | None = None
+) -> LightField:
     """Read a light field from any supported layout, in the package convention.
 
     Parameters
@@ -161,6 +163,9 @@ def read_lightfield(path: str | os.PathLike, format: str | None = None) -> Light
         File or folder (see the table in this module's docstring).
     format : str, optional
         One of :data:`FORMATS` (or an alias such as ``"hci"``); detected from the path if None.
+    value_range : {1, 255}, optional
+        Whether floating-point views (arrays in npz/npy/h5/mat) are [0, 1] or [0, 255]; None
+        decides by the rule of :func:`lfsam.lightfield.float_scale`.
 
     Returns
     -------
@@ -181,7 +186,10 @@ def read_lightfield(path: str | os.PathLike, format: str | None = None) -> Light
         raise LfsamError(f"format {name!r} reads a folder, but {str(path)!r} is a file")
     if name in ("npz", "npy", "h5", "mat") and not path.is_file():
         raise LfsamError(f"format {name!r} reads a file, but {str(path)!r} is a folder")
-    lf = _READERS[name](path)
+    if name in ("npz", "npy", "h5", "mat"):
+        lf = _READERS[name](path, value_range=value_range)
+    else:
+        lf = _READERS[name](path)
     lf.meta.setdefault("source", str(path))
     lf.meta["format"] = name
     return lf

@@ -1,9 +1,10 @@
 """Light fields stored as arrays: ``.npz``, ``.npy``, HDF5 (``.h5``) and MATLAB (``.mat``).
 
 The views must be one 5-D array ``[S, T, U, V, 3]`` (view row, view column, pixel row, pixel
-column, RGB), uint8 or float in [0, 1]. Files with several arrays are searched by the usual key
-names (``views``, ``LF``, ``lf``, ``lightfield``, ``data``, ...), otherwise by the only 5-D array
-they hold. ``.npz`` files may also hold ``disparity`` and ``labels`` ([S, T, U, V] or center
+column, RGB), uint8, or float in [0, 1] or [0, 255] (the rule: :func:`lfsam.lightfield.float_scale`;
+``value_range`` says which). Files with several arrays are searched by the usual key names
+(``views``, ``LF``, ``lf``, ``lightfield``, ``data``, ...), otherwise by the only 5-D array they
+hold. ``.npz`` files may also hold ``disparity`` and ``labels`` ([S, T, U, V] or center
 [U, V]) and a JSON ``meta`` string: that is the package's exchange format, written by
 :func:`write_npz`, and its disparity is in the package convention.
 
@@ -23,6 +24,7 @@ import numpy as np
 
 from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_output
+from lfsam.io.decode import decoding
 from lfsam.io.native import json_safe
 from lfsam.lightfield import LightField
 
@@ -92,7 +94,7 @@ def _optional(arrays: dict, keys: tuple[str, ...]) -> np.ndarray | None:
     return None
 
 
-def read_npz(path: str | os.PathLike) -> LightField:
+def read_npz(path: str | os.PathLike, value_range: int | None = None) -> LightField:
     """Read an ``.npz`` light field (``views`` plus optional ``disparity``, ``labels``, ``meta``).
 
     Raises
@@ -102,18 +104,17 @@ def read_npz(path: str | os.PathLike) -> LightField:
     """
     path = Path(path)
     arrays: dict[str, np.ndarray] = {}
-    try:
-        with np.load(path, allow_pickle=False) as archive:
-            for key in archive.files:
-                try:
-                    arrays[key] = archive[key]
-                except ValueError:  # a pickled object array: never unpickled, skipped
-                    continue
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        raise LfsamError(
-            f"cannot read {path} as .npz ({type(exc).__name__}: {exc}); check the file"
-        ) from None
-    keys = [k for k in arrays if k not in ("meta", *DISPARITY_KEYS, *LABEL_KEYS)]
+    with decoding(path, ".npz"), np.load(path, allow_pickle=False) as archive:
+        if not hasattr(archive, "files"):
+            raise LfsamError(f"{path} is a single .npy array, not an .npz archive; rename it")
+        for key in archive.files:
+            try:
+                arrays[key] = archive[key]
+            except ValueError as exc:  # a pickled object array: never unpickled, skipped
+                if "allow_pickle" not in str(exc):
+                    raise
+                continue
+    keys = [k for k in arrays if k not in ("meta", "present", *DISPARITY_KEYS, *LABEL_KEYS)]
     key = _pick(keys, arrays, VIEW_KEYS, path)
     views = check_view_array(arrays[key], f"array {key!r} in {path}")
     meta: dict = {}
@@ -132,10 +133,12 @@ def read_npz(path: str | os.PathLike) -> LightField:
         disparity=_optional(arrays, DISPARITY_KEYS),
         labels=_optional(arrays, LABEL_KEYS),
         meta=meta,
+        present=arrays.get("present"),
+        value_range=value_range,
     )
 
 
-def read_npy(path: str | os.PathLike) -> LightField:
+def read_npy(path: str | os.PathLike, value_range: int | None = None) -> LightField:
     """Read a single ``.npy`` array ``[S, T, U, V, 3]``.
 
     Raises
@@ -144,12 +147,16 @@ def read_npy(path: str | os.PathLike) -> LightField:
         If the file is unreadable or has the wrong shape.
     """
     path = Path(path)
-    try:
+    with decoding(path, ".npy"):
         array = np.load(path, mmap_mode="r", allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        raise LfsamError(f"cannot read {path} as .npy ({exc}); check the file") from None
+    if not isinstance(array, np.ndarray):
+        raise LfsamError(f"{path} is not a single .npy array; give an [S, T, U, V, 3] .npy")
     views = check_view_array(array, str(path))
-    return LightField(np.asarray(views), meta={"source": str(path), "format": "npy"})
+    with decoding(path, ".npy"):
+        views = np.array(views)
+    return LightField(
+        views, meta={"source": str(path), "format": "npy"}, value_range=value_range
+    )
 
 
 def _h5_arrays(group) -> dict[str, object]:
@@ -180,30 +187,31 @@ class _Reversed:
         return array if dtype is None else array.astype(dtype)
 
 
-def _read_hdf5(path: Path, fmt: str, matlab: bool) -> LightField:
+def _read_hdf5(path: Path, fmt: str, matlab: bool, value_range: int | None = None) -> LightField:
     import h5py
 
-    try:
+    with decoding(path, "HDF5"):
         handle = h5py.File(path, "r")
-    except OSError as exc:
-        raise LfsamError(f"cannot read {path} as HDF5 ({exc}); check the file") from None
     with handle:
-        datasets = _h5_arrays(handle)
+        with decoding(path, "HDF5"):
+            datasets = _h5_arrays(handle)
         arrays = {k: (_Reversed(v) if matlab else v) for k, v in datasets.items()}
         keys = [k for k in arrays if k not in (*DISPARITY_KEYS, *LABEL_KEYS)]
         key = _pick(keys, arrays, VIEW_KEYS, path)
-        views = check_view_array(
-            np.asarray(arrays[key]), f"dataset {key!r} in {path}", allow_weight_channel=matlab
-        )
-        disparity = _optional(arrays, DISPARITY_KEYS)
-        labels = _optional(arrays, LABEL_KEYS)
+        with decoding(path, "HDF5"):
+            data = np.asarray(arrays[key])
+            disparity = _optional(arrays, DISPARITY_KEYS)
+            labels = _optional(arrays, LABEL_KEYS)
+        views = check_view_array(data, f"dataset {key!r} in {path}", allow_weight_channel=matlab)
     meta = {"source": str(path), "format": fmt, "dataset": key}
     if matlab:
         meta["layout"] = "MATLAB v7.3 (HDF5), axes reversed from column-major storage"
-    return LightField(views, disparity=disparity, labels=labels, meta=meta)
+    return LightField(
+        views, disparity=disparity, labels=labels, meta=meta, value_range=value_range
+    )
 
 
-def read_h5(path: str | os.PathLike) -> LightField:
+def read_h5(path: str | os.PathLike, value_range: int | None = None) -> LightField:
     """Read a 5-D ``[S, T, U, V, 3]`` dataset from an HDF5 file (key ``LF``, ``views``, ...).
 
     Raises
@@ -211,10 +219,10 @@ def read_h5(path: str | os.PathLike) -> LightField:
     LfsamError
         If the file is unreadable or holds no suitable dataset.
     """
-    return _read_hdf5(Path(path), "h5", matlab=False)
+    return _read_hdf5(Path(path), "h5", matlab=False, value_range=value_range)
 
 
-def read_mat(path: str | os.PathLike) -> LightField:
+def read_mat(path: str | os.PathLike, value_range: int | None = None) -> LightField:
     """Read a MATLAB ``.mat`` light field (v5 with SciPy, v7.3 with h5py).
 
     Raises
@@ -225,12 +233,13 @@ def read_mat(path: str | os.PathLike) -> LightField:
     import scipy.io
 
     path = Path(path)
-    try:
-        contents = scipy.io.loadmat(path)
-    except NotImplementedError:  # MATLAB v7.3 is HDF5
-        return _read_hdf5(path, "mat", matlab=True)
-    except (OSError, ValueError, TypeError) as exc:
-        raise LfsamError(f"cannot read {path} as a MATLAB file ({exc}); check the file") from None
+    with decoding(path, "a MATLAB file"):
+        try:
+            contents = scipy.io.loadmat(path)
+        except NotImplementedError:  # MATLAB v7.3 is HDF5
+            contents = None
+    if contents is None:
+        return _read_hdf5(path, "mat", matlab=True, value_range=value_range)
     arrays = {
         k: v for k, v in contents.items() if not k.startswith("__") and isinstance(v, np.ndarray)
     }
@@ -242,6 +251,7 @@ def read_mat(path: str | os.PathLike) -> LightField:
         disparity=_optional(arrays, DISPARITY_KEYS),
         labels=_optional(arrays, LABEL_KEYS),
         meta={"source": str(path), "format": "mat", "variable": key},
+        value_range=value_range,
     )
 
 
@@ -269,6 +279,8 @@ def write_npz(lf: LightField, path: str | os.PathLike, compress: bool = True) ->
         arrays["disparity"] = lf.disparity.astype(np.float32)
     if lf.labels is not None:
         arrays["labels"] = lf.labels.astype(np.int32)
+    if not lf.is_complete:
+        arrays["present"] = lf.present
     arrays["meta"] = np.array(json.dumps(json_safe(lf.meta), sort_keys=True))
     method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
     with (

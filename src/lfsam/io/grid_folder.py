@@ -52,8 +52,8 @@ class GridLayout:
 
     Attributes
     ----------
-    paths : list of list of Path
-        ``paths[s][t]`` is the image of view ``(s, t)``.
+    paths : list of list of Path or None
+        ``paths[s][t]`` is the image of view ``(s, t)``; None where the view is missing.
     rows, cols : list of int
         The row and column indices as written in the file names, in grid order.
     scheme : str
@@ -90,8 +90,8 @@ def list_images(folder: Path) -> list[Path]:
 
 
 def assemble_grid(
-    entries: dict[tuple[int, int], Path], folder: Path, example_name
-) -> tuple[list[list[Path]], list[int], list[int]]:
+    entries: dict[tuple[int, int], Path], folder: Path, example_name, allow_missing: bool = False
+) -> tuple[list[list[Path | None]], list[int], list[int]]:
     """Arrange ``{(row index, col index): path}`` on the sorted grid, checking completeness.
 
     Parameters
@@ -102,28 +102,37 @@ def assemble_grid(
         The folder (for messages).
     example_name : callable (row, col) -> str
         The file name a missing view would have (for the message).
+    allow_missing : bool
+        Accept a partial grid (docs/design.md section 8): missing views get None. The center
+        view must still be there.
 
     Returns
     -------
     paths, rows, cols
-        ``paths[s][t]`` and the sorted unique indices.
+        ``paths[s][t]`` (None for a missing view) and the sorted unique indices.
 
     Raises
     ------
     LfsamError
-        If a view of the grid is missing.
+        If a view of the grid is missing (the center view, with ``allow_missing``).
     """
     rows = sorted({r for r, _ in entries})
     cols = sorted({c for _, c in entries})
     missing = [(r, c) for r in rows for c in cols if (r, c) not in entries]
-    if missing:
+    center = (rows[len(rows) // 2], cols[len(cols) // 2])
+    if allow_missing and missing and center in missing:
+        raise LfsamError(
+            f"the center view {example_name(*center)} of the {len(rows)}x{len(cols)} grid in "
+            f"{folder} is missing; lfsam needs the center view, add it"
+        )
+    if missing and not allow_missing:
         r, c = missing[0]
         more = f" and {len(missing) - 1} more" if len(missing) > 1 else ""
         raise LfsamError(
             f"view missing from the {len(rows)}x{len(cols)} grid in {folder}: "
             f"{example_name(r, c)}{more}; add the missing view(s) or remove the partial row/column"
         )
-    return [[entries[(r, c)] for c in cols] for r in rows], rows, cols
+    return [[entries.get((r, c)) for c in cols] for r in rows], rows, cols
 
 
 def _parse(stem: str) -> list[tuple[str, str, tuple[int, ...], tuple[int, ...]]]:
@@ -158,8 +167,13 @@ def linear_layout(
     items: list[tuple[Path, tuple[int, ...], tuple[int, ...]]],
     folder: Path,
     grid: tuple[int, int] | None,
-) -> tuple[list[list[Path]], list[int], list[int]]:
+    partial_start: int | None = None,
+) -> tuple[list[list[Path | None]], list[int], list[int]]:
     """Arrange linearly numbered views row-major on a grid (square unless ``grid`` is given).
+
+    With ``partial_start`` (and ``grid``) the numbers are absolute: number ``partial_start +
+    s * T + t`` is view ``(s, t)`` and views may be missing (None; docs/design.md section 8),
+    except the center view.
 
     Parameters
     ----------
@@ -190,6 +204,8 @@ def linear_layout(
         by_index[index] = path
     indices = sorted(by_index)
     count = len(indices)
+    if partial_start is not None and grid is not None:
+        return _partial_linear(by_index, items, folder, grid, partial_start)
     if grid is None:
         side = math.isqrt(count)
         if side * side != count:
@@ -214,6 +230,28 @@ def linear_layout(
             f"{detail}; add the missing view(s)"
         )
     paths = [[by_index[start + s * t_count + t] for t in range(t_count)] for s in range(s_count)]
+    return paths, list(range(s_count)), list(range(t_count))
+
+
+def _partial_linear(by_index, items, folder: Path, grid: tuple[int, int], start: int):
+    s_count, t_count = grid
+    width = items[0][2][0]
+    outside = [i for i in by_index if not start <= i < start + s_count * t_count]
+    if outside:
+        raise LfsamError(
+            f"view number {outside[0]:0{width}d} in {folder} lies outside the {s_count}x{t_count} "
+            f"grid numbered from {start:0{width}d}; remove it or give the right grid size"
+        )
+    center = start + (s_count // 2) * t_count + t_count // 2
+    if center not in by_index:
+        name = items[0][0].name
+        raise LfsamError(
+            f"the center view (number {center:0{width}d}, like {name}) of the {s_count}x{t_count} "
+            f"grid in {folder} is missing; lfsam needs the center view, add it"
+        )
+    paths = [
+        [by_index.get(start + s * t_count + t) for t in range(t_count)] for s in range(s_count)
+    ]
     return paths, list(range(s_count)), list(range(t_count))
 
 
@@ -271,14 +309,14 @@ def scan_grid_folder(
         paths, rows, cols = linear_layout(items, folder, grid)
     else:
         paths, rows, cols = _pair_layout(items, folder, prefix, scheme)
-    used = {p for row in paths for p in row}
+    used = {p for row in paths for p in row if p is not None}
     widths = (1, 1) if scheme == "linear" else tuple(items[0][2])
     return GridLayout(
         paths, rows, cols, scheme, prefix, [p.name for p in images if p not in used], widths
     )
 
 
-def _pair_layout(items, folder: Path, prefix: str, scheme: str):
+def _pair_layout(items, folder: Path, prefix: str, scheme: str, allow_missing: bool = True):
     entries: dict[tuple[int, int], Path] = {}
     for path, (r, c), _ in items:
         if (r, c) in entries:
@@ -300,24 +338,26 @@ def _pair_layout(items, folder: Path, prefix: str, scheme: str):
         def example(r: int, c: int) -> str:
             return f"{prefix}{r:0{wr}d}{c:0{wc}d}{suffix}"
 
-    return assemble_grid(entries, folder, example)
+    return assemble_grid(entries, folder, example, allow_missing=allow_missing)
 
 
 def _compact_or_linear(folder, images, groups, prefix, items, grid) -> GridLayout:
     """RRCC names; fall back to linear numbering if the RRCC reading has holes."""
     try:
-        paths, rows, cols = _pair_layout(items, folder, prefix, "compact")
+        paths, rows, cols = _pair_layout(items, folder, prefix, "compact", allow_missing=False)
         scheme = "compact"
-    except LfsamError as compact_error:
+    except LfsamError:
+        # A partial RRCC grid, unless the names read as a complete linear numbering.
         linear = groups.get(("linear", prefix, items[0][0].suffix.lower()))
-        if not linear:
-            raise
         try:
+            if not linear:
+                raise
             paths, rows, cols = linear_layout(linear, folder, grid)
+            scheme = "linear"
         except LfsamError:
-            raise compact_error from None
-        scheme = "linear"
-    used = {p for row in paths for p in row}
+            paths, rows, cols = _pair_layout(items, folder, prefix, "compact")
+            scheme = "compact"
+    used = {p for row in paths for p in row if p is not None}
     return GridLayout(
         paths,
         rows,
@@ -351,7 +391,7 @@ def read_grid_folder(folder: str | Path, grid: tuple[int, int] | None = None) ->
         orientation is as named and not verified.
     """
     layout = scan_grid_folder(folder, grid)
-    views = read_view_grid(layout.paths)
+    views, present = read_view_grid(layout.paths, with_present=True)
     naming = {
         "pair": "ROW_COL",
         "compact": "RRCC",
@@ -368,4 +408,4 @@ def read_grid_folder(folder: str | Path, grid: tuple[int, int] | None = None) ->
     }
     if layout.ignored:
         meta["ignored_files"] = layout.ignored
-    return LightField(views, meta=meta)
+    return LightField(views, meta=meta, present=present)

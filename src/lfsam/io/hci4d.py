@@ -13,6 +13,7 @@ at ``(u - d (s - 4), v - d (t - 4))``.
 from __future__ import annotations
 
 import configparser
+import math
 import os
 import re
 from pathlib import Path
@@ -51,7 +52,7 @@ def read_parameters(path: str | os.PathLike) -> dict[str, dict[str, object]]:
     parser = configparser.ConfigParser()
     try:
         parser.read(path)
-    except configparser.Error as exc:
+    except (configparser.Error, UnicodeDecodeError) as exc:
         raise LfsamError(f"cannot parse {path} ({exc}); fix or remove the file") from None
     return {
         section: {key: _number(value) for key, value in parser[section].items()}
@@ -66,6 +67,10 @@ def read_hci4d(folder: str | os.PathLike) -> LightField:
     ----------
     folder : path-like
         The scene folder.
+
+    Views may be missing (partial grids such as the "star" subsets that keep 33 of the 81 views
+    with their original names): the grid position of each view comes from its number and the
+    light field's ``present`` flags the views found (docs/design.md section 8).
 
     Returns
     -------
@@ -103,10 +108,9 @@ def read_hci4d(folder: str | os.PathLike) -> LightField:
             extrinsics.get("num_cams_x"), int
         ):
             grid = (extrinsics["num_cams_y"], extrinsics["num_cams_x"])
-    paths, _, _ = linear_layout(items, folder, grid)
-    views = read_view_grid(paths)
+    paths, first = _layout(items, folder, grid)
+    views, present = read_view_grid(paths, with_present=True)
     s_count, t_count = views.shape[:2]
-    first = min(index for _, (index,), _ in items)
     center_index = first + (s_count // 2) * t_count + t_count // 2
     disparity = None
     all_views = [first + i for i in range(s_count * t_count)]
@@ -136,7 +140,30 @@ def read_hci4d(folder: str | os.PathLike) -> LightField:
     }
     if parameters:
         meta["parameters"] = parameters
-    return LightField(views, disparity=disparity, meta=meta)
+    return LightField(views, disparity=disparity, meta=meta, present=present)
+
+
+def _layout(items, folder: Path, grid: tuple[int, int] | None):
+    """Paths of the grid (None for missing views) and the number of view (0, 0).
+
+    A complete, consecutively numbered set keeps its own first number. Otherwise the set is a
+    partial grid (e.g. the "star" subsets: center row, center column and diagonals, 33 of 81)
+    numbered as in the benchmark, ``input_Cam000`` = top-left view; the grid is the one of
+    ``parameters.cfg``, else the smallest square holding the highest number.
+    """
+    try:
+        paths, _, _ = linear_layout(items, folder, grid)
+        return paths, min(index for _, (index,), _ in items)
+    except LfsamError as complete_error:
+        highest = max(index for _, (index,), _ in items)
+        if grid is None:
+            side = math.isqrt(highest)
+            side += 1 if side * side <= highest else 0
+            grid = (side, side)
+        if highest >= grid[0] * grid[1] or len(items) > grid[0] * grid[1]:
+            raise complete_error from None
+        paths, _, _ = linear_layout(items, folder, grid, partial_start=0)
+        return paths, 0
 
 
 def _shapes_match(gt_files: dict[int, Path], indices: list[int], shape) -> bool:

@@ -26,6 +26,7 @@ import numpy as np
 
 from lfsam.errors import LfsamError
 from lfsam.io.arrays import check_view_array
+from lfsam.io.decode import decoding
 from lfsam.io.orientation import detect_orientation
 from lfsam.lightfield import LightField
 
@@ -63,7 +64,7 @@ def is_hci_old(path: Path) -> bool:
     try:
         with h5py.File(h5, "r") as handle:
             return "LF" in handle and "GT_DEPTH" in handle
-    except OSError:
+    except Exception:  # unreadable or damaged: not an old-HCI scene
         return False
 
 
@@ -99,18 +100,17 @@ def read_hci_old(path: str | os.PathLike) -> LightField:
     import h5py
 
     h5 = _h5_file(Path(path))
-    try:
+    with decoding(h5, "HDF5"):
         handle = h5py.File(h5, "r")
-    except OSError as exc:
-        raise LfsamError(f"cannot read {h5} as HDF5 ({exc}); check the file") from None
-    with handle:
+    with handle, decoding(h5, "an old-HCI HDF5 file"):
         if "LF" not in handle or "GT_DEPTH" not in handle:
             raise LfsamError(f"{h5} lacks the datasets 'LF' and 'GT_DEPTH' of an old-HCI scene")
-        views = check_view_array(np.asarray(handle["LF"]), f"dataset 'LF' in {h5}")
+        data = np.asarray(handle["LF"])
         depth = np.asarray(handle["GT_DEPTH"])
         dh = _attribute(handle, "dH", h5)
         focal = _attribute(handle, "focalLength", h5)
         shift = _attribute(handle, "shift", h5)
+    views = check_view_array(data, f"dataset 'LF' in {h5}")
     if depth.shape not in (views.shape[:4], views.shape[2:4]):
         raise LfsamError(
             f"GT_DEPTH in {h5} has shape {depth.shape}, expected {views.shape[:4]} or "
@@ -120,13 +120,13 @@ def read_hci_old(path: str | os.PathLike) -> LightField:
     labels = None
     label_file = h5.parent / "labels.h5"
     if label_file.is_file():
-        try:
-            with h5py.File(label_file, "r") as handle:
-                if "GT_LABELS" not in handle:
-                    raise LfsamError(f"{label_file} lacks the dataset 'GT_LABELS'")
-                labels = np.asarray(handle["GT_LABELS"]).astype(np.int64) + LABEL_OFFSET
-        except OSError as exc:
-            raise LfsamError(f"cannot read {label_file} ({exc}); check the file") from None
+        with decoding(label_file, "HDF5"), h5py.File(label_file, "r") as handle:
+            if "GT_LABELS" not in handle:
+                raise LfsamError(f"{label_file} lacks the dataset 'GT_LABELS'")
+            labels = np.asarray(handle["GT_LABELS"])
+        if labels.dtype.kind not in "biuf":
+            raise LfsamError(f"GT_LABELS in {label_file} are not numbers; check the file")
+        labels = labels.astype(np.int64) + LABEL_OFFSET
     # The sign comes from the formula; only the grid arrangement is tested.
     finite = np.where(np.isfinite(disparity), disparity, 0.0)
     report = detect_orientation(views, finite, decide_sign=False)

@@ -14,7 +14,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from PIL import Image, UnidentifiedImageError
+from PIL import Image
 from tqdm import tqdm
 
 from lfsam.errors import LfsamError
@@ -46,7 +46,7 @@ def image_size(path: Path) -> tuple[int, int]:
     try:
         with Image.open(path) as image:
             width, height = image.size
-    except (OSError, UnidentifiedImageError, ValueError) as exc:
+    except Exception as exc:  # any decoder failure on a damaged file
         raise LfsamError(
             f"cannot read image {str(path)!r} ({type(exc).__name__}); replace or remove the file"
         ) from None
@@ -79,26 +79,35 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
             return np.asarray(image, dtype=np.uint8)
     except FileNotFoundError:
         raise LfsamError(f"image {str(path)!r} not found; check the path") from None
-    except (OSError, UnidentifiedImageError, ValueError, SyntaxError) as exc:
+    except Exception as exc:  # any decoder failure on a damaged file (zlib, struct, ...)
         raise LfsamError(
             f"cannot read image {str(path)!r} ({type(exc).__name__}: {exc}); "
             "replace or remove the file"
         ) from None
 
 
-def read_view_grid(paths: Sequence[Sequence[Path]], desc: str = "reading views") -> np.ndarray:
+def read_view_grid(
+    paths: Sequence[Sequence[Path | None]],
+    desc: str = "reading views",
+    with_present: bool = False,
+):
     """Read a grid of view images into one ``(S, T, U, V, 3)`` uint8 array, in parallel.
 
     Parameters
     ----------
     paths : S x T nested sequence of paths
-        ``paths[s][t]`` is the image of view ``(s, t)``.
+        ``paths[s][t]`` is the image of view ``(s, t)``, or None for a missing view of a partial
+        grid (left all zero; docs/design.md section 8).
     desc : str
         Label of the progress bar (shown on a terminal only).
+    with_present : bool
+        Also return the ``(S, T)`` bool mask of the views read.
 
     Returns
     -------
     views : ndarray, (S, T, U, V, 3), uint8
+    present : ndarray, (S, T), bool
+        Only with ``with_present``.
 
     Raises
     ------
@@ -106,25 +115,28 @@ def read_view_grid(paths: Sequence[Sequence[Path]], desc: str = "reading views")
         If an image cannot be read or the views differ in size (the message names both files).
     """
     s_count, t_count = len(paths), len(paths[0])
-    flat = [Path(p) for row in paths for p in row]
-    first_shape = image_size(flat[0])
-    views = np.empty((s_count * t_count, *first_shape, 3), dtype=np.uint8)
+    flat = [None if p is None else Path(p) for row in paths for p in row]
+    present = np.array([p is not None for p in flat]).reshape(s_count, t_count)
+    first = next(p for p in flat if p is not None)
+    first_shape = image_size(first)
+    views = np.zeros((s_count * t_count, *first_shape, 3), dtype=np.uint8)
 
     def load(index: int) -> None:
         image = read_image(flat[index])
         if image.shape[:2] != first_shape:
             raise LfsamError(
                 f"views differ in size: {flat[index].name} is {image.shape[0]}x{image.shape[1]} "
-                f"but {flat[0].name} is {first_shape[0]}x{first_shape[1]} (rows x columns); "
+                f"but {first.name} is {first_shape[0]}x{first_shape[1]} (rows x columns); "
                 "all views of a light field must have the same size"
             )
         views[index] = image
 
     with ThreadPoolExecutor(max_workers=_workers()) as pool:
-        futures = [pool.submit(load, i) for i in range(len(flat))]
+        futures = [pool.submit(load, i) for i, p in enumerate(flat) if p is not None]
         for future in tqdm(futures, desc=desc, unit="view", disable=None, leave=False):
             future.result()
-    return views.reshape(s_count, t_count, *first_shape, 3)
+    views = views.reshape(s_count, t_count, *first_shape, 3)
+    return (views, present) if with_present else views
 
 
 def write_view_grid(

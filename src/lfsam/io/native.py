@@ -160,12 +160,15 @@ def write_native(lf: LightField, path: str | os.PathLike, compress_level: int = 
         "view_digits": digits,
         "disparity": _extent(lf.disparity),
         "labels": _extent(lf.labels),
+        "present": None if lf.is_complete else lf.present.tolist(),
         "convention": CONVENTION,
         "meta": json_safe(lf.meta),
     }
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".part", dir=parent))
     try:
         write_view_grid(lf.views, tmp, pattern, compress_level=compress_level)
+        for s, t in zip(*np.nonzero(~lf.present), strict=True):  # absent views: no file
+            (tmp / pattern.format(s=s, t=t)).unlink()
         if lf.disparity is not None:
             np.save(tmp / "disparity.npy", lf.disparity.astype(np.float32))
         if lf.labels is not None:
@@ -204,7 +207,7 @@ def is_native(path: Path) -> bool:
 def _load_gt(path: Path, name: str) -> np.ndarray:
     try:
         return np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
+    except Exception as exc:  # any NumPy failure on a damaged file
         raise LfsamError(
             f"cannot read {name} {str(path)!r} ({exc}); the scene is damaged, re-create it"
         ) from None
@@ -248,11 +251,23 @@ def read_native(path: str | os.PathLike) -> LightField:
     try:
         s_count, t_count = (int(x) for x in description["grid"])
         digits = int(description.get("view_digits", 2))
-    except (KeyError, TypeError, ValueError):
+        if min(s_count, t_count) < 1 or s_count * t_count > 100_000 or not 1 <= digits <= 6:
+            raise ValueError
+    except (KeyError, TypeError, ValueError, OverflowError):
         raise LfsamError(f"{marker} has no valid 'grid'; re-create the scene") from None
     pattern = _view_pattern(digits)
-    paths = [[folder / pattern.format(s=s, t=t) for t in range(t_count)] for s in range(s_count)]
-    missing = [p for row in paths for p in row if not p.is_file()]
+    present = description.get("present")
+    try:
+        present = np.ones((s_count, t_count), bool) if present is None else np.array(present)
+        if present.shape != (s_count, t_count) or present.dtype != bool:
+            raise ValueError
+    except ValueError:
+        raise LfsamError(f"{marker} has an invalid 'present'; re-create the scene") from None
+    paths = [
+        [folder / pattern.format(s=s, t=t) if present[s, t] else None for t in range(t_count)]
+        for s in range(s_count)
+    ]
+    missing = [p for row in paths for p in row if p is not None and not p.is_file()]
     if missing:
         raise LfsamError(
             f"scene {folder} lacks view {missing[0].name}"
@@ -270,4 +285,4 @@ def read_native(path: str | os.PathLike) -> LightField:
     if old_source is not None or old_format is not None:
         meta["converted_from"] = f"{old_format or '?'}: {old_source or '?'}"
     meta.update(source=str(folder), format="lfsam")
-    return LightField(views, disparity=disparity, labels=labels, meta=meta)
+    return LightField(views, disparity=disparity, labels=labels, meta=meta, present=present)

@@ -73,12 +73,13 @@ def read_pfm(path: str | os.PathLike) -> np.ndarray:
             scale = float(_read_token(handle, path))
         except ValueError:
             raise LfsamError(f"{path} has a malformed PFM header; re-export the file") from None
-        if width <= 0 or height <= 0 or scale == 0:
+        if not (0 < width <= 1 << 16 and 0 < height <= 1 << 16) or not scale or scale != scale:
             raise LfsamError(f"{path} has an invalid PFM header ({width}x{height}, scale {scale})")
         channels = 3 if magic == b"PF" else 1
         dtype = np.dtype("<f4") if scale < 0 else np.dtype(">f4")
         count = width * height * channels
-        data = np.frombuffer(handle.read(count * 4), dtype=dtype)
+        raw = handle.read(count * 4)
+        data = np.frombuffer(raw[: len(raw) // 4 * 4], dtype=dtype)
     if data.size != count:
         raise LfsamError(
             f"{path} holds {data.size} samples but its header says {count}; the file is truncated"

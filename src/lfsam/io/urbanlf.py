@@ -55,7 +55,7 @@ def is_urbanlf(folder: Path) -> bool:
 def _load(path: Path, what: str, shape: tuple[int, int]) -> np.ndarray:
     try:
         array = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
+    except Exception as exc:  # any NumPy failure on a damaged file
         raise LfsamError(f"cannot read {what} file {path} ({exc}); check the file") from None
     array = np.squeeze(array)
     if array.shape != shape:

@@ -130,8 +130,14 @@ def evaluate_labels(
     num_masks: int | None = None,
     device: str | torch.device | None = None,
     min_area: int | None = None,
+    present: np.ndarray | None = None,
 ) -> dict[str, float | int | None]:
     """All metrics of paper Table 1 for one predicted label field, and the object metrics.
+
+    Views absent from a partial grid (``present`` and ``gt.present``; docs/design.md section 8)
+    are skipped: their pixels are left out of every metric (they are treated as unlabeled in both
+    the prediction and the ground truth, which SIoU, LPP, AA and UE ignore; coverage and T count
+    the views present only).
 
     Parameters
     ----------
@@ -148,6 +154,8 @@ def evaluate_labels(
     min_area : int, optional
         Pixels a ground-truth object must show in some view to count for recall (default
         :func:`lfsam.metrics.recall.default_min_area`).
+    present : (S, T) bool array, optional
+        The views the prediction holds (a result's ``present``); default all.
 
     Returns
     -------
@@ -187,8 +195,16 @@ def evaluate_labels(
         raise LfsamError(f"labels must have shape (S, T, U, V), got {shape}")
     check_ground_truth(shape, gt)
     dev = resolve_device(device)
-    predicted, predicted_ids = compact_labels(to_tensor(labels, dev), "predicted labels")
-    truth, truth_ids = compact_labels(to_tensor(gt.labels, dev), "ground-truth labels")
+    views = np.asarray(gt.present, dtype=bool)
+    if present is not None:
+        views = views & np.asarray(present, dtype=bool)
+    absent = torch.as_tensor(~views, device=dev)
+    raw_predicted, raw_truth = to_tensor(labels, dev), to_tensor(gt.labels, dev)
+    if bool(absent.any()):
+        raw_predicted = raw_predicted.masked_fill(absent[:, :, None, None], 0)
+        raw_truth = raw_truth.masked_fill(absent[:, :, None, None], 0)
+    predicted, predicted_ids = compact_labels(raw_predicted, "predicted labels")
+    truth, truth_ids = compact_labels(raw_truth, "ground-truth labels")
     disparity = to_tensor(gt.disparity, dev)
 
     consistency = consistency_metrics(predicted, disparity, len(predicted_ids))
@@ -202,9 +218,9 @@ def evaluate_labels(
         "lpp": consistency.lpp,
         "aa": achievable_accuracy(table),
         "ue": undersegmentation_error(table),
-        "coverage": coverage(predicted),
+        "coverage": coverage(predicted[~absent]),
         "recall": recall.recall,
-        "ms_per_mask_view": ms_per_mask_view(timings, num_masks, shape[:2]),
+        "ms_per_mask_view": ms_per_mask_view(timings, num_masks, (int(views.sum()), 1)),
         "num_masks": num_masks,
     }
 
@@ -238,5 +254,11 @@ def evaluate_result(
     """
     num_masks = result.masks.num_masks if result.masks is not None else None
     return evaluate_labels(
-        result.labels, gt, result.timings, num_masks=num_masks, device=device, min_area=min_area
+        result.labels,
+        gt,
+        result.timings,
+        num_masks=num_masks,
+        device=device,
+        min_area=min_area,
+        present=result.present_mask,
     )

@@ -38,9 +38,10 @@ class PipelineConfig:
         Move every pixel by its own disparity (paper equation 2) or the whole mask by its
         mean/median disparity (the authors' code).
     t_sim : float
-        Semantic occluding threshold on cosine similarity (paper: 0.7).
+        Semantic occluding threshold on cosine similarity (paper: 0.7), in [0, 1].
     t_iou : float
-        Refined masks with IoU against the coarse mask not above this fall back (paper: 0.1).
+        Refined masks with IoU against the coarse mask not above this fall back (paper: 0.1),
+        in [0, 1].
     zbuffer_tolerance : float
         Geometric occluding: a pixel is hidden when a center pixel with disparity larger by more
         than this lands on the same spot (pixels per view step).
@@ -80,6 +81,13 @@ class PipelineConfig:
                 f"encode_batch_size must be at least 1, got {self.encode_batch_size}; "
                 "or None to decide from the device"
             )
+        for name in ("t_sim", "t_iou"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not 0.0 <= value <= 1.0:  # NaN fails too
+                raise LfsamError(
+                    f"{name} must be a number in [0, 1], got {value!r}; "
+                    f"use e.g. --{name.replace('_', '-')} {getattr(PipelineConfig, name)}"
+                )
 
     @classmethod
     def from_ablation(cls, name: str, **overrides: Any) -> PipelineConfig:

@@ -1,0 +1,77 @@
+"""``lfsam export``: a result in the formats other tools read (docs/design.md section 8)."""
+
+from __future__ import annotations
+
+import argparse
+
+from lfsam.cli.common import HelpFormatter
+
+DESCRIPTION = """\
+Export a segmentation result (.npz from `lfsam segment`) into a folder, for the next tool:
+
+  png    view_SS_TT.png: one 16-bit label PNG per view (pixel value = object id, 0 = none);
+         sorted file names are row-major view order (view row s, then view column t)
+  masks  object_NNNN/view_SS_TT.png: one black/white PNG per object and view
+  coco   annotations.json: COCO instances, one image per view (grid position in view_row,
+         view_col), one RLE annotation per object and view, track_id = object id in every view
+  npy    labels.npy [S, T, U, V] int32, masks.npy [K, S, T, U, V] bool, ids.npy [K], present.npy
+
+Every folder also holds lfsam_export.json (grid, view size, object ids, source, views present).
+Views absent from a partial grid (the result's `present` flags) are never written, only flagged.
+The folder is written atomically; an existing non-empty folder is replaced only with --force.
+With --lightfield the result is checked against its light field (same grid and view size).
+"""
+
+EPILOG = """\
+examples:
+  lfsam export result.npz --to png --out labels/
+  lfsam export result.npz --to coco --out coco/ --force
+  lfsam export result.npz --to masks --out masks/ --lightfield scene
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``export`` subcommand."""
+    from lfsam.export import EXPORT_FORMATS
+
+    parser = subparsers.add_parser(
+        "export",
+        help="write a result as label PNGs, binary masks, COCO JSON or NumPy arrays",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=HelpFormatter,
+    )
+    parser.add_argument("result", metavar="RESULT.npz", help="result with labels [S, T, U, V]")
+    parser.add_argument("--to", required=True, choices=EXPORT_FORMATS, help="output format")
+    parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    parser.add_argument(
+        "--force", action="store_true", help="replace --out if it is a non-empty folder"
+    )
+    parser.add_argument(
+        "--lightfield", metavar="PATH", help="check the result against this light field"
+    )
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Load the result (and its light field), export it, print what was written."""
+    from lfsam.export import check_export_target, export_result
+    from lfsam.result import load_result
+
+    check_export_target(args.out, args.force)
+    result = load_result(args.result)
+    if args.lightfield:
+        from lfsam.io import read_lightfield
+        from lfsam.lightfield import check_result_shape
+
+        lightfield = read_lightfield(args.lightfield)
+        check_result_shape(result.labels.shape, lightfield, args.result)
+        if result.present is None:
+            result.present = lightfield.present
+    out = export_result(result, args.out, args.to, force=args.force)
+    s_count, t_count = result.grid_shape
+    print(
+        f"wrote {args.to} export of {s_count} x {t_count} views "
+        f"({int(result.present_mask.sum())} present) to {out}"
+    )
+    return 0
