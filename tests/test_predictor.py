@@ -193,6 +193,8 @@ def test_absent_views_get_no_labels():
     labels = predictor.predict().labels
     assert not labels[0, 0].any() and labels[1, 1].any()
     assert predictor.views_encoded == 8
+    result = predictor.to_result()
+    assert not result.present[0, 0] and result.present.sum() == 8
 
 
 # --- any reference view: the convention round trip ---------------------------------------------

@@ -866,6 +866,7 @@ class LightFieldPredictor:
             else np.zeros((0, *lf.grid_shape), dtype=np.float32),
             timings=timings,
             meta=meta,
+            present=lf.present.copy(),
         )
 
     @staticmethod
