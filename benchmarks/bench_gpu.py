@@ -147,7 +147,8 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     base_objects = n if base_objects <= 0 else min(base_objects, n)
     began = time.perf_counter()
 
-    lf = generate_scene(grid=grid, size=size, seed=args.seed, num_objects=max(n + 2, 4))
+    lf = generate_scene(grid=grid, size=size, seed=args.seed, num_objects=max(n + 2, 4),
+                        device=device)
     points = prompt_points(lf.center_labels, n, seed=args.seed)
     prompts = [Prompts(points=points[:, None, :], point_labels=np.ones((n, 1)))]
     num_views = grid[0] * grid[1]
