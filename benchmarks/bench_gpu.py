@@ -131,6 +131,8 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
                         help="objects the baseline is timed on (one pass; 0 = all N; default "
                         "15, or 2 with --quick)")
     parser.add_argument("--no-baseline", action="store_true", help="skip the video baseline")
+    parser.add_argument("--no-estimate", action="store_true",
+                        help="skip timing the disparity estimate")
     parser.add_argument("--seed", type=int, default=0, help="scene seed")
     args = parser.parse_args(argv)
     preset = QUICK if args.quick else FULL
@@ -169,8 +171,10 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
         run_segmentation(lf, method="lfsam", segmenter=segmenter, disparity=lf.center_disparity,
                          prompts=prompts, progress=False)
 
-    _, disparity_s = _timed(device, lambda: resolve_disparity("estimate", lf,
-                                                              device=str(device)))
+    disparity_s = float("nan")
+    if not args.no_estimate:
+        _, disparity_s = _timed(device, lambda: resolve_disparity("estimate", lf,
+                                                                  device=str(device)))
     _reset_peak(device)
     runs = []
     for _ in range(repeats):
