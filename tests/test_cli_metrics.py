@@ -16,6 +16,7 @@ from lfsam.result import SegmentationResult, save_result
 # label 1 = object, 2 = background.
 ROWS = np.array([[2, 2, 2, 1, 1, 2], [2, 2, 1, 1, 2, 2], [2, 1, 1, 2, 2, 2]])
 KEYS = {"siou", "lpp", "aa", "ue", "coverage", "ms_per_mask_view", "num_masks"}
+KEYS |= {"recall", "siou_center"}
 
 
 def as_field(rows: np.ndarray) -> np.ndarray:

@@ -240,12 +240,16 @@ def test_boundary_jitter_is_seeded_and_bounded(lightfield):
         "dilated": ndimage.binary_dilation(exact, square),
         "eroded": ndimage.binary_erosion(exact, square, border_value=1),
     }
+    # The same prompt on the same view gets the same answer (no hidden generator state), so
+    # an interactive edit reproduces a full run; the draws vary with the seed instead.
+    assert all(np.array_equal(m, a[0]) for m in a)
     kinds = set()
-    for m in a:
+    for seed in range(12):
+        m = _jittered(seed, lightfield)[0]
         match = [name for name, ref in named.items() if np.array_equal(m, ref)]
         assert len(match) == 1, "each answer is the region dilated, eroded or unchanged by 1 px"
         kinds.add(match[0])
-    assert len(kinds) >= 2  # 12 draws from {-1, 0, 1} are not all equal for seed 0
+    assert len(kinds) >= 2  # 12 seeds' draws from {-1, 0, 1} are not all equal
 
 
 def test_merge_adds_the_neighbour_with_the_longest_border(lightfield):

@@ -97,8 +97,9 @@ def run_segmentation(
         SAM 2 weights file; default: the model hub's weights for ``model`` (cached).
     random_weights : bool
         Untrained SAM 2 (tests and speed benchmarks only; recorded in the metadata).
-    disparity : {"estimate", "gt"}, path to a .npy, or (U, V) array
-        Center-view disparity for propagation (LFSAM only).
+    disparity : {"estimate", "gt"}, path to a .npy, or array
+        Center-view disparity for propagation (LFSAM only): any source
+        :func:`lfsam.disparity.resolve_disparity` accepts.
     ablation : {"none", "ref", "ref+occ"}, optional
         A row of the paper's Table 2; overrides ``config``'s refinement and occluding.
     config : PipelineConfig, optional
@@ -170,16 +171,9 @@ def run_segmentation(
     from lfsam.disparity import resolve_disparity
 
     start = time.perf_counter()
-    if isinstance(disparity, np.ndarray):
-        disparity_map, disparity_source = disparity.astype(np.float32), "array"
-        if disparity_map.shape != lightfield.view_shape:
-            raise LfsamError(
-                f"disparity has shape {disparity_map.shape}, expected {lightfield.view_shape}"
-            )
-    else:
-        disparity_map, disparity_source = resolve_disparity(
-            disparity, lightfield, device=str(segmenter.device)
-        )
+    disparity_map, disparity_source = resolve_disparity(
+        disparity, lightfield, device=str(segmenter.device)
+    )
     disparity_seconds = time.perf_counter() - start
     result = segment_lightfield(
         lightfield, segmenter, disparity_map, prompts, config, progress=progress

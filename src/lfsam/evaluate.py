@@ -32,7 +32,12 @@ from tqdm import tqdm
 from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_output
 from lfsam.lightfield import LightField
-from lfsam.metrics import METRICS, check_ground_truth, evaluate_result
+from lfsam.metrics import (
+    OBJECT_METRICS,
+    REPORT_METRICS,
+    check_ground_truth,
+    evaluate_result,
+)
 from lfsam.metrics.report import format_metrics_table
 from lfsam.result import SegmentationResult, save_result
 
@@ -51,7 +56,7 @@ __all__ = [
 SegmentFn = Callable[[LightField], SegmentationResult]
 Reader = Callable[[Path], LightField]
 
-METRIC_KEYS = tuple(m.key for m in METRICS)
+METRIC_KEYS = tuple(m.key for m in REPORT_METRICS)
 #: Columns of ``metrics.csv``.
 CSV_COLUMNS = ("scene", "method", *METRIC_KEYS, "num_masks", "seconds", "error")
 MEAN_ROW = "mean"
@@ -69,7 +74,8 @@ class SceneRow:
     method : str
         Method label of the run.
     metrics : dict
-        ``siou``, ``lpp``, ``aa``, ``ue``, ``coverage``, ``ms_per_mask_view`` (None when undefined
+        ``siou``, ``lpp``, ``aa``, ``ue``, ``coverage``, ``ms_per_mask_view``, ``recall``,
+        ``siou_center`` (None when undefined
         or when the scene failed).
     num_masks : int or None
         N of the result.
@@ -145,7 +151,9 @@ class EvaluationTable:
 
     def summary_markdown(self) -> str:
         """One-row table of the mean, in the layout of paper Table 1."""
-        return format_metrics_table([(self.method, self.mean)], mark_best=False)
+        return format_metrics_table(
+            [(self.method, self.mean)], mark_best=False, metrics=REPORT_METRICS
+        )
 
     def to_markdown(self, title: str | None = None) -> str:
         """The ``table.md`` text: the mean (paper Table 1 layout), each scene, failures, skips."""
@@ -159,7 +167,11 @@ class EvaluationTable:
         ]
         scored = [(row.scene, row.metrics) for row in self.rows if row.error is None]
         if scored:
-            parts.append(format_metrics_table(scored, first_column="Scene", mark_best=False))
+            parts.append(
+                format_metrics_table(
+                    scored, first_column="Scene", mark_best=False, metrics=REPORT_METRICS
+                )
+            )
         else:
             parts.append("(no scene was scored)\n")
         if self.failed:
@@ -358,7 +370,9 @@ def read_metrics_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
         )
     with open(path, newline="", encoding="utf-8") as handle:
         reader = csv.DictReader(handle)
-        missing = set(CSV_COLUMNS) - set(reader.fieldnames or ())
+        # Files written before the object metrics existed lack their columns: read as None.
+        optional = {m.key for m in OBJECT_METRICS}
+        missing = set(CSV_COLUMNS) - optional - set(reader.fieldnames or ())
         if missing:
             raise LfsamError(
                 f"{str(path)!r} is not a metrics.csv of lfsam evaluate (missing {sorted(missing)})"
@@ -367,7 +381,7 @@ def read_metrics_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
         for raw in reader:
             row: dict[str, Any] = dict(raw)
             for key in (*METRIC_KEYS, "num_masks", "seconds"):
-                row[key] = float(raw[key]) if raw[key] not in ("", None) else None
+                row[key] = float(raw[key]) if raw.get(key) not in ("", None) else None
             row["error"] = raw["error"] or None
             rows.append(row)
     return rows
@@ -406,7 +420,7 @@ def compare_runs(dirs: Sequence[str | os.PathLike]) -> str:
             label = f"{label} [{Path(folder).name}]"
         labels.append(label)
         rows.append((label, mean[-1]))
-    return format_metrics_table(rows)
+    return format_metrics_table(rows, metrics=REPORT_METRICS)
 
 
 # --- internals ------------------------------------------------------------------------------

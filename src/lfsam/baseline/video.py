@@ -244,16 +244,8 @@ def _resolve_disparity(
     disparity: np.ndarray | str | None, lightfield: LightField, device: torch.device
 ) -> tuple[np.ndarray, str]:
     """The center disparity used to carry prompts to the start view, and where it came from."""
-    if isinstance(disparity, np.ndarray):
-        if disparity.shape != lightfield.view_shape:
-            raise LfsamError(
-                f"disparity has shape {disparity.shape}, expected {lightfield.view_shape}"
-            )
-        return disparity.astype(np.float32), "array"
     if disparity is None:
         disparity = "gt" if lightfield.center_disparity is not None else "estimate"
-    if disparity == "gt" and lightfield.center_disparity is not None:
-        return lightfield.center_disparity.astype(np.float32), "gt"
     from lfsam.disparity import resolve_disparity
 
     return resolve_disparity(disparity, lightfield, device=str(device))

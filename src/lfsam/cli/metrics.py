@@ -14,13 +14,18 @@ Score a segmentation result with the paper's metrics (section 4.1) and print the
 Every view's masks are projected into the center view with the ground-truth disparity of that
 view (rounded to the nearest pixel; pixels landing outside the frame are dropped), then:
   siou              self IoU: per mask, the mean IoU between its projection from each other view
-                    and its center-view mask; mean over masks (higher is better, <= 1)
+                    and its center-view mask; mean over masks (higher is better, <= 1). As in
+                    the paper, a mask absent from the center view scores 0
+  siou_center       siou over the masks present in the center view only
   lpp               labels per pixel (Khan et al. 2019): distinct labels one center pixel receives
                     from all views, averaged over labeled pixels (lower is better, >= 1)
   aa                achievable accuracy: each label mapped to the ground-truth label it overlaps
                     most; accuracy over pixels labeled in both (higher is better)
   ue                undersegmentation error (Neubert & Protzel 2012; lower is better)
   coverage          fraction of all light-field pixels that carry a label (C)
+  recall            object recall: fraction of ground-truth objects (with at least --min-area
+                    pixels in some view) that a label matches with IoU >= 0.5 in the view where
+                    the object is largest; counts objects the center view cannot see
   ms_per_mask_view  milliseconds per mask per view from the result's timings (T; null without)
   num_masks         N used for T: the stored masks, or the distinct labels of a labels-only file
 Undefined values (e.g. of an empty result) are null.
@@ -33,7 +38,18 @@ EPILOG = """\
 examples:
   lfsam metrics result.npz --gt scene
   lfsam metrics result.npz --gt UrbanLF_Syn/val/Image001 --device cpu
+  lfsam metrics result.npz --gt hidden.npz --min-area 50   # objects >= 50 pixels count
 """
+
+
+def _positive(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -51,6 +67,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="the light field with per-view ground-truth disparity and labels",
     )
     parser.add_argument("--device", choices=["cuda", "cpu"], help="default: CUDA when available")
+    parser.add_argument(
+        "--min-area",
+        type=_positive,
+        default=None,
+        metavar="PIXELS",
+        help="pixels an object must show in some view to count for recall "
+        "(default: 0.1%% of a view, at least 4)",
+    )
     parser.set_defaults(func=run)
 
 
@@ -62,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
 
     result = load_result(args.result)
     gt = read_lightfield(args.gt)
-    metrics = evaluate_result(result, gt, device=args.device)
+    metrics = evaluate_result(result, gt, device=args.device, min_area=args.min_area)
     clean = {
         key: value if key == "num_masks" or value is None or not math.isnan(value) else None
         for key, value in metrics.items()

@@ -20,6 +20,12 @@ patterns; the RGB is anti-aliased. The same seed always gives the same bytes.
 
 The disparity range sets the baseline: with 9x9 views and --disparity-range=-2,2 the extreme
 views see points up to 8 pixels away from where the center view sees them.
+
+--hidden-objects K adds K small objects that the center view cannot see (entirely behind nearer
+objects there) but that come out from behind them in the outer rows and columns, each showing
+at least 100 pixels (scaled with the view size) in some corner view; their labels follow the
+other objects' and are listed in the metadata (generator.hidden_labels). The rest of the scene is
+the same as without them.
 """
 
 EPILOG = """\
@@ -27,6 +33,7 @@ examples:
   lfsam synth scene                                    # 9x9 views of 240x320, seed 0
   lfsam synth small.npz --grid 5x5 --size 64x96 --seed 3 --objects 4
   lfsam synth wide --disparity-range=-4,4              # note the '=' for negative numbers
+  lfsam synth hidden.npz --hidden-objects 3            # 3 objects only the outer views see
 """
 
 
@@ -44,6 +51,16 @@ def _positive_pair(text: str) -> tuple[int, int]:
     return pair
 
 
+def _count(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    return value
+
+
 def run(args: argparse.Namespace) -> int:
     """Generate the scene and write it."""
     resolve_output(args.out, args.format)  # fail before the work, not after
@@ -54,11 +71,13 @@ def run(args: argparse.Namespace) -> int:
         num_objects=args.objects,
         disparity_range=args.disparity_range,
         supersample=args.supersample,
+        hidden_objects=args.hidden_objects,
     )
     out = write_lightfield(lf, args.out, format=args.format)
+    hidden = f" + {args.hidden_objects} hidden" if args.hidden_objects else ""
     print(
         f"wrote {out}: {args.grid[0]}x{args.grid[1]} views of {args.size[0]}x{args.size[1]}, "
-        f"seed {args.seed}, {args.objects} objects, disparity "
+        f"seed {args.seed}, {args.objects} objects{hidden}, disparity "
         f"{lf.describe()['disparity_range'][0]:.2f}..{lf.describe()['disparity_range'][1]:.2f}"
     )
     return 0
@@ -90,6 +109,13 @@ def register(subparsers) -> None:
     )
     parser.add_argument("--seed", type=int, default=0, help="random seed")
     parser.add_argument("--objects", type=int, default=6, help="objects in front of the background")
+    parser.add_argument(
+        "--hidden-objects",
+        type=_count,
+        default=0,
+        metavar="K",
+        help="small objects the center view cannot see but corner views can",
+    )
     parser.add_argument(
         "--disparity-range",
         type=_disparity_range,

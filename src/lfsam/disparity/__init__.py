@@ -1,11 +1,12 @@
-"""Center-view disparity for the pipeline (paper section 3.2; DESIGN.md section 3.2).
+"""Disparity for the pipeline (paper section 3.2; docs/design.md sections 3.2 and 8), of any view.
 
-- :func:`estimate_disparity`: structure tensor on sheared EPIs (torch, any device).
+- :func:`estimate_disparity`: structure tensor on sheared EPIs (torch, any device, any view).
 - :func:`estimate_disparity_baseline`: the plain single-scale structure tensor in NumPy, kept as
   the comparison baseline.
 - :func:`estimate_disparity_range`: the disparity range of a light field from a coarse sweep.
-- :func:`resolve_disparity`: the disparity the pipeline uses, from ``"estimate"``, ``"gt"`` or a
-  ``.npy`` file.
+- :func:`resolve_disparity`: the one resolver: the disparity of a view from ``"estimate"``,
+  ``"gt"``, a ``.npy`` file or an array.
+- :class:`ViewDisparities`: per-view disparities resolved lazily, once each (interactive use).
 """
 
 from lfsam.disparity.baseline import estimate_disparity_baseline
@@ -13,12 +14,15 @@ from lfsam.disparity.estimate import DisparityEstimate
 from lfsam.disparity.range import estimate_disparity_range
 from lfsam.disparity.source import resolve_disparity
 from lfsam.disparity.structure_tensor import candidate_disparities, estimate_disparity
+from lfsam.disparity.views import ViewDisparities, warp_center_disparity
 
 __all__ = [
     "DisparityEstimate",
+    "ViewDisparities",
     "candidate_disparities",
     "estimate_disparity",
     "estimate_disparity_baseline",
     "estimate_disparity_range",
     "resolve_disparity",
+    "warp_center_disparity",
 ]

@@ -77,8 +77,9 @@ def estimate_disparity_range(
     device: str | torch.device | None = None,
     max_disparity: float = DEFAULT_MAX_DISPARITY,
     percentiles: tuple[float, float] = (1.0, 99.0),
+    view: tuple[int, int] | None = None,
 ) -> tuple[float, float]:
-    """Estimate the range of disparities present in the center view.
+    """Estimate the range of disparities present in a view (default: the center view).
 
     Parameters
     ----------
@@ -91,13 +92,16 @@ def estimate_disparity_range(
         view's shift stays below a quarter of the image).
     percentiles : (low, high)
         Percentiles of the per-pixel winners taken as the range ends.
+    view : (s, t), optional
+        The reference view (0-based view row and column); default the center. Only present
+        views of its row and column are swept.
 
     Returns
     -------
     (lo, hi) : tuple of float
         Pixels per view step, ``lo < hi``, widened by one search step on each side.
     """
-    stacks = epi_stacks(views, device=device)
+    stacks = epi_stacks(views, device=device, view=view)
     winners = []
     step_used = 0.5
     with torch.no_grad():
@@ -114,7 +118,7 @@ def estimate_disparity_range(
             limit = min(max_disparity, 0.25 * cols / max_offset)
             count = max(1, int(limit / step))
             grid = step * torch.arange(-count, count + 1, device=images.device, dtype=torch.float32)
-            others = torch.ones(images.shape[0], dtype=torch.bool, device=images.device)
+            others = stack.present.clone()
             others[stack.center] = False
             center = images[stack.center]
             moving = images[others]

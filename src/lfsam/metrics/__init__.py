@@ -1,11 +1,14 @@
-"""The paper's evaluation metrics (section 4.1): SIoU, LPP, AA, UE, coverage C and time T.
+"""The paper's evaluation metrics (section 4.1): SIoU, LPP, AA, UE, coverage C and time T,
+with object recall and SIoU over center-present masks beside them (DESIGN.md section 8).
 
 :func:`evaluate_labels` scores a predicted label field ``[S, T, U, V]`` (0 = unlabeled) against a
 ground-truth :class:`~lfsam.lightfield.LightField` with per-view disparity and labels;
 :func:`evaluate_result` does the same for a :class:`~lfsam.result.SegmentationResult`, taking T
 from its timings. The definitions, and the choices the paper leaves open, are documented in
 :mod:`lfsam.metrics.consistency` (SIoU, LPP), :mod:`lfsam.metrics.segmentation` (AA, UE) and
-:mod:`lfsam.metrics.performance` (C, T). The work runs on torch tensors, on CUDA when present.
+:mod:`lfsam.metrics.performance` (C, T) and :mod:`lfsam.metrics.recall` (object recall, SIoU
+over center-present masks, and how SIoU scores masks absent from the center view). The work runs
+on torch tensors, on CUDA when present.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from lfsam.lightfield import LightField
 from lfsam.metrics.consistency import ConsistencyScores, consistency_metrics
 from lfsam.metrics.labelmap import compact_labels, to_tensor
 from lfsam.metrics.performance import coverage, ms_per_mask_view
+from lfsam.metrics.recall import center_present_siou, object_recall
 from lfsam.metrics.segmentation import (
     achievable_accuracy,
     contingency_table,
@@ -30,6 +34,8 @@ from lfsam.result import SegmentationResult
 
 __all__ = [
     "METRICS",
+    "OBJECT_METRICS",
+    "REPORT_METRICS",
     "ConsistencyScores",
     "Metric",
     "achievable_accuracy",
@@ -76,6 +82,16 @@ METRICS: tuple[Metric, ...] = (
     Metric("ms_per_mask_view", "T↓", False, digits=1),
 )
 
+#: Beside the paper's columns: object recall and SIoU over center-present masks
+#: (:mod:`lfsam.metrics.recall`, DESIGN.md section 8).
+OBJECT_METRICS: tuple[Metric, ...] = (
+    Metric("recall", "Recall↑", True),
+    Metric("siou_center", "SIoU(c)↑", True),
+)
+
+#: Every reported column: paper Table 1's, then :data:`OBJECT_METRICS`.
+REPORT_METRICS: tuple[Metric, ...] = METRICS + OBJECT_METRICS
+
 
 def check_ground_truth(shape: tuple[int, ...], gt: LightField) -> None:
     """Check that ``gt`` can score a label field of ``shape``.
@@ -118,8 +134,9 @@ def evaluate_labels(
     *,
     num_masks: int | None = None,
     device: str | torch.device | None = None,
+    min_area: int | None = None,
 ) -> dict[str, float | int | None]:
-    """All metrics of paper Table 1 for one predicted label field.
+    """All metrics of paper Table 1 for one predicted label field, and the object metrics.
 
     Parameters
     ----------
@@ -133,13 +150,17 @@ def evaluate_labels(
         N for T; defaults to the number of distinct non-zero labels.
     device : str or torch.device, optional
         Where to compute; CUDA when available, else CPU.
+    min_area : int, optional
+        Pixels a ground-truth object must show in some view to count for recall (default
+        :func:`lfsam.metrics.recall.default_min_area`).
 
     Returns
     -------
     dict
-        ``siou``, ``lpp``, ``aa``, ``ue``, ``coverage`` (floats; NaN where undefined, e.g. SIoU,
-        LPP and AA of an empty prediction), ``ms_per_mask_view`` (float or None), and
-        ``num_masks``, the N used for T.
+        ``siou``, ``siou_center`` (SIoU over the masks present in the center view), ``lpp``,
+        ``aa``, ``ue``, ``coverage``, ``recall`` (object recall; :mod:`lfsam.metrics.recall`)
+        (floats; NaN where undefined, e.g. SIoU, LPP and AA of an empty prediction),
+        ``ms_per_mask_view`` (float or None), and ``num_masks``, the N used for T.
 
     Raises
     ------
@@ -157,21 +178,28 @@ def evaluate_labels(
 
     consistency = consistency_metrics(predicted, disparity, len(predicted_ids))
     table = contingency_table(predicted, truth, len(predicted_ids), len(truth_ids))
+    recall = object_recall(predicted, truth, len(predicted_ids), len(truth_ids), min_area)
     if num_masks is None:
         num_masks = len(predicted_ids) - 1
     return {
         "siou": consistency.siou,
+        "siou_center": center_present_siou(consistency, predicted),
         "lpp": consistency.lpp,
         "aa": achievable_accuracy(table),
         "ue": undersegmentation_error(table),
         "coverage": coverage(predicted),
+        "recall": recall.recall,
         "ms_per_mask_view": ms_per_mask_view(timings, num_masks, shape[:2]),
         "num_masks": num_masks,
     }
 
 
 def evaluate_result(
-    result: SegmentationResult, gt: LightField, *, device: str | torch.device | None = None
+    result: SegmentationResult,
+    gt: LightField,
+    *,
+    device: str | torch.device | None = None,
+    min_area: int | None = None,
 ) -> dict[str, float | int | None]:
     """:func:`evaluate_labels` for a result, with T from its own timings and mask count.
 
@@ -183,6 +211,8 @@ def evaluate_result(
         Ground truth with per-view disparity and labels.
     device : str or torch.device, optional
         Where to compute.
+    min_area : int, optional
+        Pixels a ground-truth object must show in some view to count for recall.
 
     Returns
     -------
@@ -193,5 +223,5 @@ def evaluate_result(
     """
     num_masks = result.masks.num_masks if result.masks is not None else None
     return evaluate_labels(
-        result.labels, gt, result.timings, num_masks=num_masks, device=device
+        result.labels, gt, result.timings, num_masks=num_masks, device=device, min_area=min_area
     )

@@ -201,6 +201,7 @@ def refine_masks(
     seen: torch.Tensor | None = None,
     frame_runs: FrameRuns | None = None,
     chunk_size: int = 64,
+    extra_points: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> RefinementOutcome:
     """Re-prompt the segmenter in one view and keep refined masks that agree with the coarse ones.
 
@@ -222,6 +223,9 @@ def refine_masks(
         Unseen strips at the frame border; see :func:`refinement_prompts`.
     chunk_size : int
         Prompts decoded per batch (bounds memory; each batch is one decoder call).
+    extra_points : ((N, P, 2) float, (N, P) int) ndarrays, optional
+        The user's own clicks carried into this view (docs/design.md section 8): appended to
+        each mask's prompt after the refinement point, labels 1 positive, 0 negative, -1 padding.
 
     Returns
     -------
@@ -236,6 +240,13 @@ def refine_masks(
     if prompts is None:
         return RefinementOutcome(masks, fallback, iou)
     index = torch.nonzero(prompted, as_tuple=True)[0].to(device)
+    if extra_points is not None and extra_points[0].shape[1] > 0:
+        rows_np = index.cpu().numpy()
+        prompts = Prompts(
+            points=np.concatenate([prompts.points, extra_points[0][rows_np]], axis=1),
+            point_labels=np.concatenate([prompts.point_labels, extra_points[1][rows_np]], axis=1),
+            boxes=prompts.boxes,
+        )
     # One batched decode per chunk of prompts, each chunk reduced to its chosen masks at once,
     # so the N x 3 x U x V candidates never exist together.
     for start in range(0, len(index), chunk_size):

@@ -221,6 +221,23 @@ class Segmenter(abc.ABC):
         features : (P, C) float32 tensor on :attr:`device`
         """
 
+    # --- the on-disk embedding cache (lfsam.embeddings; docs/design.md section 8) -----------------
+    def cache_identity(self) -> str | None:
+        """What, besides a view's bytes, determines its embedding: model name, a hash of the
+        weights, input size, precision. None (the default) means embeddings are not worth
+        caching on disk (e.g. the oracle, which runs no encoder)."""
+        return None
+
+    def embedding_state(self, embedding: ViewEmbedding) -> dict[str, np.ndarray]:
+        """The embedding as plain arrays for the disk cache (lossless)."""
+        raise NotImplementedError(f"{type(self).__name__} does not cache embeddings on disk")
+
+    def embedding_from_state(
+        self, state: dict[str, np.ndarray], image_size: tuple[int, int], key: tuple[int, int]
+    ) -> ViewEmbedding:
+        """Rebuild an embedding from :meth:`embedding_state`'s arrays."""
+        raise NotImplementedError(f"{type(self).__name__} does not cache embeddings on disk")
+
     # --- what semantic occluding needs of the features (defaults: via sample_features) ----------
     #: Pixels whose features are sampled at once by the default implementations below.
     feature_chunk: int = 65536

@@ -80,7 +80,9 @@ class OracleSegmenter(Segmenter):
         Imperfection: probability that an answer is merged with the neighbouring region that
         shares the longest border with it.
     seed : int
-        Seed of the imperfections (deterministic per seed and call sequence).
+        Seed of the imperfections. Each draw is a hash of the seed, the view and the regions
+        the prompt selects, so an answer does not depend on what was asked before (an
+        interactive edit reproduces a full run exactly).
     device : str or torch.device, optional
         Default: CUDA, then MPS, then CPU.
 
@@ -121,7 +123,6 @@ class OracleSegmenter(Segmenter):
         self.merge_prob = float(merge_prob)
         self.seed = int(seed)
         self.num_labels = int(lightfield.labels.max())
-        self._rng = torch.Generator().manual_seed(self.seed)
 
     def describe(self) -> dict[str, Any]:
         """A JSON-ready description for result metadata."""
@@ -211,7 +212,7 @@ class OracleSegmenter(Segmenter):
         candidates = []
         for start in range(0, n, _CHUNK):
             sub = prompts.subset(slice(start, start + _CHUNK))
-            candidates.append(self._answer(view, sub, multimask_output))
+            candidates.append(self._answer(view, sub, multimask_output, embedding.key))
         u_size, v_size = embedding.image_size
         k = 3 if multimask_output else 1
         masks = (
@@ -226,7 +227,9 @@ class OracleSegmenter(Segmenter):
             low_res_logits=torch.zeros((n, k, 0, 0), device=self.device),
         )
 
-    def _answer(self, view: OracleView, prompts: Prompts, multimask: bool) -> torch.Tensor:
+    def _answer(
+        self, view: OracleView, prompts: Prompts, multimask: bool, key: tuple[int, int] | None
+    ) -> torch.Tensor:
         """Candidate masks ``(n, K, U, V)`` for a chunk of prompts."""
         labels, comps = view.labels, view.components
         n = len(prompts)
@@ -281,7 +284,7 @@ class OracleSegmenter(Segmenter):
 
         selected = pos_labels & ~neg_labels
         if self.merge_prob > 0:
-            selected = self._merge(labels, selected)
+            selected = self._merge(labels, selected, key, neg_labels)
         region = selected[:, labels]  # (n, U, V)
         answer = region if box is None else region & box
         if not multimask:
@@ -292,15 +295,44 @@ class OracleSegmenter(Segmenter):
                 part &= box
             out = torch.stack([answer, region, part], dim=1)
         if self.boundary_jitter > 0:
-            out = self._jitter(out)
+            out = self._jitter(out, self._draws(key, selected, salt=2))
         return out
 
     # --- imperfections ------------------------------------------------------------------------
-    def _merge(self, labels: torch.Tensor, selected: torch.Tensor) -> torch.Tensor:
-        """With probability ``merge_prob``, add the neighbour with the longest shared border."""
+    def _draws(
+        self, key: tuple[int, int] | None, selected: torch.Tensor, salt: int
+    ) -> np.ndarray:
+        """One uniform number in [0, 1) per prompt: a splitmix64 hash of the seed, the view,
+        the selected regions and ``salt`` (no generator state: order-independent)."""
+        weights = (np.arange(selected.shape[1], dtype=np.uint64) + np.uint64(1)) * np.uint64(
+            0x9E3779B1
+        )
+        chosen = selected.cpu().numpy().astype(np.uint64)
+        x = (chosen * weights[None]).sum(axis=1, dtype=np.uint64)
+        s, t = key if key is not None else (0, 0)
+        base = (self.seed * 1_000_003 + (s + 1) * 7_919 + (t + 1) * 104_729) * 31 + salt
+        x = x ^ np.uint64(base % 2**63)
+        x = x + np.uint64(0x9E3779B97F4A7C15)
+        x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        x = x ^ (x >> np.uint64(31))
+        return (x >> np.uint64(11)).astype(np.float64) / float(2**53)
+
+    def _merge(
+        self,
+        labels: torch.Tensor,
+        selected: torch.Tensor,
+        key: tuple[int, int] | None = None,
+        negative: torch.Tensor | None = None,
+    ) -> torch.Tensor:
+        """With probability ``merge_prob``, add the neighbour with the longest shared border,
+        unless a negative point lies on that neighbour: then nothing is merged (as a negative
+        click removes a leak in SAM; no other region takes its place)."""
         n = len(selected)
-        draw = torch.rand(n, generator=self._rng).to(selected.device) < self.merge_prob
-        if not draw.any():
+        draw = torch.as_tensor(
+            self._draws(key, selected, salt=1) < self.merge_prob, device=selected.device
+        )
+        if n == 0 or not draw.any():
             return selected
         sel = selected[draw]
         region = sel[:, labels].float()[:, None]  # (m, 1, U, V)
@@ -310,16 +342,21 @@ class OracleSegmenter(Segmenter):
         counts[sel] = 0
         best = counts.argmax(1)
         found = counts.max(1).values > 0
+        if negative is not None:
+            rows = torch.arange(len(best), device=best.device)
+            found &= ~negative[draw][rows, best]
         sel[found.nonzero()[:, 0], best[found]] = True
         selected = selected.clone()
         selected[draw] = sel
         return selected
 
-    def _jitter(self, masks: torch.Tensor) -> torch.Tensor:
-        """Dilate (radius > 0) or erode (radius < 0) each prompt's masks by a random radius."""
+    def _jitter(self, masks: torch.Tensor, draws: np.ndarray) -> torch.Tensor:
+        """Dilate (radius > 0) or erode (radius < 0) each prompt's masks by a radius drawn
+        from ``draws`` (uniform in [0, 1), one per prompt)."""
         j = self.boundary_jitter
-        n = masks.shape[0]
-        radius = torch.randint(-j, j + 1, (n,), generator=self._rng).to(masks.device)
+        radius = torch.as_tensor(
+            np.floor(draws * (2 * j + 1)).astype(np.int64) - j, device=masks.device
+        )
         out = masks.clone()
         for r in radius.unique().tolist():  # one pass per radius value, not per pixel
             if r == 0:
@@ -358,11 +395,12 @@ class OracleSegmenter(Segmenter):
             (len(ids), self.num_labels + 1), dtype=torch.bool, device=self.device
         )
         selected[torch.arange(len(ids), device=self.device), ids] = True
+        regions = selected
         if self.merge_prob > 0:
-            selected = self._merge(labels, selected)
+            selected = self._merge(labels, selected, embedding.key)
         masks = selected[:, labels]
         if self.boundary_jitter > 0:
-            masks = self._jitter(masks[:, None])[:, 0]
+            masks = self._jitter(masks[:, None], self._draws(embedding.key, regions, salt=2))[:, 0]
         return AutoMasks(masks=masks.cpu().numpy(), scores=np.ones(len(masks), dtype=np.float32))
 
     # --- features -----------------------------------------------------------------------------

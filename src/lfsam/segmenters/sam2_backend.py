@@ -14,7 +14,9 @@ facts").
 
 from __future__ import annotations
 
+import hashlib
 import inspect
+import json
 import os
 import warnings
 from dataclasses import dataclass
@@ -304,6 +306,52 @@ class Sam2Segmenter(Segmenter):
                     per_view = [level.clone() for level in per_view]
                 views.append(Sam2Features(image_embed=per_view[-1], high_res_feats=per_view[:-1]))
         return views
+
+    # --- on-disk cache ------------------------------------------------------------------------
+    def cache_identity(self) -> str:
+        """Model name, input size, precision, device type and a SHA-256 of every weight."""
+        if getattr(self, "_weights_digest", None) is None:
+            digest = hashlib.sha256()
+            for name, tensor in sorted(self.model.state_dict().items()):
+                digest.update(name.encode())
+                flat = tensor.detach().cpu().contiguous().reshape(-1)
+                digest.update(flat.view(torch.uint8).numpy().tobytes())
+            self._weights_digest = digest.hexdigest()
+        dtype = autocast_dtype(self.device)
+        return json.dumps(
+            {
+                "backend": "sam2",
+                "name": self.name,
+                "image_size": int(self.model.image_size),
+                "precision": str(dtype) if dtype is not None else "float32",
+                "device_type": self.device.type,
+                "weights_sha256": self._weights_digest,
+            },
+            sort_keys=True,
+        )
+
+    def embedding_state(self, embedding: ViewEmbedding) -> dict[str, np.ndarray]:
+        """The image embedding and both high-resolution levels, widened to float32 (exact)."""
+        feats = self._features(embedding)
+        tensors = [feats.image_embed, *feats.high_res_feats]
+        state = {f"level{i}": t.detach().float().cpu().numpy() for i, t in enumerate(tensors)}
+        state["dtype"] = np.array(str(feats.image_embed.dtype))
+        return state
+
+    def embedding_from_state(
+        self, state: dict[str, np.ndarray], image_size: tuple[int, int], key: tuple[int, int]
+    ) -> ViewEmbedding:
+        """Inverse of :meth:`embedding_state` (checks the shapes against this model)."""
+        dtype = getattr(torch, str(state["dtype"]).removeprefix("torch."))
+        levels = [
+            torch.from_numpy(state[f"level{i}"]).to(self.device, dtype) for i in range(3)
+        ]
+        side = int(self.model.image_size)
+        expected = [side // 16, side // 4, side // 8]
+        if [int(level.shape[-1]) for level in levels] != expected:
+            raise ValueError("embedding shapes do not match this model")
+        feats = Sam2Features(image_embed=levels[0], high_res_feats=levels[1:])
+        return ViewEmbedding(image_size=tuple(image_size), key=tuple(key), data=feats)
 
     @staticmethod
     def _features(embedding: ViewEmbedding) -> Sam2Features:

@@ -203,6 +203,7 @@ def generate_scene(
     label_background: bool = True,
     supersample: int = 2,
     device: str | torch.device | None = None,
+    hidden_objects: int = 0,
 ) -> LightField:
     """A random synthetic light field with exact per-view disparity and instance labels.
 
@@ -237,6 +238,12 @@ def generate_scene(
         RGB samples per pixel along each axis.
     device : str or torch.device, optional
         Torch device for rendering.
+    hidden_objects : int
+        Extra small objects that the center view cannot see (entirely behind nearer objects
+        there) but that at least one corner view sees with at least
+        :func:`lfsam.synth.hidden.default_min_area` pixels (issue 16). Their labels follow the
+        other objects' and are listed in ``meta["generator"]["hidden_labels"]``; the rest of the
+        scene is the one generated with ``hidden_objects=0``.
 
     Returns
     -------
@@ -257,6 +264,7 @@ def generate_scene(
         disparity_range=disparity_range,
         slanted_fraction=slanted_fraction,
         label_background=label_background,
+        hidden_objects=hidden_objects,
     )
     return render_scene(spec, supersample=supersample, device=device)
 

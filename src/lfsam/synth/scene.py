@@ -162,13 +162,15 @@ class SceneSpec:
         return self.grid[0] // 2, self.grid[1] // 2
 
 
-def _check_settings(grid, size, num_objects, disparity_range) -> None:
+def _check_settings(grid, size, num_objects, disparity_range, hidden_objects=0) -> None:
     if len(grid) != 2 or min(grid) < 1:
         raise LfsamError(f"grid must be two positive numbers, got {grid}")
     if len(size) != 2 or min(size) < 8:
         raise LfsamError(f"view size must be at least 8x8 pixels, got {size}")
     if num_objects < 0:
         raise LfsamError(f"number of objects must be >= 0, got {num_objects}")
+    if hidden_objects < 0:
+        raise LfsamError(f"number of hidden objects must be >= 0, got {hidden_objects}")
     low, high = disparity_range
     if not (np.isfinite(low) and np.isfinite(high) and high > low):
         raise LfsamError(f"disparity range must be LO,HI with LO < HI, got {low},{high}; e.g. -2,2")
@@ -192,6 +194,21 @@ def _limit_slope(b: float, c: float, reach: tuple[float, float], limit: float = 
     """Scale ``(b, c)`` so that ``|b| reach_s + |c| reach_t <= limit`` (keeps A invertible)."""
     total = abs(b) * reach[0] + abs(c) * reach[1]
     return (b, c) if total <= limit else (b * limit / total, c * limit / total)
+
+
+def random_outline(rng: np.random.Generator) -> tuple[str, tuple[tuple[float, float], ...]]:
+    """A random outline name (:data:`lfsam.synth.shapes.SHAPES`) and, for a polygon, its
+    star-shaped vertices (5 to 8, jittered angles, radii 0.55 to 1 in local units)."""
+    shape = str(rng.choice(SHAPES))
+    vertices: tuple[tuple[float, float], ...] = ()
+    if shape == "polygon":
+        count = int(rng.integers(5, 9))
+        angles = np.sort(np.arange(count) * 2 * np.pi / count + rng.uniform(-0.3, 0.3, count))
+        radii = rng.uniform(0.55, 1.0, count)
+        vertices = tuple(
+            (float(r * np.sin(t)), float(r * np.cos(t))) for r, t in zip(radii, angles, strict=True)
+        )
+    return shape, vertices
 
 
 def _random_object(
@@ -229,15 +246,7 @@ def _random_object(
         reach,
     )
     plane = (float(level - b * center[0] - c * center[1]), float(b), float(c))
-    shape = str(rng.choice(SHAPES))
-    vertices: tuple[tuple[float, float], ...] = ()
-    if shape == "polygon":
-        count = int(rng.integers(5, 9))
-        angles = np.sort(np.arange(count) * 2 * np.pi / count + rng.uniform(-0.3, 0.3, count))
-        radii = rng.uniform(0.55, 1.0, count)
-        vertices = tuple(
-            (float(r * np.sin(t)), float(r * np.cos(t))) for r, t in zip(radii, angles, strict=True)
-        )
+    shape, vertices = random_outline(rng)
     obj = PlanarObject(
         label=label,
         shape=shape,
@@ -263,6 +272,7 @@ def random_scene(
     slanted_fraction: float = 0.5,
     label_background: bool = True,
     min_visible: float = 0.35,
+    hidden_objects: int = 0,
 ) -> SceneSpec:
     """A random scene: a slanted textured background and overlapping textured objects.
 
@@ -290,6 +300,11 @@ def random_scene(
         background is label 0 ("no label") and objects get 1, 2, ...
     min_visible : float
         Fraction of each object's area that must be visible in the center view.
+    hidden_objects : int
+        Small objects to add that the center view cannot see but a corner view can
+        (:func:`lfsam.synth.hidden.add_hidden_objects`; labels after the other objects', listed
+        in ``meta["hidden_labels"]``). Drawn from their own random stream, so the rest of the
+        scene is the scene with ``hidden_objects=0``.
 
     Returns
     -------
@@ -297,7 +312,7 @@ def random_scene(
     """
     grid = (int(grid[0]), int(grid[1]))
     size = (int(size[0]), int(size[1]))
-    _check_settings(grid, size, num_objects, disparity_range)
+    _check_settings(grid, size, num_objects, disparity_range, hidden_objects)
     low, high = float(disparity_range[0]), float(disparity_range[1])
     span = high - low
     rng = np.random.default_rng(seed)
@@ -365,7 +380,15 @@ def random_scene(
         "slanted_fraction": float(slanted_fraction),
         "label_background": bool(label_background),
     }
-    return SceneSpec(grid, size, (background, *objects), meta)
+    spec = SceneSpec(grid, size, (background, *objects), meta)
+    if hidden_objects:
+        from lfsam.synth.hidden import add_hidden_objects  # imports this module
+
+        spec, hidden_labels = add_hidden_objects(spec, hidden_objects, seed)
+        meta["hidden_objects"] = int(hidden_objects)
+        meta["hidden_labels"] = hidden_labels
+        spec = replace(spec, meta=meta)
+    return spec
 
 
 def _mostly_hidden(spec: SceneSpec, min_visible: float) -> list[int]:

@@ -1,0 +1,853 @@
+"""Interactive light-field segmentation: :class:`LightFieldPredictor`.
+
+The life cycle follows Meta's ``SAM2ImagePredictor`` and video predictor: :meth:`set_lightfield`
+once, then :meth:`~LightFieldPredictor.add_prompts` per object id (points positive or negative,
+at most one box, each in any view), then :meth:`~LightFieldPredictor.predict`. Each object runs
+the paper's four steps (section 3) from its own *reference view* (docs/design.md section 8):
+
+1. initial segmentation of the reference view from the object's prompts (clicks given in other
+   views are carried there by their own view's disparity);
+2. disparity propagation of that mask into every view with the reference view's disparity;
+3. occluding (semantic with SAM 2's features, and/or geometric);
+4. refinement: SAM 2 re-prompted in every view with a box and a point from the surviving
+   pixels, plus the user's own clicks carried into that view (a click that lands outside the
+   view or behind a closer surface is dropped there).
+
+Coarse to fine, each stage callable on its own: :meth:`predict_reference` (the clicked view),
+:meth:`predict_coarse` (steps 1-3 in all views), :meth:`predict` (all four steps). Views are
+encoded lazily, at most once (:class:`lfsam.embeddings.EmbeddingStore`: an in-memory LRU within
+a budget, optionally an on-disk cache). Changing one object recomputes that object only; every
+other object's masks are kept as they were. Overlaps between objects keep the pipeline's paint
+order (larger reference-view masks first, smaller on top; docs/design.md section 3.6), and an
+object's label value is its id.
+
+The batch path (:func:`lfsam.pipeline.segment_lightfield`, ``lfsam segment``, evaluation and
+benchmarks) runs on this predictor too.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter, OrderedDict, defaultdict
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+from tqdm.auto import tqdm
+
+from lfsam import __version__
+from lfsam.embeddings import EmbeddingStore
+from lfsam.errors import LfsamError
+from lfsam.lightfield import LightField
+from lfsam.pipeline.config import PipelineConfig
+from lfsam.pipeline.fusion import fuse_labels
+from lfsam.pipeline.initial import initial_segmentation
+from lfsam.pipeline.occlusion import semantic_occlusion, source_features, uniform_weights
+from lfsam.pipeline.propagation import (
+    ForwardWarp,
+    forward_warp,
+    mask_disparities,
+    propagate_masks,
+)
+from lfsam.pipeline.refinement import refine_masks
+from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt, prompts_to_json, validate_objects
+from lfsam.result import PackedMasks, SegmentationResult
+from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
+from lfsam.timing import StageTimer
+
+__all__ = ["LightFieldPrediction", "LightFieldPredictor"]
+
+View = tuple[int, int]
+
+#: Forward warps (reference view, target view) kept for reuse across edits, in bytes.
+WARP_CACHE_BYTES = 512 * 2**20
+
+
+@dataclass
+class _Reference:
+    """Step 1 of one object: its mask in its reference view."""
+
+    view: View
+    mask: torch.Tensor  # (U, V) bool on the device
+    score: float
+    feature: torch.Tensor | None = None  # (C,) unit source feature (semantic occluding)
+    disparity: torch.Tensor | None = None  # mean/median mask disparity (whole-mask modes)
+
+
+@dataclass
+class _Views:
+    """Steps 2-4 of one object in every view, bit-packed per view."""
+
+    bits: np.ndarray  # (S, T, ceil(U V / 8)) uint8
+    fallback: np.ndarray  # (S, T) bool
+    iou: np.ndarray  # (S, T) float32
+
+
+class _PackedMaskMap(Mapping):
+    """``obj_id -> (S, T, U, V) bool`` unpacked on access (never all at once)."""
+
+    def __init__(self, bits: dict[int, np.ndarray], shape: tuple[int, int, int, int]):
+        self._bits = bits
+        self._shape = shape
+
+    def __getitem__(self, obj_id: int) -> np.ndarray:
+        s, t, u, v = self._shape
+        bits = np.unpackbits(self._bits[obj_id], axis=-1, count=u * v)
+        return bits.reshape(s, t, u, v).astype(bool)
+
+    def __iter__(self) -> Iterator[int]:
+        return iter(self._bits)
+
+    def __len__(self) -> int:
+        return len(self._bits)
+
+
+@dataclass
+class LightFieldPrediction:
+    """Masks of the objects over all views.
+
+    Attributes
+    ----------
+    labels : (S, T, U, V) int32 ndarray
+        Label field; an object's label value is its id, 0 = unlabeled.
+    masks : mapping obj_id -> (S, T, U, V) bool ndarray
+        Each object's own mask (overlaps kept), unpacked on access.
+    scores : dict obj_id -> float
+        The segmenter's score of the reference-view mask.
+    reference_views : dict obj_id -> (s, t)
+    stage : {"coarse", "refined"}
+    """
+
+    labels: np.ndarray
+    masks: Mapping[int, np.ndarray]
+    scores: dict[int, float]
+    reference_views: dict[int, View]
+    stage: str = "refined"
+
+
+@dataclass
+class _Object:
+    prompts: ObjectPrompts | None
+    given_mask: np.ndarray | None = None  # automatic or imported objects: reference-view mask
+    given_view: View | None = None
+    given_score: float = 1.0
+    reference: _Reference | None = None
+    coarse: _Views | None = None
+    refined: _Views | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def invalidate(self) -> None:
+        self.reference = self.coarse = self.refined = None
+
+
+class LightFieldPredictor:
+    """Prompt objects in any view of a light field; get view-consistent 4D masks.
+
+    Parameters
+    ----------
+    segmenter : Segmenter
+        SAM 2 or the oracle (:func:`lfsam.segmenters.load_segmenter`).
+    config : PipelineConfig, optional
+        Switches and thresholds (default: the paper's full method).
+    cache_dir : path, optional
+        On-disk embedding cache (keyed by view content, model and weights).
+    memory_budget_mb : float
+        In-memory embedding budget (least recently used views dropped beyond it).
+    progress : bool
+        Progress bars over views.
+
+    Examples
+    --------
+    >>> from lfsam.synth import generate_scene
+    >>> from lfsam.segmenters import load_segmenter
+    >>> lf = generate_scene(grid=(3, 3), size=(48, 64), seed=0)
+    >>> predictor = LightFieldPredictor(load_segmenter("oracle", lightfield=lf))
+    >>> predictor.set_lightfield(lf, disparity="gt")
+    >>> predictor.add_prompts(1, points=[(32, 24)], labels=[1])
+    >>> prediction = predictor.predict()
+    >>> prediction.labels.shape
+    (3, 3, 48, 64)
+    """
+
+    def __init__(
+        self,
+        segmenter: Segmenter,
+        config: PipelineConfig | None = None,
+        *,
+        cache_dir: Any = None,
+        memory_budget_mb: float = 2048.0,
+        progress: bool = False,
+    ) -> None:
+        self.segmenter = segmenter
+        self.config = config or PipelineConfig()
+        self.cache_dir = cache_dir
+        self.memory_budget_mb = memory_budget_mb
+        self.progress = progress
+        self.device = segmenter.device
+        self.timer = StageTimer(self.device)
+        self.decode_counts: Counter[int] = Counter()
+        """Prompts decoded per object id (each decoder row counts once)."""
+        self.seconds = 0.0
+        self._objects: dict[int, _Object] = {}
+        self.lightfield: LightField | None = None
+
+    # --- light field -------------------------------------------------------------------------
+    def set_lightfield(
+        self, lightfield: LightField, disparity: Any = "estimate"
+    ) -> None:
+        """Take a light field and where its disparity comes from; forget every object.
+
+        Parameters
+        ----------
+        lightfield : LightField
+        disparity : {"estimate", "gt"}, path to a .npy, or ndarray
+            Resolved lazily, once per reference view (docs/design.md section 8): the view of
+            each object's prompts. A ``(U, V)`` array is the center view's disparity; an
+            ``(S, T, U, V)`` array gives every view's.
+        """
+        from lfsam.disparity.views import ViewDisparities
+
+        self.lightfield = lightfield
+        self._disparities = ViewDisparities(lightfield, disparity, device=str(self.device))
+        self._store = EmbeddingStore(
+            self.segmenter,
+            lightfield.views,
+            cache_dir=self.cache_dir,
+            memory_budget_mb=self.memory_budget_mb,
+        )
+        self._disp_tensors: dict[View, torch.Tensor] = {}
+        self._warps: OrderedDict[tuple[View, View], ForwardWarp] = OrderedDict()
+        self._warp_bytes = 0
+        self._objects = {}
+        self._labels_cache: dict[str, np.ndarray] = {}
+
+    def _require(self) -> LightField:
+        if self.lightfield is None:
+            raise LfsamError("no light field set; call set_lightfield(lightfield) first")
+        return self.lightfield
+
+    @property
+    def views_encoded(self) -> int:
+        """Image-encoder runs on views so far (0 when all came from the disk cache)."""
+        return 0 if self.lightfield is None else self._store.views_encoded
+
+    def embedding(self, view: View) -> ViewEmbedding:
+        """The embedding of ``view`` (encoded on first use, then cached)."""
+        self._require()
+        with self.timer("encode"):
+            return self._store.get(view)
+
+    def disparity(self, view: View) -> torch.Tensor:
+        """Disparity of ``view`` on the segmenter's device (resolved once)."""
+        view = (int(view[0]), int(view[1]))
+        if view not in self._disp_tensors:
+            with self.timer("disparity"):
+                disp = self._disparities.get(view)
+            self._disp_tensors[view] = torch.tensor(disp, dtype=torch.float32, device=self.device)
+        return self._disp_tensors[view]
+
+    # --- objects -----------------------------------------------------------------------------
+    @property
+    def objects(self) -> dict[int, ObjectPrompts]:
+        """The prompts of every prompted object, by id."""
+        return {i: o.prompts for i, o in self._objects.items() if o.prompts is not None}
+
+    @property
+    def object_ids(self) -> list[int]:
+        """Ids of every object (prompted, automatic or imported), ascending."""
+        return sorted(self._objects)
+
+    def add_prompts(
+        self,
+        obj_id: int,
+        points: Sequence[Sequence[float]] | None = None,
+        labels: Sequence[int] | None = None,
+        box: Sequence[float] | None = None,
+        view: View | None = None,
+    ) -> ObjectPrompts:
+        """Add clicks (and/or set the box) of object ``obj_id`` in ``view`` (None = center).
+
+        Points are ``(x, y)`` = (pixel column, pixel row); ``labels`` 1 = positive, 0 =
+        negative (default all positive). A box replaces the object's box. Only this object is
+        recomputed at the next prediction.
+
+        Returns
+        -------
+        ObjectPrompts
+            The object's prompts after the edit.
+        """
+        lf = self._require()
+        view = lf.center if view is None else (int(view[0]), int(view[1]))
+        points = [] if points is None else [tuple(map(float, p)) for p in points]
+        labels = [1] * len(points) if labels is None else [int(x) for x in labels]
+        if len(labels) != len(points):
+            raise LfsamError(f"object {obj_id}: {len(points)} points but {len(labels)} labels")
+        current = self._objects.get(obj_id)
+        base = (
+            current.prompts
+            if current is not None and current.prompts is not None
+            else ObjectPrompts(int(obj_id))
+        )
+        new = base.with_points(
+            PointPrompt(x, y, label == 1, view)
+            for (x, y), label in zip(points, labels, strict=True)
+        )
+        if box is not None:
+            new = new.with_box(BoxPrompt(*map(float, box), view=view))
+        self.set_object(new)
+        return new
+
+    def set_object(self, prompts: ObjectPrompts) -> None:
+        """Set (or replace) one object's prompts; only it is recomputed."""
+        lf = self._require()
+        prompts = prompts.resolved(lf.center)
+        validate_objects([prompts], lf.grid_shape, lf.view_shape)
+        for view in prompts.views(lf.center):
+            if not lf.present[view]:
+                raise LfsamError(
+                    f"object {prompts.obj_id}: view {view[0]},{view[1]} is absent from this "
+                    "light field; prompt a view that exists"
+                )
+        self._objects[prompts.obj_id] = _Object(prompts=prompts)
+        self._labels_cache.clear()
+
+    def add_mask(
+        self, obj_id: int, mask: np.ndarray, view: View | None = None, score: float = 1.0
+    ) -> None:
+        """Add an object given by its mask in one view (automatic masks, imported labels)."""
+        lf = self._require()
+        view = lf.center if view is None else (int(view[0]), int(view[1]))
+        mask = np.asarray(mask, dtype=bool)
+        if mask.shape != lf.view_shape:
+            raise LfsamError(
+                f"object {obj_id}: mask has shape {mask.shape}, expected {lf.view_shape}"
+            )
+        if int(obj_id) < 1:
+            raise LfsamError(f"object {obj_id}: id must be an integer >= 1")
+        self._objects[int(obj_id)] = _Object(
+            prompts=None, given_mask=mask, given_view=view, given_score=float(score)
+        )
+        self._labels_cache.clear()
+
+    def remove_object(self, obj_id: int) -> None:
+        """Forget one object (its label disappears from every view)."""
+        if obj_id not in self._objects:
+            raise LfsamError(f"no object {obj_id}; objects: {self.object_ids}")
+        del self._objects[obj_id]
+        self._labels_cache.clear()
+
+    def reset_objects(self) -> None:
+        """Forget every object (embeddings and disparities are kept)."""
+        self._objects = {}
+        self._labels_cache.clear()
+
+    def next_id(self) -> int:
+        """The smallest id larger than every id in use."""
+        return max(self._objects, default=0) + 1
+
+    # --- step 1: the reference view -----------------------------------------------------------
+    def _reference_view(self, obj: _Object) -> View:
+        lf = self._require()
+        if obj.prompts is None:
+            assert obj.given_view is not None
+            return obj.given_view
+        return obj.prompts.reference_view(lf.center)
+
+    def _ensure_references(self, ids: Iterable[int]) -> None:
+        todo = [i for i in ids if self._objects[i].reference is None]
+        groups: dict[View, list[int]] = defaultdict(list)
+        for i in todo:
+            groups[self._reference_view(self._objects[i])].append(i)
+        for view, members in groups.items():
+            embedding = self.embedding(view)
+            masks: dict[int, torch.Tensor] = {}
+            scores: dict[int, float] = {}
+            prompted = []
+            for i in members:
+                obj = self._objects[i]
+                if obj.prompts is None:
+                    masks[i] = torch.as_tensor(obj.given_mask, device=self.device)
+                    scores[i] = obj.given_score
+                else:
+                    prompted.append(i)
+            with self.timer("initial"):
+                self._decode_references(view, embedding, prompted, masks, scores)
+            stacked = torch.stack([masks[i] for i in members]).to(torch.bool)
+            with self.timer("occlude"):
+                features = (
+                    source_features(self.segmenter, embedding, stacked)
+                    if self.config.semantic
+                    else None
+                )
+                whole = (
+                    mask_disparities(stacked, self.disparity(view))
+                    if self.config.propagation != "pixel"
+                    else None
+                )
+            for k, i in enumerate(members):
+                self._objects[i].reference = _Reference(
+                    view=view,
+                    mask=stacked[k],
+                    score=scores[i],
+                    feature=None if features is None else features[k],
+                    disparity=None if whole is None else whole[k],
+                )
+
+    def _decode_references(
+        self,
+        view: View,
+        embedding: ViewEmbedding,
+        ids: list[int],
+        masks: dict[int, torch.Tensor],
+        scores: dict[int, float],
+    ) -> None:
+        """Decode the prompts of objects in their reference view, one batch per prompt shape
+        (same number of points, box or not): a single point without a box asks for SAM 2's
+        three candidates and keeps the best (paper section 3.1, as :func:`initial_segmentation`).
+        """
+        shapes: dict[tuple[int, bool], list[int]] = defaultdict(list)
+        carried = {i: self._points_in_view(self._objects[i].prompts, view) for i in ids}
+        for i in ids:
+            has_box = self._objects[i].prompts.box is not None
+            shapes[(len(carried[i][1]), has_box)].append(i)
+        for (count, has_box), members in shapes.items():
+            if count == 0 and not has_box:  # every click was dropped: nothing to segment
+                for i in members:
+                    masks[i] = torch.zeros(
+                        self.lightfield.view_shape, dtype=torch.bool, device=self.device
+                    )
+                    scores[i] = 0.0
+                continue
+            prompts = Prompts(
+                points=np.stack([carried[i][0] for i in members]) if count else None,
+                point_labels=np.stack([carried[i][1] for i in members]) if count else None,
+                boxes=np.array([self._objects[i].prompts.box.xyxy for i in members])
+                if has_box
+                else None,
+            )
+            source = initial_segmentation(
+                self.segmenter, embedding, self.lightfield.views[view], [prompts]
+            )
+            for k, i in enumerate(members):
+                masks[i] = source.masks[k]
+                scores[i] = float(source.scores[k])
+                self.decode_counts[i] += 1
+
+    def _points_in_view(self, prompts: ObjectPrompts, view: View) -> tuple[np.ndarray, np.ndarray]:
+        """The object's clicks carried into ``view``: ``(P, 2)`` xy and ``(P,)`` labels.
+
+        A click given in view ``w`` moves by ``D_w`` at the click (docs/design.md section 8);
+        it is dropped where it lands outside ``view`` or behind a closer surface of ``w``
+        (z-buffer of the forward warp of ``D_w``).
+        """
+        lf = self._require()
+        height, width = lf.view_shape
+        xy, labels = [], []
+        for point in prompts.points:
+            source = point.view
+            if source == view:
+                xy.append((point.x, point.y))
+                labels.append(int(point.positive))
+                continue
+            disp = self.disparity(source)
+            row = min(max(round(point.y), 0), height - 1)
+            col = min(max(round(point.x), 0), width - 1)
+            d = float(disp[row, col])
+            ds, dt = view[0] - source[0], view[1] - source[1]
+            y, x = point.y - d * ds, point.x - d * dt
+            if not (0 <= x <= width - 1 and 0 <= y <= height - 1):
+                continue
+            zbuffer = self._warp(source, view).zbuffer.reshape(height, width)
+            if float(zbuffer[round(y), round(x)]) > d + self.config.zbuffer_tolerance:
+                continue  # a closer surface of the click's view covers it here
+            xy.append((x, y))
+            labels.append(int(point.positive))
+        return (
+            np.asarray(xy, dtype=np.float32).reshape(-1, 2),
+            np.asarray(labels, dtype=np.int64),
+        )
+
+    def _warp(self, source: View, target: View) -> ForwardWarp:
+        key = (source, target)
+        if key in self._warps:
+            self._warps.move_to_end(key)
+            return self._warps[key]
+        with self.timer("propagate"):
+            warp = forward_warp(
+                self.disparity(source), target[0] - source[0], target[1] - source[1]
+            )
+        size = sum(x.numel() * x.element_size() for x in (warp.target, warp.valid, warp.zbuffer))
+        self._warps[key] = warp
+        self._warp_bytes += size
+        while self._warp_bytes > WARP_CACHE_BYTES and len(self._warps) > 1:
+            _, old = self._warps.popitem(last=False)
+            self._warp_bytes -= sum(
+                x.numel() * x.element_size() for x in (old.target, old.valid, old.zbuffer)
+            )
+        return warp
+
+    def predict_reference(self, obj_id: int) -> tuple[View, np.ndarray, float]:
+        """Stage 1 alone: the object's mask in its reference (clicked) view.
+
+        Returns
+        -------
+        view : (s, t)
+        mask : (U, V) bool ndarray
+        score : float
+        """
+        if obj_id not in self._objects:
+            raise LfsamError(f"no object {obj_id}; objects: {self.object_ids}")
+        start = time.perf_counter()
+        self._ensure_references([obj_id])
+        self.seconds += time.perf_counter() - start
+        ref = self._objects[obj_id].reference
+        return ref.view, ref.mask.cpu().numpy(), ref.score
+
+    # --- steps 2-4 in every view --------------------------------------------------------------
+    def predict_coarse(self, obj_ids: Iterable[int] | None = None) -> LightFieldPrediction:
+        """Steps 1-3 (propagation and occluding, no refinement) for the given objects (default
+        all); objects computed before are reused."""
+        ids = self._ids(obj_ids)
+        self._run([i for i in ids if self._objects[i].coarse is None], refine=False)
+        return self._prediction("coarse")
+
+    def predict(self, obj_ids: Iterable[int] | None = None) -> LightFieldPrediction:
+        """All four steps for the given objects (default all); objects computed before and
+        not edited since are reused as they were."""
+        ids = self._ids(obj_ids)
+        self._run([i for i in ids if self._objects[i].refined is None], refine=True)
+        return self._prediction("refined")
+
+    def _ids(self, obj_ids: Iterable[int] | None) -> list[int]:
+        self._require()
+        ids = self.object_ids if obj_ids is None else [int(i) for i in obj_ids]
+        missing = [i for i in ids if i not in self._objects]
+        if missing:
+            raise LfsamError(f"no object {missing[0]}; objects: {self.object_ids}")
+        return ids
+
+    def _run(self, ids: list[int], refine: bool) -> None:
+        """Stream the views once for the objects ``ids``: each view encoded at most once,
+        all objects' prompts of a view decoded together (per reference view)."""
+        if not ids:
+            return
+        lf = self._require()
+        start = time.perf_counter()
+        config = self.config
+        refine = refine and config.refine
+        self._ensure_references(ids)
+        s_count, t_count = lf.grid_shape
+        nbytes = (lf.view_shape[0] * lf.view_shape[1] + 7) // 8
+        out = {
+            i: _Views(
+                bits=np.zeros((s_count, t_count, nbytes), dtype=np.uint8),
+                fallback=np.zeros((s_count, t_count), dtype=bool),
+                iou=np.full((s_count, t_count), np.nan, dtype=np.float32),
+            )
+            for i in ids
+        }
+        coarse_out = {
+            i: _Views(out[i].bits.copy(), out[i].fallback.copy(), out[i].iou.copy()) for i in ids
+        }
+        views = list(lf.view_indices(present_only=True))
+        needs_embedding = refine or config.semantic
+        batch_size = max(1, int(config.encode_batch_size or 1))
+        bar = tqdm(
+            total=len(views), desc="views", unit="view", disable=not self.progress or None,
+            leave=False,
+        )
+        for batch_start in range(0, len(views), batch_size):
+            batch = views[batch_start : batch_start + batch_size]
+            references = {self._objects[i].reference.view for i in ids}
+            others = [v for v in batch if any(v != r for r in references)]
+            embeddings = {}
+            if needs_embedding and others:
+                with self.timer("encode"):
+                    embeddings = dict(zip(others, self._store.get_many(others), strict=True))
+            for view in batch:
+                self._view_step(view, ids, embeddings.get(view), refine, out, coarse_out)
+                bar.update(1)
+        bar.close()
+        for i in ids:
+            obj = self._objects[i]
+            obj.coarse = coarse_out[i]
+            if refine:
+                obj.refined = out[i]
+            elif not config.refine:
+                obj.refined = coarse_out[i]  # the ablation without refinement ends here
+        self._labels_cache.clear()
+        self.seconds += time.perf_counter() - start
+
+    def _view_step(
+        self,
+        view: View,
+        ids: list[int],
+        embedding: ViewEmbedding | None,
+        refine: bool,
+        out: dict[int, _Views],
+        coarse_out: dict[int, _Views],
+    ) -> None:
+        """Steps 2-4 of the objects ``ids`` in one view."""
+        config = self.config
+        lf = self.lightfield
+        height, width = lf.view_shape
+        groups: dict[View, list[int]] = defaultdict(list)
+        for i in ids:
+            groups[self._objects[i].reference.view].append(i)
+        for ref_view, members in groups.items():
+            refs = [self._objects[i].reference for i in members]
+            if ref_view == view:  # the reference view keeps its step-1 mask
+                with self.timer("fuse"):
+                    bits = np.packbits(
+                        torch.stack([r.mask for r in refs]).reshape(len(refs), -1).cpu().numpy(),
+                        axis=1,
+                    )
+                for k, i in enumerate(members):
+                    out[i].bits[view] = coarse_out[i].bits[view] = bits[k]
+                continue
+            source_masks = torch.stack([r.mask for r in refs])
+            disp = self.disparity(ref_view)
+            ds, dt = view[0] - ref_view[0], view[1] - ref_view[1]
+            warp = self._warp(ref_view, view)
+            with self.timer("propagate"):
+                keep = None
+                if config.geometric and config.propagation == "pixel":
+                    keep = warp.visible(disp, config.zbuffer_tolerance)
+                coarse = propagate_masks(
+                    source_masks, disp, ds, dt, config.propagation, warp=warp, keep=keep,
+                    fill_holes=config.fill_holes,
+                )
+                if config.geometric and config.propagation != "pixel":
+                    whole = torch.stack([r.disparity for r in refs])
+                    hidden = warp.zbuffer.reshape(height, width)[None] > (
+                        whole[:, None, None] + config.zbuffer_tolerance
+                    )
+                    coarse &= ~hidden
+            with self.timer("occlude"):
+                weights = None
+                if config.semantic:
+                    sources = torch.stack([r.feature for r in refs])
+                    weights = semantic_occlusion(
+                        self.segmenter, embedding, coarse, sources, config.t_sim
+                    )
+                    coarse = weights.surviving_masks()
+                elif refine:
+                    weights = uniform_weights(coarse)
+            with self.timer("fuse"):
+                coarse_bits = np.packbits(coarse.reshape(len(refs), -1).cpu().numpy(), axis=1)
+            for k, i in enumerate(members):
+                coarse_out[i].bits[view] = coarse_bits[k]
+            if not refine:
+                continue
+            with self.timer("refine"):
+                seen = warp.seen((height, width))
+                extra = self._carried_points(members, view)
+                outcome = refine_masks(
+                    self.segmenter, embedding, coarse, weights, config.t_iou,
+                    seen=seen, frame_runs=warp.frame_runs((height, width), seen),
+                    extra_points=extra,
+                )
+                prompted = (weights.weight > 0).new_zeros(len(members))
+                prompted[weights.mask_index[weights.weight > 0]] = True
+            for k in torch.nonzero(prompted, as_tuple=True)[0].tolist():
+                self.decode_counts[members[k]] += 1
+            with self.timer("fuse"):
+                bits = np.packbits(outcome.masks.reshape(len(refs), -1).cpu().numpy(), axis=1)
+                fallback = outcome.fallback.cpu().numpy()
+                iou = outcome.iou.cpu().numpy()
+            for k, i in enumerate(members):
+                out[i].bits[view] = bits[k]
+                out[i].fallback[view] = fallback[k]
+                out[i].iou[view] = iou[k]
+
+    def _carried_points(
+        self, members: list[int], view: View
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """The members' own clicks carried into ``view``, padded with label -1."""
+        carried = []
+        for i in members:
+            prompts = self._objects[i].prompts
+            if prompts is None or not prompts.points:
+                carried.append((np.zeros((0, 2), np.float32), np.zeros(0, np.int64)))
+            else:
+                carried.append(self._points_in_view(prompts, view))
+        width = max(len(labels) for _, labels in carried)
+        if width == 0:
+            return None
+        xy = np.zeros((len(members), width, 2), dtype=np.float32)
+        labels = np.full((len(members), width), -1, dtype=np.int64)
+        for k, (points, kinds) in enumerate(carried):
+            xy[k, : len(kinds)] = points
+            labels[k, : len(kinds)] = kinds
+        return xy, labels
+
+    # --- labels -------------------------------------------------------------------------------
+    def paint_order(self, ids: Sequence[int] | None = None) -> list[int]:
+        """Object ids in paint order: larger reference-view masks first, smaller on top (ties
+        by id); docs/design.md section 3.6."""
+        ids = self.object_ids if ids is None else list(ids)
+        areas = {i: int(self._objects[i].reference.mask.sum()) for i in ids}
+        return sorted(ids, key=lambda i: (-areas[i], i))
+
+    def _prediction(self, stage: str) -> LightFieldPrediction:
+        lf = self._require()
+        attr = "refined" if stage == "refined" else "coarse"
+        ready = [i for i in self.object_ids if getattr(self._objects[i], attr) is not None]
+        bits = {i: getattr(self._objects[i], attr).bits for i in ready}
+        if stage not in self._labels_cache:
+            self._labels_cache[stage] = self._fuse(ready, bits)
+        refs = {i: self._objects[i].reference for i in ready}
+        return LightFieldPrediction(
+            labels=self._labels_cache[stage],
+            masks=_PackedMaskMap(bits, (*lf.grid_shape, *lf.view_shape)),
+            scores={i: refs[i].score for i in ready},
+            reference_views={i: refs[i].view for i in ready},
+            stage=stage,
+        )
+
+    def _fuse(self, ids: list[int], bits: dict[int, np.ndarray]) -> np.ndarray:
+        """Label field of the objects ``ids`` (values = ids), painted view by view."""
+        lf = self._require()
+        s_count, t_count = lf.grid_shape
+        height, width = lf.view_shape
+        labels = np.zeros((s_count, t_count, height, width), dtype=np.int32)
+        if not ids:
+            return labels
+        order = self.paint_order(ids)
+        rank = {i: k for k, i in enumerate(ids)}
+        paint = torch.as_tensor([rank[i] for i in order])
+        lookup = np.concatenate([[0], np.asarray(ids, dtype=np.int32)])
+        with self.timer("fuse"):
+            for s, t in lf.view_indices(present_only=True):
+                packed = np.stack([bits[i][s, t] for i in ids])
+                masks = np.unpackbits(packed, axis=1, count=height * width).astype(bool)
+                fused = fuse_labels(torch.from_numpy(masks.reshape(-1, height, width)), paint)
+                labels[s, t] = lookup[fused.numpy()]
+        return labels
+
+    # --- automatic mode -----------------------------------------------------------------------
+    def generate(self, references: str = "center") -> list[int]:
+        """Automatic mask generation in the center view (paper section 4, implementation
+        details); each mask becomes an object (ids in order of decreasing area, after the ids in
+        use). Returns the new ids.
+        """
+        lf = self._require()
+        if references != "center":
+            raise LfsamError(f"--references {references}: use center")
+        view = lf.center
+        embedding = self.embedding(view)
+        with self.timer("initial"):
+            source = initial_segmentation(self.segmenter, embedding, lf.views[view], None)
+        first = self.next_id()
+        masks = source.masks.cpu().numpy()
+        ids = []
+        for k in range(len(source)):
+            obj_id = first + k
+            self.add_mask(obj_id, masks[k], view=view, score=float(source.scores[k]))
+            self._objects[obj_id].extra["auto"] = True
+            ids.append(obj_id)
+        return ids
+
+    # --- results ------------------------------------------------------------------------------
+    def to_result(self) -> SegmentationResult:
+        """The objects' refined masks as a :class:`~lfsam.result.SegmentationResult`.
+
+        Masks are stored in id order (``meta["object_ids"]``) and the prompts in
+        ``meta["objects"]``, so the result can be reopened and edited
+        (:meth:`load_objects`); ``meta["views_encoded"]`` counts image-encoder runs.
+        """
+        lf = self._require()
+        ids = self.object_ids
+        self.predict(ids)
+        prediction = self._prediction("refined")
+        shape = (len(ids), *lf.grid_shape, *lf.view_shape)
+        packed = PackedMasks(
+            shape,
+            np.stack([self._objects[i].refined.bits for i in ids])
+            if ids
+            else None,
+        )
+        objects_meta = []
+        for i in ids:
+            obj = self._objects[i]
+            entry: dict[str, Any] = {"id": i, "reference_view": list(obj.reference.view)}
+            if obj.prompts is not None:
+                entry.update(prompts_to_json([obj.prompts])[0])
+            else:
+                entry["mask"] = "automatic" if obj.extra.get("auto") else "given"
+            objects_meta.append(entry)
+        timings = dict(self.timer.seconds)
+        timings["total"] = self.seconds + timings.get("disparity", 0.0)
+        meta = {
+            "method": "lfsam",
+            "package_version": __version__,
+            "segmenter": self.segmenter.describe(),
+            "config": self.config.to_dict(),
+            "prompt_mode": "auto"
+            if ids and all(self._objects[i].prompts is None for i in ids)
+            else "prompts",
+            "num_masks": len(ids),
+            "center": list(lf.center),
+            "object_ids": ids,
+            "objects": objects_meta,
+            "views_encoded": self.views_encoded,
+            "views_present": int(lf.present.sum()),
+            "disparity_source": self._disparities.source(lf.center)
+            if lf.center in self._disparities.resolved or not self._disparities.resolved
+            else self._disparities.source(self._disparities.resolved[0]),
+            "disparity_sources": {
+                f"{s},{t}": self._disparities.source((s, t))
+                for s, t in self._disparities.resolved
+            },
+        }
+        return SegmentationResult(
+            labels=prediction.labels,
+            masks=packed,
+            scores=np.array([self._objects[i].reference.score for i in ids], dtype=np.float32),
+            fallback=np.stack([self._objects[i].refined.fallback for i in ids])
+            if ids
+            else np.zeros((0, *lf.grid_shape), dtype=bool),
+            refine_iou=np.stack([self._objects[i].refined.iou for i in ids])
+            if ids
+            else np.zeros((0, *lf.grid_shape), dtype=np.float32),
+            timings=timings,
+            meta=meta,
+        )
+
+    @staticmethod
+    def load_objects(result: SegmentationResult) -> list[ObjectPrompts]:
+        """The prompted objects stored in a result (to reopen it for editing)."""
+        from lfsam.prompts import prompts_from_json
+
+        entries = [
+            {k: v for k, v in e.items() if k in ("id", "points", "box")}
+            for e in result.meta.get("objects", [])
+            if "mask" not in e
+        ]
+        return prompts_from_json(entries)
+
+    def open_result(self, result: SegmentationResult) -> None:
+        """Take a result's objects: prompted ones by their prompts, the others (automatic or
+        imported) by their reference-view masks; then :meth:`predict` reproduces it."""
+        lf = self._require()
+        if tuple(result.labels.shape) != (*lf.grid_shape, *lf.view_shape):
+            raise LfsamError(
+                f"the result's labels have shape {result.labels.shape}, the light field is "
+                f"{(*lf.grid_shape, *lf.view_shape)}; open the result with its own light field"
+            )
+        ids = result.meta.get("object_ids") or list(range(1, result.num_masks + 1))
+        entries = {e["id"]: e for e in result.meta.get("objects", [])}
+        prompted = {o.obj_id: o for o in self.load_objects(result)}
+        for n, obj_id in enumerate(ids):
+            if obj_id in prompted:
+                self.set_object(prompted[obj_id])
+                continue
+            view = tuple(entries.get(obj_id, {}).get("reference_view", lf.center))
+            if result.masks is not None:
+                mask = result.masks.mask(n)[view]
+            else:
+                mask = result.labels[view] == obj_id
+            score = 1.0 if result.scores is None else float(result.scores[n])
+            self.add_mask(obj_id, mask, view=view, score=score)
