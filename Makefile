@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.lfsam-installed
 
-.PHONY: install demo test lint bench clean system-deps
+.PHONY: install demo test lint bench clean system-deps gpu-check
 
 install: $(STAMP)
 
@@ -49,6 +49,28 @@ system-deps:
 	if [ "$$(id -u)" != 0 ]; then echo "make: missing system packages: $$missing; run as root: apt-get install $$missing" >&2; exit 1; fi; \
 	echo "system-deps: installing $$missing"; \
 	apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing >/dev/null
+
+# On a CUDA machine: check that the installed torch sees the GPU (PyPI's Linux torch wheels are
+# CUDA builds; if the driver is too old for them, reinstall torch from the PyTorch index named
+# by TORCH_CUDA_INDEX, e.g. make gpu-check TORCH_CUDA_INDEX=https://download.pytorch.org/whl/cu126),
+# then the CUDA-marked tests and the GPU benchmark (docs/performance.md, "GPU (H100)").
+TORCH_CUDA_INDEX ?=
+CUDA_OK := import sys, torch; ok = torch.cuda.is_available(); \
+	print('torch', torch.__version__, '| CUDA build', torch.version.cuda, '| GPU:', \
+	torch.cuda.get_device_name(0) if ok else 'none visible'); sys.exit(0 if ok else 1)
+gpu-check: $(STAMP)
+	-nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv
+	@$(PY) -c "$(CUDA_OK)" || { \
+	  if [ -n "$(TORCH_CUDA_INDEX)" ]; then \
+	    $(PY) -m pip uninstall --quiet -y torch torchvision && \
+	    $(PY) -m pip install --quiet --index-url "$(TORCH_CUDA_INDEX)" -c constraints.txt \
+	      torch torchvision && $(PY) -c "$(CUDA_OK)"; \
+	  else \
+	    echo "gpu-check: this torch sees no CUDA GPU (no GPU, or a driver older than its CUDA);" \
+	      "rerun with TORCH_CUDA_INDEX=https://download.pytorch.org/whl/cuXYZ" >&2; exit 1; \
+	  fi; }
+	$(VENV)/bin/python -m pytest -q -m cuda -rs
+	$(VENV)/bin/python benchmarks/bench_gpu.py
 
 clean:
 	rm -rf $(VENV) demo_output .pytest_cache

@@ -15,6 +15,11 @@ import pytest
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
 CASES = {
+    "bench_gpu.py": (
+        ["--device", "cpu", "--model", "sam2-tiny-test", "--grid", "3x3", "--size", "32x48",
+         "--prompts", "2", "--baseline-objects", "1", "--no-estimate"],
+        "ratio baseline / LFSAM",
+    ),
     "bench_speed.py": (
         ["--grid", "3x3", "--size", "32x48", "--prompts", "2", "--models", "sam2-tiny-test",
          "--starts", "center,first"],

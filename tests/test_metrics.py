@@ -292,6 +292,7 @@ def test_errors_name_the_problem():
         evaluate_labels(labels.astype(np.float32), make_gt(labels))
 
 
+@pytest.mark.cuda
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
 def test_cuda_matches_cpu():
     rng = np.random.default_rng(3)

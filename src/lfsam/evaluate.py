@@ -22,8 +22,9 @@ import json
 import math
 import os
 import sys
+import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -45,6 +46,8 @@ from lfsam.result import SegmentationResult, save_result
 __all__ = [
     "CSV_COLUMNS",
     "EvaluationTable",
+    "SceneJob",
+    "SceneOutcome",
     "SceneRow",
     "compare_runs",
     "discover_scenes",
@@ -257,6 +260,7 @@ def evaluate_dataset(
     reader: Reader | None = None,
     detect: Callable[[Path], object] | None = None,
     device: str | None = None,
+    map_scenes: SceneMapper | None = None,
 ) -> EvaluationTable:
     """Segment and score every scene of a data set; write ``metrics.csv`` and ``table.md``.
 
@@ -284,6 +288,10 @@ def evaluate_dataset(
         :func:`lfsam.io.detect_format`.
     device : str, optional
         Where the metrics are computed (default ``auto``, :func:`lfsam.devices.resolve_device`).
+    map_scenes : callable(SceneJob, list of (name, path)) -> iterable of SceneOutcome, optional
+        Runs the job on the scenes still to do and yields their outcomes as they finish, in any
+        order; default: one after the other in this process. :func:`lfsam.distributed.ray_mapper`
+        spreads them over a Ray cluster; the files written are the same either way.
 
     Returns
     -------
@@ -313,32 +321,27 @@ def evaluate_dataset(
 
     rows: list[SceneRow] = []
     table = EvaluationTable(method=method_label, rows=rows, mean={}, out_dir=out)
-    bar = tqdm(scenes, desc=f"evaluate {method_label}", unit="scene", disable=None, file=sys.stderr)
-    for name, path in bar:
-        bar.set_postfix_str(name)
+    bar = tqdm(
+        total=len(scenes), desc=f"evaluate {method_label}", unit="scene", disable=None,
+        file=sys.stderr,
+    )
+    pending = []
+    for name, path in scenes:
         if name in finished:
             rows.append(finished[name])
             table.resumed.append(name)
-            continue
-        try:
-            detect(path)
-        except LfsamError as exc:
-            table.skipped.append((path.name, str(exc)))
-            note = f"lfsam evaluate: skipping {path.name}: not a light field ({exc})"
-            tqdm.write(note, file=sys.stderr)
-            continue
-        try:
-            lightfield = reader(path)
-        except Exception as exc:  # an unreadable scene is a failed scene, not the end of the run
-            row = SceneRow(scene=name, method=method_label, error=_describe(exc))
+            bar.update(1)
         else:
-            row = _run_scene(name, lightfield, segment_fn, method_label, out, device)
-        if row.error is not None:
-            tqdm.write(f"lfsam evaluate: scene {name} failed: {row.error}", file=sys.stderr)
-        _write_text(out / f"{name}{_RECORD_SUFFIX}", json.dumps(row.to_record(), indent=1))
-        rows.append(row)
-        table.ran.append(name)
+            pending.append((name, path))
+    job = SceneJob(segment_fn, method_label, out, device, reader, detect)
+    for outcome in (map_scenes or _map_in_order)(job, pending):
+        _record_outcome(outcome, out, table)
+        bar.set_postfix_str(outcome.name)
+        bar.update(1)
     bar.close()
+    order = {name: i for i, (name, _) in enumerate(scenes)}
+    rows.sort(key=lambda row: order[row.scene])
+    table.ran.sort(key=order.__getitem__)
 
     ok = [row for row in rows if row.error is None]
     table.mean = {key: _mean([row.metrics.get(key) for row in ok]) for key in METRIC_KEYS}
@@ -423,6 +426,97 @@ def compare_runs(dirs: Sequence[str | os.PathLike]) -> str:
 
 
 # --- internals ------------------------------------------------------------------------------
+
+
+@dataclass
+class SceneOutcome:
+    """What one scene's job produced, for the process that writes the output folder.
+
+    Attributes
+    ----------
+    name : str
+        Scene name.
+    row : SceneRow or None
+        Its row; None when the entry is not a light field (then ``skipped`` says why).
+    skipped : str or None
+        Why the entry was skipped.
+    entry : str
+        The entry's file or folder name (for the skip note).
+    result_bytes : bytes or None
+        The result's ``.npz`` file, when the job ran with ``in_memory`` (on another machine);
+        otherwise the job wrote it into the output folder itself.
+    """
+
+    name: str
+    row: SceneRow | None
+    skipped: str | None = None
+    entry: str = ""
+    result_bytes: bytes | None = None
+
+
+@dataclass
+class SceneJob:
+    """Detect, read, segment, score and save one scene: the unit of work of
+    :func:`evaluate_dataset`, picklable so that it can run in another process (a Ray task)."""
+
+    segment_fn: SegmentFn
+    method_label: str
+    out: Path
+    device: str | None
+    reader: Reader
+    detect: Callable[[Path], object]
+
+    def __call__(self, name: str, path: Path, in_memory: bool = False) -> SceneOutcome:
+        """Run the scene; with ``in_memory`` the result file comes back as bytes instead of
+        being written to the output folder (for a machine that may not see it)."""
+        try:
+            self.detect(path)
+        except LfsamError as exc:
+            return SceneOutcome(name=name, row=None, skipped=str(exc), entry=path.name)
+        try:
+            lightfield = self.reader(path)
+        except Exception as exc:  # an unreadable scene is a failed scene, not the end of the run
+            row = SceneRow(scene=name, method=self.method_label, error=_describe(exc))
+            return SceneOutcome(name=name, row=row, entry=path.name)
+        if not in_memory:
+            row = _run_scene(
+                name, lightfield, self.segment_fn, self.method_label, self.out, self.device
+            )
+            return SceneOutcome(name=name, row=row, entry=path.name)
+        with tempfile.TemporaryDirectory(prefix="lfsam-scene-") as tmp:
+            row = _run_scene(
+                name, lightfield, self.segment_fn, self.method_label, Path(tmp), self.device
+            )
+            saved = Path(tmp) / f"{name}.npz"
+            data = saved.read_bytes() if saved.is_file() else None
+        return SceneOutcome(name=name, row=row, entry=path.name, result_bytes=data)
+
+
+SceneMapper = Callable[[SceneJob, Sequence[tuple[str, Path]]], Iterable[SceneOutcome]]
+
+
+def _map_in_order(job: SceneJob, scenes: Sequence[tuple[str, Path]]) -> Iterator[SceneOutcome]:
+    """The default :data:`SceneMapper`: each scene in this process, in name order."""
+    for name, path in scenes:
+        yield job(name, path)
+
+
+def _record_outcome(outcome: SceneOutcome, out: Path, table: EvaluationTable) -> None:
+    """Write a finished scene's files (result before record: resumability) and tabulate it."""
+    if outcome.row is None:
+        table.skipped.append((outcome.entry, str(outcome.skipped)))
+        note = f"lfsam evaluate: skipping {outcome.entry}: not a light field ({outcome.skipped})"
+        tqdm.write(note, file=sys.stderr)
+        return
+    row = outcome.row
+    if outcome.result_bytes is not None and row.error is None:
+        with atomic_output(out / f"{row.scene}.npz") as tmp:
+            tmp.write_bytes(outcome.result_bytes)
+    if row.error is not None:
+        tqdm.write(f"lfsam evaluate: scene {row.scene} failed: {row.error}", file=sys.stderr)
+    _write_text(out / f"{row.scene}{_RECORD_SUFFIX}", json.dumps(row.to_record(), indent=1))
+    table.rows.append(row)
+    table.ran.append(row.scene)
 
 
 def _run_scene(

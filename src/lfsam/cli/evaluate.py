@@ -25,6 +25,11 @@ definitions). --references corners|ring|all also generates masks in those views 
 Runs resume: scenes whose result and metrics are in OUT are not run again (use --force). A scene
 that fails gets a row with its error; the others still run.
 
+--ray spreads the scenes over a Ray cluster, one task per light field (with one GPU each on
+CUDA, or --gpus-per-task); without an address it starts a local cluster on this machine. The
+output folder and its files are the same as a sequential run's (needs `pip install lfsam[ray]`;
+the workers must see DATASET_DIR at the same path). See docs/performance.md.
+
 --compare DIR1 DIR2 ... prints one table with the mean row of each earlier run and the best value
 of each column in bold, like the paper's Table 1 (baseline vs ours) and Table 2 (ablations).
 """
@@ -39,6 +44,8 @@ examples:
   lfsam evaluate --compare runs/none runs/ref runs/ours       # paper Table 2
   lfsam evaluate scenes --model oracle --disparity gt --out runs/oracle   # upper bound
   lfsam evaluate hidden_scenes --model oracle --disparity gt --references corners --out runs/c
+  lfsam evaluate UrbanLF_Syn/val --out runs/ours --ray                    # local Ray cluster
+  lfsam evaluate UrbanLF_Syn/val --out runs/ours --ray auto --gpus-per-task 0.5
 """
 
 
@@ -76,6 +83,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--label", metavar="TEXT", help="method name in the tables (default: built from options)"
     )
     parser.add_argument("--force", action="store_true", help="recompute finished scenes")
+    parser.add_argument(
+        "--ray", nargs="?", const="local", metavar="ADDRESS",
+        help="run the scenes as Ray tasks: on the cluster at ADDRESS (e.g. auto, "
+        "ray://head:10001), or on a local cluster when no address is given",
+    )
+    parser.add_argument(
+        "--gpus-per-task", type=float, metavar="G",
+        help="with --ray: GPUs per light field (default 1 when the cluster has GPUs, else 0)",
+    )
+    parser.add_argument(
+        "--cpus-per-task", type=float, default=1, metavar="C", help="with --ray: CPUs per task"
+    )
     parser.add_argument(
         "--compare", nargs="+", metavar="DIR",
         help="instead of evaluating: tabulate the mean rows of these earlier runs",
@@ -136,9 +155,20 @@ def run(args: argparse.Namespace) -> int:
         progress=False,
         references=args.references,
     )
+    mapper = None
+    if args.gpus_per_task is not None and not args.ray:
+        raise LfsamError("--gpus-per-task applies to Ray runs only; add --ray [ADDRESS]")
+    if args.ray:
+        from lfsam.distributed import ray_mapper
+
+        mapper = ray_mapper(
+            None if args.ray == "local" else args.ray, device=args.device,
+            num_gpus=args.gpus_per_task, num_cpus=args.cpus_per_task,
+        )
     table = evaluate_dataset(
         args.dataset, args.out, segment_fn, method_label=method_label(args), force=args.force,
         device=args.device,
+        map_scenes=mapper,
     )
     print(table.summary_markdown(), end="")
     ok = len(table.rows) - len(table.failed)

@@ -1,0 +1,241 @@
+"""The GPU batch path at the paper's scale, against the SAM 2 video baseline (issue 18).
+
+Paper section 4 (Table 1, metric T of section 4.1): 15.2 ms per mask per view for LFSAM and 108.5
+for SAM 2 video tracking (7.1x) with Hiera-S on a V100. Target on one H100: the whole 9x9 light
+field of 480x640 views with 100 masks in under 1.5 s end to end.
+
+Setting: SAM 2.1 Hiera-S with random weights (speed does not depend on the weights), a synthetic
+light field (:func:`lfsam.synth.generate_scene`) and N positive point prompts on the center view,
+one at the deepest pixel of each of the N largest regions (when the scene has fewer regions than
+N, further points are drawn inside the regions, seeded; duplicates only add objects). Views are
+encoded in batches of ``--encode-batch``; on CUDA with bfloat16 support everything runs under
+bf16 autocast (lfsam's :func:`~lfsam.segmenters.sam2_build.inference_context`).
+
+Measured in one run, after a warm-up (one batched encoder pass, the video predictor built, and on
+CUDA one untimed LFSAM run):
+
+- LFSAM end to end (``lfsam.api.run_segmentation(method="lfsam")``, ground-truth disparity as in
+  the paper's timing; the disparity estimate's own time is printed on a separate row): the best of
+  ``--repeats`` runs. ms per mask per view = total seconds / (N x views); encoder share = the
+  ``encode`` stage / total; peak GPU memory = ``torch.cuda.max_memory_allocated`` over the run.
+- The SAM 2 video baseline (``method="video-baseline"``, starting on the center view with the
+  same prompts) on the same light field. Tracking all N objects would take ceil(N / 15) passes
+  over all views, each costing the frame encodes plus memory attention per object per frame; to
+  keep this affordable the baseline is timed on one pass of the first ``--baseline-objects``
+  prompts (default 15, the authors' objects per pass), and its ms per mask per view = that pass's
+  total seconds / (objects x views). A full run's figure differs only by its last, partial pass.
+  ``--baseline-objects 0`` times all N (ceil(N / 15) passes).
+
+Run on a GPU (``make gpu-check`` runs this)::
+
+    python benchmarks/bench_gpu.py
+
+and on a CPU at a small size (under 5 minutes on 2 cores): ``python benchmarks/bench_gpu.py
+--device cpu --quick``. The same table is printed either way.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import platform
+import resource
+import sys
+import time
+
+import numpy as np
+import torch
+
+from lfsam.api import run_segmentation
+from lfsam.baseline import video_predictor_for
+from lfsam.disparity import resolve_disparity
+from lfsam.segmenters import Prompts, load_segmenter
+from lfsam.segmenters.sam2_build import autocast_dtype, resolve_device
+from lfsam.synth import generate_scene
+
+FULL = {"grid": "9x9", "size": "480x640", "prompts": 100}
+QUICK = {"grid": "3x3", "size": "120x160", "prompts": 4}
+
+
+def prompt_points(labels: np.ndarray, count: int, seed: int = 0) -> np.ndarray:
+    """``count`` points ``(x, y)``: the deepest pixel of each of the largest regions, then
+    seeded random pixels inside the regions (deeper than 2 px where possible) when there are
+    fewer regions than ``count``."""
+    from scipy.ndimage import distance_transform_edt
+
+    ids, areas = np.unique(labels, return_counts=True)
+    order = ids[np.argsort(-areas, kind="stable")]
+    points = []
+    inner = np.zeros(labels.shape, dtype=bool)
+    for label in order:
+        depth = distance_transform_edt(np.pad(labels == label, 1))[1:-1, 1:-1]
+        inner |= depth > 2
+        if len(points) < count:
+            row, col = np.unravel_index(np.argmax(depth), depth.shape)
+            points.append((float(col), float(row)))
+    if len(points) < count:
+        rows, cols = np.nonzero(inner if inner.any() else np.ones_like(inner))
+        pick = np.random.default_rng(seed).choice(len(rows), count - len(points), replace=False)
+        points += [(float(cols[i]), float(rows[i])) for i in pick]
+    return np.array(points, dtype=np.float32)
+
+
+def _sync(device: torch.device) -> None:
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)
+
+
+def _reset_peak(device: torch.device) -> None:
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)
+        torch.cuda.reset_peak_memory_stats(device)
+
+
+def _peak_gib(device: torch.device) -> float | None:
+    if device.type != "cuda":
+        return None
+    return torch.cuda.max_memory_allocated(device) / 2**30
+
+
+def _timed(device: torch.device, fn):
+    _sync(device)
+    start = time.perf_counter()
+    out = fn()
+    _sync(device)
+    return out, time.perf_counter() - start
+
+
+def _pairs(text: str) -> tuple[int, int]:
+    a, b = (int(v) for v in text.lower().split("x"))
+    return a, b
+
+
+def main(argv: list[str] | None = None) -> dict[str, float]:
+    """Parse the options, run both methods, print the table; returns its numbers."""
+    parser = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
+    parser.add_argument("--device", default=None, help="cuda, cpu, mps; default the best")
+    parser.add_argument("--quick", action="store_true",
+                        help=f"small setting for a CPU: {QUICK} unless given explicitly")
+    parser.add_argument("--grid", default=None, help=f"views, rows x columns ({FULL['grid']})")
+    parser.add_argument("--size", default=None, help=f"view size, rows x columns ({FULL['size']})")
+    parser.add_argument("--prompts", type=int, default=None,
+                        help=f"N point prompts ({FULL['prompts']})")
+    parser.add_argument("--model", default="sam2.1-hiera-small")
+    parser.add_argument("--encode-batch", type=int, default=None,
+                        help="views per image-encoder batch (default 16 on CUDA, 1 elsewhere)")
+    parser.add_argument("--repeats", type=int, default=None,
+                        help="LFSAM runs, the fastest kept (default 3 on CUDA, 1 elsewhere)")
+    parser.add_argument("--baseline-objects", type=int, default=None,
+                        help="objects the baseline is timed on (one pass; 0 = all N; default "
+                        "15, or 1 with --quick)")
+    parser.add_argument("--no-baseline", action="store_true", help="skip the video baseline")
+    parser.add_argument("--no-estimate", action="store_true",
+                        help="skip timing the disparity estimate (always skipped with --quick)")
+    parser.add_argument("--seed", type=int, default=0, help="scene seed")
+    args = parser.parse_args(argv)
+    preset = QUICK if args.quick else FULL
+    grid = _pairs(args.grid or preset["grid"])
+    size = _pairs(args.size or preset["size"])
+    n = args.prompts or preset["prompts"]
+    device = resolve_device(args.device)
+    cuda = device.type == "cuda"
+    batch = args.encode_batch or (16 if cuda else 1)
+    repeats = args.repeats or (3 if cuda else 1)
+    base_objects = args.baseline_objects
+    if base_objects is None:
+        base_objects = 1 if args.quick else 15
+    base_objects = n if base_objects <= 0 else min(base_objects, n)
+    began = time.perf_counter()
+
+    lf = generate_scene(grid=grid, size=size, seed=args.seed, num_objects=max(n + 2, 4),
+                        device=device)
+    points = prompt_points(lf.center_labels, n, seed=args.seed)
+    prompts = [Prompts(points=points[:, None, :], point_labels=np.ones((n, 1)))]
+    num_views = grid[0] * grid[1]
+    segmenter = load_segmenter(args.model, random_weights=True, device=device)
+    segmenter.encode_batch_size = batch
+    dtype = autocast_dtype(device)
+    gpu = torch.cuda.get_device_name(device) if cuda else platform.processor() or "cpu"
+    print(f"bench_gpu: {args.model} (random weights) on {device} ({gpu}), "
+          f"{'bf16 autocast' if dtype is not None else 'float32'}, torch {torch.__version__}, "
+          f"{torch.get_num_threads()} threads; {grid[0]}x{grid[1]} views of {size[0]}x{size[1]}, "
+          f"N={n} point prompts, encoder batch {batch}", flush=True)
+
+    # Warm-up, untimed: kernels, allocator, cudnn choices; the video predictor built.
+    views = lf.views.reshape(-1, *lf.views.shape[2:])
+    segmenter.encode(views[: min(batch, num_views)])
+    video_predictor_for(segmenter)
+    if cuda:
+        run_segmentation(lf, method="lfsam", segmenter=segmenter, disparity=lf.center_disparity,
+                         prompts=prompts, progress=False)
+
+    disparity_s = float("nan")
+    if not (args.no_estimate or args.quick):
+        _, disparity_s = _timed(device, lambda: resolve_disparity("estimate", lf,
+                                                                  device=str(device)))
+    _reset_peak(device)
+    runs = []
+    for _ in range(repeats):
+        result, wall = _timed(device, lambda: run_segmentation(
+            lf, method="lfsam", segmenter=segmenter, disparity=lf.center_disparity,
+            prompts=prompts, progress=False))
+        runs.append((wall, result))
+    wall, ours = min(runs, key=lambda item: item[0])
+    peak = _peak_gib(device)
+    ours_ms = 1000 * wall / (ours.num_masks * num_views)
+    encoder_share = ours.timings.get("encode", float("nan")) / ours.timings["total"]
+
+    base_ms = base_wall = base_peak = None
+    if not args.no_baseline:
+        sub = prompts[0].subset(slice(0, base_objects))
+        _reset_peak(device)
+        base, base_wall = _timed(device, lambda: run_segmentation(
+            lf, method="video-baseline", segmenter=segmenter, prompts=[sub], progress=False,
+            disparity=lf.center_disparity,
+            baseline_options={"start": "center", "objects_per_pass": 15}))
+        base_peak = _peak_gib(device)
+        base_ms = 1000 * base_wall / (base.num_masks * num_views)
+        passes = math.ceil(n / 15)
+
+    rss_gib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # KiB on Linux
+    rows = [
+        ("LFSAM ms per mask per view", f"{ours_ms:.2f}",
+         f"{wall:.3f} s / ({ours.num_masks} masks x {num_views} views); paper 15.2 on a V100"),
+        ("LFSAM total seconds end to end", f"{wall:.3f}",
+         f"best of {repeats}; ground-truth disparity; target < 1.5 s on an H100 at full size"),
+        ("encoder share of LFSAM", f"{100 * encoder_share:.0f} %",
+         f"encode stage {ours.timings.get('encode', float('nan')):.3f} s"),
+        ("LFSAM stages (s)", "", ", ".join(f"{k} {v:.3f}" for k, v in ours.timings.items()
+                                          if k != "total")),
+        ("disparity estimate (s, not in total)",
+         "skipped" if math.isnan(disparity_s) else f"{disparity_s:.3f}",
+         "lfsam's estimator on this light field"),
+        ("peak GPU memory, LFSAM", "n/a" if peak is None else f"{peak:.2f} GiB",
+         "torch.cuda.max_memory_allocated" if cuda else "no GPU"),
+    ]
+    if base_ms is not None:
+        rows += [
+            ("video baseline ms per mask per view", f"{base_ms:.2f}",
+             f"{base_wall:.3f} s / ({base.num_masks} objects x {num_views} views), one pass; "
+             f"all {n} objects would take {passes} pass(es); paper 108.5"),
+            ("ratio baseline / LFSAM", f"{base_ms / ours_ms:.1f}x", "paper 7.1x"),
+            ("peak GPU memory, baseline", "n/a" if base_peak is None else f"{base_peak:.2f} GiB",
+             f"{base.num_masks} objects tracked"),
+        ]
+    rows.append(("peak process RSS", f"{rss_gib:.2f} GiB", "host memory"))
+    width = max(len(r[0]) for r in rows)
+    vwidth = max(len(r[1]) for r in rows)
+    print("\n| " + "quantity".ljust(width) + " | " + "value".ljust(vwidth) + " | how |")
+    print("|" + "-" * (width + 2) + "|" + "-" * (vwidth + 2) + "|-----|")
+    for name, value, how in rows:
+        print(f"| {name.ljust(width)} | {value.ljust(vwidth)} | {how} |")
+    print(f"\nbench_gpu: finished in {time.perf_counter() - began:.0f} s", flush=True)
+    sys.stdout.flush()
+    return {"lfsam_ms": ours_ms, "total_s": wall, "encoder_share": encoder_share,
+            **({"baseline_ms": base_ms} if base_ms is not None else {})}
+
+
+if __name__ == "__main__":
+    main()
