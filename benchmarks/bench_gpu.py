@@ -49,6 +49,7 @@ import torch
 from lfsam.api import run_segmentation
 from lfsam.baseline import video_predictor_for
 from lfsam.disparity import resolve_disparity
+from lfsam.pipeline import PipelineConfig
 from lfsam.segmenters import Prompts, load_segmenter
 from lfsam.segmenters.sam2_build import autocast_dtype, resolve_device
 from lfsam.synth import generate_scene
@@ -156,6 +157,7 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     num_views = grid[0] * grid[1]
     segmenter = load_segmenter(args.model, random_weights=True, device=device)
     segmenter.encode_batch_size = batch
+    config = PipelineConfig(encode_batch_size=batch)
     dtype = autocast_dtype(device)
     gpu = torch.cuda.get_device_name(device) if cuda else platform.processor() or "cpu"
     print(f"bench_gpu: {args.model} (random weights) on {device} ({gpu}), "
@@ -169,7 +171,7 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     video_predictor_for(segmenter)
     if cuda:
         run_segmentation(lf, method="lfsam", segmenter=segmenter, disparity=lf.center_disparity,
-                         prompts=prompts, progress=False)
+                         prompts=prompts, progress=False, config=config)
 
     disparity_s = float("nan")
     if not (args.no_estimate or args.quick):
@@ -180,7 +182,7 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     for _ in range(repeats):
         result, wall = _timed(device, lambda: run_segmentation(
             lf, method="lfsam", segmenter=segmenter, disparity=lf.center_disparity,
-            prompts=prompts, progress=False))
+            prompts=prompts, progress=False, config=config))
         runs.append((wall, result))
     wall, ours = min(runs, key=lambda item: item[0])
     peak = _peak_gib(device)
