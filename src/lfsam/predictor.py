@@ -52,7 +52,7 @@ from lfsam.pipeline.propagation import (
 )
 from lfsam.pipeline.refinement import refine_masks
 from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt, prompts_to_json, validate_objects
-from lfsam.result import PackedMasks, SegmentationResult
+from lfsam.result import PackedMasks, SegmentationResult, pack_masks
 from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
 from lfsam.timing import StageTimer
 
@@ -407,7 +407,7 @@ class LightFieldPredictor:
         three candidates and keeps the best (paper section 3.1, as :func:`initial_segmentation`).
         """
         shapes: dict[tuple[int, bool], list[int]] = defaultdict(list)
-        carried = {i: self._points_in_view(self._objects[i].prompts, view) for i in ids}
+        carried = {i: self._points_in_view(self._objects[i], view) for i in ids}
         for i in ids:
             has_box = self._objects[i].prompts.box is not None
             shapes[(len(carried[i][1]), has_box)].append(i)
@@ -434,38 +434,55 @@ class LightFieldPredictor:
                 scores[i] = float(source.scores[k])
                 self.decode_counts[i] += 1
 
-    def _points_in_view(self, prompts: ObjectPrompts, view: View) -> tuple[np.ndarray, np.ndarray]:
+    def _clicks(self, obj: _Object) -> dict[str, np.ndarray]:
+        """The object's clicks as arrays, with the disparity of each click's own view at the
+        click (looked up once per object, on the CPU)."""
+        if "clicks" not in obj.extra:
+            lf = self._require()
+            height, width = lf.view_shape
+            points = obj.prompts.points if obj.prompts is not None else ()
+            source = np.array([p.view for p in points], dtype=np.int64).reshape(-1, 2)
+            x = np.array([p.x for p in points], dtype=np.float64)
+            y = np.array([p.y for p in points], dtype=np.float64)
+            d = np.zeros(len(points), dtype=np.float64)
+            for k, (s, t) in enumerate(source):
+                disp = self._disparities.get((int(s), int(t)))
+                row = min(max(round(y[k]), 0), height - 1)
+                col = min(max(round(x[k]), 0), width - 1)
+                d[k] = float(disp[row, col])
+            obj.extra["clicks"] = {
+                "x": x, "y": y, "d": d, "source": source,
+                "label": np.array([int(p.positive) for p in points], dtype=np.int64),
+            }
+        return obj.extra["clicks"]
+
+    def _points_in_view(
+        self, obj: _Object, view: View, zbuffer_test: bool = True
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The object's clicks carried into ``view``: ``(P, 2)`` xy and ``(P,)`` labels.
 
         A click given in view ``w`` moves by ``D_w`` at the click (docs/design.md section 8);
-        it is dropped where it lands outside ``view`` or behind a closer surface of ``w``
-        (z-buffer of the forward warp of ``D_w``).
+        it is dropped where it lands outside ``view`` and, with ``zbuffer_test``, where a
+        closer surface of ``w`` covers it there (z-buffer of the forward warp of ``D_w``).
         """
         lf = self._require()
         height, width = lf.view_shape
-        xy, labels = [], []
-        for point in prompts.points:
-            source = point.view
-            if source == view:
-                xy.append((point.x, point.y))
-                labels.append(int(point.positive))
-                continue
-            disp = self.disparity(source)
-            row = min(max(round(point.y), 0), height - 1)
-            col = min(max(round(point.x), 0), width - 1)
-            d = float(disp[row, col])
-            ds, dt = view[0] - source[0], view[1] - source[1]
-            y, x = point.y - d * ds, point.x - d * dt
-            if not (0 <= x <= width - 1 and 0 <= y <= height - 1):
-                continue
-            zbuffer = self._warp(source, view).zbuffer.reshape(height, width)
-            if float(zbuffer[round(y), round(x)]) > d + self.config.zbuffer_tolerance:
-                continue  # a closer surface of the click's view covers it here
-            xy.append((x, y))
-            labels.append(int(point.positive))
+        clicks = self._clicks(obj)
+        ds = view[0] - clicks["source"][:, 0]
+        dt = view[1] - clicks["source"][:, 1]
+        y = clicks["y"] - clicks["d"] * ds
+        x = clicks["x"] - clicks["d"] * dt
+        keep = (x >= 0) & (x <= width - 1) & (y >= 0) & (y <= height - 1)
+        if zbuffer_test:
+            moved = keep & ((ds != 0) | (dt != 0))
+            for k in np.flatnonzero(moved):
+                source = (int(clicks["source"][k, 0]), int(clicks["source"][k, 1]))
+                zbuffer = self._warp(source, view).zbuffer.reshape(height, width)
+                landed = float(zbuffer[round(y[k]), round(x[k])])
+                keep[k] = landed <= clicks["d"][k] + self.config.zbuffer_tolerance
         return (
-            np.asarray(xy, dtype=np.float32).reshape(-1, 2),
-            np.asarray(labels, dtype=np.int64),
+            np.stack([x[keep], y[keep]], axis=1).astype(np.float32).reshape(-1, 2),
+            clicks["label"][keep],
         )
 
     def _warp(self, source: View, target: View) -> ForwardWarp:
@@ -557,6 +574,16 @@ class LightFieldPredictor:
             total=len(views), desc="views", unit="view", disable=not self.progress or None,
             leave=False,
         )
+        # Every object computed in this pass (a batch run): fuse each view's labels on the
+        # device as it is done, instead of unpacking every mask again afterwards.
+        everything = set(ids) == set(self._objects)
+        stage = "refined" if refine or not config.refine else "coarse"
+        labels = np.zeros((s_count, t_count, *lf.view_shape), dtype=np.int32)
+        if everything:
+            order = self.paint_order(ids)
+            rank = {i: k for k, i in enumerate(ids)}
+            paint = torch.as_tensor([rank[i] for i in order], device=self.device)
+            lookup = torch.as_tensor([0, *ids], dtype=torch.int32, device=self.device)
         for batch_start in range(0, len(views), batch_size):
             batch = views[batch_start : batch_start + batch_size]
             references = {self._objects[i].reference.view for i in ids}
@@ -566,7 +593,11 @@ class LightFieldPredictor:
                 with self.timer("encode"):
                     embeddings = dict(zip(others, self._store.get_many(others), strict=True))
             for view in batch:
-                self._view_step(view, ids, embeddings.get(view), refine, out, coarse_out)
+                final = self._view_step(view, ids, embeddings.get(view), refine, out, coarse_out)
+                if everything:
+                    with self.timer("fuse"):
+                        fused = fuse_labels(torch.stack([final[i] for i in ids]), paint)
+                        labels[view] = lookup[fused.long()].cpu().numpy()
                 bar.update(1)
         bar.close()
         for i in ids:
@@ -577,6 +608,8 @@ class LightFieldPredictor:
             elif not config.refine:
                 obj.refined = coarse_out[i]  # the ablation without refinement ends here
         self._labels_cache.clear()
+        if everything:
+            self._labels_cache[stage] = labels
         self.seconds += time.perf_counter() - start
 
     def _view_step(
@@ -587,8 +620,10 @@ class LightFieldPredictor:
         refine: bool,
         out: dict[int, _Views],
         coarse_out: dict[int, _Views],
-    ) -> None:
-        """Steps 2-4 of the objects ``ids`` in one view."""
+    ) -> dict[int, torch.Tensor]:
+        """Steps 2-4 of the objects ``ids`` in one view; returns each object's final mask there
+        (refined, or coarse without refinement) on the device."""
+        final: dict[int, torch.Tensor] = {}
         config = self.config
         lf = self.lightfield
         height, width = lf.view_shape
@@ -598,13 +633,12 @@ class LightFieldPredictor:
         for ref_view, members in groups.items():
             refs = [self._objects[i].reference for i in members]
             if ref_view == view:  # the reference view keeps its step-1 mask
+                stacked = torch.stack([r.mask for r in refs])
                 with self.timer("fuse"):
-                    bits = np.packbits(
-                        torch.stack([r.mask for r in refs]).reshape(len(refs), -1).cpu().numpy(),
-                        axis=1,
-                    )
+                    bits = pack_masks(stacked)
                 for k, i in enumerate(members):
                     out[i].bits[view] = coarse_out[i].bits[view] = bits[k]
+                    final[i] = stacked[k]
                 continue
             source_masks = torch.stack([r.mask for r in refs])
             disp = self.disparity(ref_view)
@@ -627,10 +661,12 @@ class LightFieldPredictor:
                 elif refine:
                     weights = uniform_weights(coarse)
             with self.timer("fuse"):
-                coarse_bits = np.packbits(coarse.reshape(len(refs), -1).cpu().numpy(), axis=1)
+                coarse_bits = pack_masks(coarse)
             for k, i in enumerate(members):
                 coarse_out[i].bits[view] = coarse_bits[k]
             if not refine:
+                for k, i in enumerate(members):
+                    final[i] = coarse[k]
                 continue
             with self.timer("refine"):
                 seen = warp.seen((height, width))
@@ -645,13 +681,15 @@ class LightFieldPredictor:
             for k in torch.nonzero(prompted, as_tuple=True)[0].tolist():
                 self.decode_counts[members[k]] += 1
             with self.timer("fuse"):
-                bits = np.packbits(outcome.masks.reshape(len(refs), -1).cpu().numpy(), axis=1)
+                bits = pack_masks(outcome.masks)
                 fallback = outcome.fallback.cpu().numpy()
                 iou = outcome.iou.cpu().numpy()
             for k, i in enumerate(members):
                 out[i].bits[view] = bits[k]
                 out[i].fallback[view] = fallback[k]
                 out[i].iou[view] = iou[k]
+                final[i] = outcome.masks[k]
+        return final
 
     def _carried_points(
         self, members: list[int], view: View, coarse: torch.Tensor
@@ -660,30 +698,36 @@ class LightFieldPredictor:
 
         A carried click must agree with the object's surviving coarse mask there: a positive
         click is kept only inside it and a negative one only outside it (a click carried by a
-        slightly wrong disparity onto a neighbour would otherwise merge or cut objects).
+        slightly wrong disparity, or onto a surface that hides the object here, would otherwise
+        merge or cut objects).
         """
-        height, width = self.lightfield.view_shape
-        carried = []
-        for k, i in enumerate(members):
-            prompts = self._objects[i].prompts
-            if prompts is None or not prompts.points:
-                carried.append((np.zeros((0, 2), np.float32), np.zeros(0, np.int64)))
-                continue
-            xy, kinds = self._points_in_view(prompts, view)
-            rows = np.clip(np.rint(xy[:, 1]).astype(np.int64), 0, height - 1)
-            cols = np.clip(np.rint(xy[:, 0]).astype(np.int64), 0, width - 1)
-            inside = coarse[k].cpu().numpy()[rows, cols]
-            agree = inside == (kinds == 1)
-            carried.append((xy[agree], kinds[agree]))
-        width = max(len(labels) for _, labels in carried)
-        if width == 0:
+        carried = [self._points_in_view(self._objects[i], view, zbuffer_test=False)
+                   for i in members]
+        counts = [len(kinds) for _, kinds in carried]
+        if sum(counts) == 0:
             return None
-        xy = np.zeros((len(members), width, 2), dtype=np.float32)
-        labels = np.full((len(members), width), -1, dtype=np.int64)
-        for k, (points, kinds) in enumerate(carried):
-            xy[k, : len(kinds)] = points
-            labels[k, : len(kinds)] = kinds
-        return xy, labels
+        height, width = self.lightfield.view_shape
+        xy = np.concatenate([points for points, _ in carried])
+        kinds = np.concatenate([k for _, k in carried])
+        owner = np.repeat(np.arange(len(members)), counts)
+        rows = np.clip(np.rint(xy[:, 1]).astype(np.int64), 0, height - 1)
+        cols = np.clip(np.rint(xy[:, 0]).astype(np.int64), 0, width - 1)
+        index = torch.as_tensor(np.stack([owner, rows, cols]), device=coarse.device)
+        inside = coarse[index[0], index[1], index[2]].cpu().numpy()
+        agree = inside == (kinds == 1)
+        kept = np.bincount(owner[agree], minlength=len(members))
+        width_p = int(kept.max()) if len(kept) else 0
+        if width_p == 0:
+            return None
+        out_xy = np.zeros((len(members), width_p, 2), dtype=np.float32)
+        out_labels = np.full((len(members), width_p), -1, dtype=np.int64)
+        slot = np.zeros(len(members), dtype=np.int64)
+        for k in np.flatnonzero(agree):  # clicks, not pixels: a few per object
+            m = owner[k]
+            out_xy[m, slot[m]] = xy[k]
+            out_labels[m, slot[m]] = kinds[k]
+            slot[m] += 1
+        return out_xy, out_labels
 
     # --- labels -------------------------------------------------------------------------------
     def paint_order(self, ids: Sequence[int] | None = None) -> list[int]:

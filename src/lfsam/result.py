@@ -20,9 +20,40 @@ import numpy as np
 from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_output
 
-__all__ = ["PackedMasks", "SegmentationResult", "check_present", "load_result", "save_result"]
+__all__ = [
+    "PackedMasks",
+    "SegmentationResult",
+    "check_present",
+    "load_result",
+    "pack_masks",
+    "save_result",
+]
 
 FORMAT_VERSION = 1
+
+
+def pack_masks(masks: Any) -> np.ndarray:
+    """Bit-pack ``(N, ...)`` boolean masks row by row, exactly as ``numpy.packbits(axis=1)`` of
+    the flattened masks (big-endian bits); torch tensors are packed on their own device, so
+    only an eighth of the bytes leaves a GPU.
+
+    Examples
+    --------
+    >>> pack_masks(np.array([[1, 0, 0, 0, 0, 0, 0, 1, 1]], dtype=bool)).tolist()
+    [[129, 128]]
+    """
+    import torch
+
+    if not isinstance(masks, torch.Tensor):
+        flat = np.asarray(masks, dtype=bool).reshape(len(masks), -1)
+        return np.packbits(flat, axis=1)
+    flat = masks.reshape(masks.shape[0], -1).to(torch.uint8)
+    pad = (-flat.shape[1]) % 8
+    if pad:
+        flat = torch.nn.functional.pad(flat, (0, pad))
+    weights = torch.tensor([128, 64, 32, 16, 8, 4, 2, 1], dtype=torch.uint8, device=flat.device)
+    packed = (flat.view(flat.shape[0], -1, 8) * weights).sum(-1, dtype=torch.uint8)
+    return packed.cpu().numpy()
 
 
 class PackedMasks:
