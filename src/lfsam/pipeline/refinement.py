@@ -18,6 +18,7 @@ import torch
 from lfsam.pipeline.occlusion import OcclusionWeights
 from lfsam.precision import wide_float
 from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
+from lfsam.segments import segment_lengths, segment_reduce
 from lfsam.warp import FrameRuns
 
 __all__ = ["RefinementOutcome", "mask_iou", "refine_masks", "refinement_prompts"]
@@ -76,36 +77,36 @@ def refinement_prompts(
     rows = (pixel_index // width).to(wide)
     cols = (pixel_index % width).to(wide)
 
-    total = torch.zeros(n, dtype=wide, device=device).index_add_(0, mask_index, w)
+    lengths = segment_lengths(mask_index, n) if device.type == "cuda" else None
+
+    def _reduce(values: torch.Tensor, how: str) -> torch.Tensor:
+        return segment_reduce(values, mask_index, n, how, lengths)
+
+    total = _reduce(w, "sum")
     prompted = total > 0
     if not bool(prompted.any()):
         return None, prompted
     safe_total = total.clamp(min=1e-12)
-    centroid_r = torch.zeros_like(total).index_add_(0, mask_index, w * rows) / safe_total
-    centroid_c = torch.zeros_like(total).index_add_(0, mask_index, w * cols) / safe_total
+    centroid_r = _reduce(w * rows, "sum") / safe_total
+    centroid_c = _reduce(w * cols, "sum") / safe_total
 
     # Nearest surviving pixel to the weighted centroid: per-mask argmin over the pairs.
     dist = (rows - centroid_r[mask_index]) ** 2 + (cols - centroid_c[mask_index]) ** 2
-    best = torch.full((n,), float("inf"), dtype=wide, device=device)
-    best.scatter_reduce_(0, mask_index, dist, reduce="amin", include_self=True)
+    best = _reduce(dist, "min")
     is_best = dist <= best[mask_index]
     # First pair reaching the minimum of each mask (pairs are sorted by mask index).
-    candidates = torch.nonzero(is_best, as_tuple=True)[0]
-    first = torch.full((n,), mask_index.numel(), dtype=torch.long, device=device)
-    first.scatter_reduce_(0, mask_index[candidates], candidates, reduce="amin", include_self=True)
-    chosen = first[prompted]
+    position = torch.arange(mask_index.numel(), device=device, dtype=wide)
+    unreached = torch.full_like(position, float(mask_index.numel()))
+    first = _reduce(torch.where(is_best, position, unreached), "min")
+    chosen = first[prompted].long()
     point_rc = torch.stack([rows[chosen], cols[chosen]], dim=1)
-
-    def _reduce(values: torch.Tensor, how: str, init: float) -> torch.Tensor:
-        out = torch.full((n,), init, dtype=wide, device=device)
-        return out.scatter_reduce_(0, mask_index, values, reduce=how, include_self=True)
 
     boxes = torch.stack(
         [
-            _reduce(cols, "amin", float("inf")),
-            _reduce(rows, "amin", float("inf")),
-            _reduce(cols, "amax", float("-inf")),
-            _reduce(rows, "amax", float("-inf")),
+            _reduce(cols, "min"),
+            _reduce(rows, "min"),
+            _reduce(cols, "max"),
+            _reduce(rows, "max"),
         ],
         dim=1,
     )[prompted]
@@ -185,9 +186,18 @@ def mask_iou(
         ref = ref & region
     # Intersections by a gather at the reference pixels (sparse), not a dense AND.
     mask_index, pixel_index = torch.nonzero(ref, as_tuple=True)
-    inter = torch.zeros((n, k), dtype=torch.int32, device=device)
-    inter.index_add_(0, mask_index, flat[mask_index, :, pixel_index].to(torch.int32))
-    ref_area = torch.bincount(mask_index, minlength=n).to(torch.int32)
+    hits = flat[mask_index, :, pixel_index]  # (P, K)
+    if device.type == "cuda":  # segment sums: no atomics (lfsam.segments)
+        lengths = segment_lengths(mask_index, n)
+        inter = torch.stack(
+            [segment_reduce(hits[:, j].float(), mask_index, n, "sum", lengths) for j in range(k)],
+            dim=1,
+        ).to(torch.int32)
+        ref_area = lengths.to(torch.int32)
+    else:
+        inter = torch.zeros((n, k), dtype=torch.int32, device=device)
+        inter.index_add_(0, mask_index, hits.to(torch.int32))
+        ref_area = torch.bincount(mask_index, minlength=n).to(torch.int32)
     union = cand_area + ref_area[:, None] - inter
     return inter.to(torch.float32) / union.clamp(min=1).to(torch.float32)
 
