@@ -60,6 +60,10 @@ __all__ = ["LightFieldPrediction", "LightFieldPredictor"]
 
 View = tuple[int, int]
 
+#: Prompts of one view refined per decoder call on CUDA (one call for the paper's 100 masks;
+#: measured on an H100 with bench_gpu.py, docs/performance.md); 64 elsewhere.
+REFINE_CHUNK_CUDA = 128
+
 #: Forward warps (reference view, target view) kept for reuse across edits, in bytes.
 WARP_CACHE_BYTES = 512 * 2**20
 
@@ -675,6 +679,7 @@ class LightFieldPredictor:
                     self.segmenter, embedding, coarse, weights, config.t_iou,
                     seen=seen, frame_runs=warp.frame_runs((height, width), seen),
                     extra_points=extra,
+                    chunk_size=REFINE_CHUNK_CUDA if self.device.type == "cuda" else 64,
                 )
                 prompted = (weights.weight > 0).new_zeros(len(members))
                 prompted[weights.mask_index[weights.weight > 0]] = True

@@ -107,8 +107,10 @@ class Sam2Segmenter(Segmenter):
         Overrides of :data:`PAPER_AMG_OPTIONS` for :meth:`generate`; any keyword of
         ``sam2.automatic_mask_generator.SAM2AutomaticMaskGenerator`` (e.g. ``points_per_side``,
         ``points_per_batch``, ``crop_n_layers``, ``multimask_output``).
-    max_prompts_per_batch : int
+    max_prompts_per_batch : int, optional
         Prompts decoded together in :meth:`predict`; bounds memory (N x 3 x U x V logits).
+        Default 128 on CUDA (the paper's 100 masks of a view in one decoder call; measured on
+        an H100, docs/performance.md) and 64 elsewhere.
     encode_batch_size : int, optional
         Views run through the image encoder together in :meth:`encode`; default from the device
         (:func:`lfsam.devices.default_encode_batch_size`: batched on CUDA, 1 elsewhere).
@@ -129,13 +131,15 @@ class Sam2Segmenter(Segmenter):
         model: torch.nn.Module,
         *,
         amg_options: dict[str, Any] | None = None,
-        max_prompts_per_batch: int = 64,
+        max_prompts_per_batch: int | None = None,
         encode_batch_size: int | None = None,
         mask_threshold: float = 0.0,
     ) -> None:
         super().__init__()
         if encode_batch_size is None:
             encode_batch_size = default_encode_batch_size(model.device)
+        if max_prompts_per_batch is None:
+            max_prompts_per_batch = 128 if model.device.type == "cuda" else 64
         if max_prompts_per_batch < 1 or encode_batch_size < 1:
             raise LfsamError("max_prompts_per_batch and encode_batch_size must be at least 1")
         self.model = model.eval()

@@ -83,10 +83,11 @@ DEFAULT_CHUNK_SIZE = 2
 """Prompts decoded together by :func:`decode_prompts` on a CPU (measured best of 1, 2, 4, 8 on a
 2-core CPU with ``sam2.1-hiera-small``, 16 prompts: benchmarks/bench_decoder.py)."""
 
-ACCELERATOR_CHUNK_SIZE = 16
+ACCELERATOR_CHUNK_SIZE = 128
 """Chunk size :func:`default_chunk_size` gives for CUDA and MPS, where launch overhead, not cache
-size, limits small batches (not measured here: no GPU was available; about 14 MB per prompt in
-float32)."""
+size, limits small batches (about 14 MB per prompt in float32). On an H100, 100 prompts per view
+in one chunk instead of chunks of 16 took refinement of a 9x9x480x640 light field from 4.8 s to
+the figure in docs/performance.md (benchmarks/bench_gpu.py)."""
 
 DEFAULT_TILE_ROWS = 8
 """Embedding rows per band in the upscaling (:func:`_mask_logits`); 8 rows of a 64 x 64
