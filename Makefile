@@ -23,11 +23,11 @@ demo: $(STAMP)
 	$(VENV)/bin/lfsam demo --out demo_output
 
 test: $(STAMP) system-deps
-	$(VENV)/bin/ruff check src tests benchmarks
+	$(VENV)/bin/ruff check .
 	xvfb-run -a $(VENV)/bin/python -m pytest -q
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check src tests benchmarks
+	$(VENV)/bin/ruff check .
 
 bench: $(STAMP)
 	$(VENV)/bin/python benchmarks/run_all.py

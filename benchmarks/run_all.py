@@ -15,6 +15,8 @@ SCRIPTS = [
     "bench_decoder.py",
     "bench_pipeline.py",
     "bench_speed.py",
+    "bench_interactive.py",
+    "bench_references.py",
 ]
 
 

@@ -84,7 +84,7 @@ def _blocked(path: Path) -> str | None:
 
 
 def pytest_ignore_collect(collection_path: Path, config: pytest.Config) -> bool | None:
-    if collection_path.suffix != ".py" or collection_path.name == "conftest.py":
+    if collection_path.suffix != ".py":
         return None
     try:
         collection_path.resolve().relative_to(SRC)

@@ -44,8 +44,8 @@ class GroundTruthStartSegmenter(Sam2Segmenter):
     def predict(self, embedding, prompts, multimask_output=True):
         return self.oracle.predict(embedding.oracle, prompts, multimask_output)
 
-    def generate(self, embedding, image):
-        return self.oracle.generate(embedding.oracle, image)
+    def generate(self, embedding, image, points=None):
+        return self.oracle.generate(embedding.oracle, image, points=points)
 
 
 @pytest.fixture(scope="module")
@@ -229,7 +229,7 @@ def test_result_file_metrics_and_show(first_run, lightfield, tmp_path):
 
 def test_no_masks_gives_an_empty_result(tiny, lightfield):
     class Nothing(GroundTruthStartSegmenter):
-        def generate(self, embedding, image):
+        def generate(self, embedding, image, points=None):
             from lfsam.segmenters import AutoMasks
 
             return AutoMasks(masks=np.zeros((0, *SIZE), bool), scores=np.zeros(0, np.float32))

@@ -39,6 +39,16 @@ CASES = {
         ["--size", "48x64", "--timing-size", "48x64", "--no-real"], "ratio ours/plain"
     ),
     "bench_metrics.py": (["--grid", "3x3", "--size", "64x96", "--masks", "5"], "bench_metrics:"),
+    "bench_interactive.py": (
+        ["--model", "sam2-tiny-test", "--grid", "3x3", "--size", "48x64", "--objects", "3",
+         "--repeats", "1"],
+        "edit / single-object run",
+    ),
+    "bench_references.py": (
+        ["--model", "sam2-tiny-test", "--grid", "3x3", "--size", "48x64", "--modes", "corners",
+         "--quality-size", "64x96", "--quality-seeds", "0", "--hidden", "1"],
+        "| corners |",
+    ),
 }
 
 

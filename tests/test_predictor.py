@@ -10,6 +10,7 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from lfsam.embeddings import embedding_nbytes
 from lfsam.errors import LfsamError
 from lfsam.pipeline import segment_lightfield
 from lfsam.pipeline.propagation import propagate_masks
@@ -301,3 +302,42 @@ def test_corner_references_find_the_hidden_objects():
     assert scores["corners"]["recall"] == 1.0
     assert scores["corners"]["aa"] >= scores["center"]["aa"]
     assert scores["corners"]["ue"] <= scores["center"]["ue"]
+
+
+def test_extra_references_ask_nowhere_the_center_sees_and_change_no_label():
+    """A scene without hidden objects: the corners' generator is asked only where the center
+    view could not look, finds no new object, and every label stays as with ``center``."""
+    from lfsam.api import run_segmentation
+
+    lf = generate_scene(grid=(5, 5), size=(96, 128), seed=1)
+    asked = []
+    segmenter = load_segmenter("oracle", lightfield=lf, device="cpu")
+    generate = segmenter.generate
+
+    def counting_generate(embedding, image, points=None):
+        asked.append(None if points is None else len(points))
+        return generate(embedding, image, points=points)
+
+    segmenter.generate = counting_generate
+    results = {
+        references: run_segmentation(lf, segmenter=segmenter, disparity="gt",
+                                     references=references, progress=False)
+        for references in ("center", "corners")
+    }
+    assert np.array_equal(results["center"].labels, results["corners"].labels)
+    extra = [n for n in asked if n is not None]
+    # Each corner asks only at grid points the center view could not see (frame-border strips
+    # and disocclusions, 13-15 % of this small scene's grid), never at the whole grid.
+    assert asked.count(None) == 2 and len(extra) == 4 and all(n < 0.2 * 32 * 32 for n in extra)
+
+
+def test_extra_reference_views_are_encoded_once_under_a_small_memory_budget():
+    """The corners visited by the automatic mode are used before new encodes can evict them."""
+    lf = generate_scene(grid=(5, 5), size=(96, 128), seed=1)
+    segmenter = load_segmenter("oracle", lightfield=lf, device="cpu")
+    one_view_mb = embedding_nbytes(segmenter.encode(lf.views[0, :1], keys=[(0, 0)])[0]) / 2**20
+    predictor = LightFieldPredictor(segmenter, memory_budget_mb=6 * one_view_mb, progress=False)
+    predictor.set_lightfield(lf, disparity="gt")
+    predictor.generate("corners")
+    predictor.predict()
+    assert predictor.views_encoded == 25

@@ -14,8 +14,10 @@ from lfsam.pipeline.references import (
     REFERENCE_MODES,
     drop_covered_masks,
     reference_views,
+    seen_from,
     uncovered_points,
 )
+from lfsam.synth import generate_scene
 
 
 def test_reference_views_of_a_9x9_grid():
@@ -113,3 +115,49 @@ def test_drop_covered_masks_by_overlap():
     assert drop_covered_masks(np.zeros((0, 4, 4), bool), covered).shape == (0,)
     with pytest.raises(ValueError):
         drop_covered_masks(masks, covered[:3])
+
+
+# --- seen_from: where the center view could look ------------------------------------------------
+@settings(max_examples=40, deadline=None)
+@given(
+    d=st.floats(-3.0, 3.0, allow_nan=False),
+    ds=st.integers(-4, 4),
+    dt=st.integers(-4, 4),
+)
+def test_a_single_plane_is_seen_wherever_it_lands_in_the_frame(d, ds, dt):
+    height, width = 12, 16
+    plane = torch.full((height, width), d)
+    seen = seen_from(plane, plane, ds, dt, 0.2)
+    rows = torch.round(torch.arange(height, dtype=torch.float32)[:, None] - plane * ds)
+    cols = torch.round(torch.arange(width, dtype=torch.float32)[None, :] - plane * dt)
+    inside = (rows >= 0) & (rows < height) & (cols >= 0) & (cols < width)
+    assert torch.equal(seen, inside)
+
+
+def test_non_finite_disparity_is_never_seen():
+    disp = torch.zeros(4, 5)
+    disp[1, 2] = float("nan")
+    disp[2, 3] = float("inf")
+    seen = seen_from(disp, torch.zeros(4, 5), 1, 1, 0.2)
+    assert not seen[1, 2] and not seen[2, 3] and seen[0, 0]
+
+
+@pytest.mark.parametrize("view", [(0, 0), (0, 4), (4, 0), (4, 4)])
+def test_corner_pixels_seen_from_the_center_show_the_same_object_there(view):
+    """Exact ground truth: a pixel the center sees shows the same object at its landing pixel;
+    every pixel of a hidden object is unseen; most of a corner view is seen (the rest: strips
+    entering at the frame border and disocclusions at depth edges)."""
+    lf = generate_scene(grid=(5, 5), size=(64, 96), seed=0, num_objects=5, hidden_objects=2)
+    center = lf.center
+    disp = torch.as_tensor(lf.disparity[view])
+    ds, dt = center[0] - view[0], center[1] - view[1]
+    seen = seen_from(disp, torch.as_tensor(lf.disparity[center]), ds, dt, 0.2).numpy()
+    labels = lf.labels[view]
+    rows, cols = np.nonzero(seen)
+    d = lf.disparity[view][rows, cols]
+    to_rows, to_cols = np.round(rows - d * ds).astype(int), np.round(cols - d * dt).astype(int)
+    there = lf.center_labels[to_rows, to_cols]
+    assert np.mean(there == labels[rows, cols]) >= 0.97  # the rest: anti-aliased label edges
+    for label in lf.meta["generator"]["hidden_labels"]:
+        assert not seen[labels == label].any()
+    assert seen.mean() >= 0.8

@@ -187,6 +187,14 @@ def as_objects(prompts: PromptsLike, lightfield: LightField) -> list[ObjectPromp
 
     A path is a prompt file (:func:`lfsam.prompts.load_prompts`); :class:`Prompts` groups are
     center-view prompts, each row one object, ids in order.
+
+    Raises
+    ------
+    TypeError
+        For a sequence holding anything but :class:`ObjectPrompts` or :class:`Prompts` (the
+        caller's code is at fault).
+    LfsamError
+        For prompts that do not fit the light field (:func:`lfsam.prompts.validate_objects`).
     """
     if prompts is None:
         return None

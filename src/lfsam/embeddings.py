@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_output
 from lfsam.segmenters.base import Segmenter, ViewEmbedding
 
@@ -148,6 +149,10 @@ class EmbeddingStore:
                 self._save(key, embedding)
         return [out[key] for key in keys]
 
+    def in_memory(self, view: View) -> bool:
+        """Whether ``view``'s embedding is held in memory now (a :meth:`get_many` hit)."""
+        return (int(view[0]), int(view[1])) in self._memory
+
     def pin(self, view: View) -> None:
         """Never drop ``view`` from memory (e.g. a reference view that serves again)."""
         self._pinned.add((int(view[0]), int(view[1])))
@@ -188,7 +193,7 @@ class EmbeddingStore:
             with np.load(path, allow_pickle=False) as npz:
                 header = json.loads(str(npz["__lfsam_cache__"]))
                 if header.get("entry") != entry:
-                    raise ValueError("the entry belongs to another view or model")
+                    raise LfsamError("the entry belongs to another view or model; it is recomputed")
                 state = {name: npz[name] for name in npz.files if name != "__lfsam_cache__"}
             embedding = self.segmenter.embedding_from_state(
                 state, tuple(self.views.shape[2:4]), key

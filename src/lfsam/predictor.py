@@ -171,6 +171,8 @@ class LightFieldPredictor:
     >>> predictor = LightFieldPredictor(load_segmenter("oracle", lightfield=lf))
     >>> predictor.set_lightfield(lf, disparity="gt")
     >>> predictor.add_prompts(1, points=[(32, 24)], labels=[1])
+    ObjectPrompts(obj_id=1, points=(PointPrompt(x=32.0, y=24.0,
+                  positive=True, view=(1, 1)),), box=None)
     >>> prediction = predictor.predict()
     >>> prediction.labels.shape
     (3, 3, 48, 64)
@@ -588,9 +590,17 @@ class LightFieldPredictor:
             rank = {i: k for k, i in enumerate(ids)}
             paint = torch.as_tensor([rank[i] for i in order], device=self.device)
             lookup = torch.as_tensor([0, *ids], dtype=torch.int32, device=self.device)
-        for batch_start in range(0, len(views), batch_size):
-            batch = views[batch_start : batch_start + batch_size]
-            references = {self._objects[i].reference.view for i in ids}
+        # The reference views are encoded already (step 1): they go first, on their own, so
+        # that every later batch encodes a full ``batch_size`` of new views. Views whose
+        # embedding is in memory (e.g. the extra reference views of the automatic mode) come
+        # next, before new encodes could push them out of the memory budget.
+        references = {self._objects[i].reference.view for i in ids}
+        pending = [v for v in views if v not in references]
+        pending.sort(key=lambda v: not self._store.in_memory(v))
+        batches = [[v for v in views if v in references]]
+        batches += [pending[k : k + batch_size] for k in range(0, len(pending), batch_size)]
+        for batch in batches:
+            # A view needs its embedding unless it is the reference of every object here.
             others = [v for v in batch if any(v != r for r in references)]
             embeddings = {}
             if needs_embedding and others:
@@ -786,13 +796,16 @@ class LightFieldPredictor:
         center view, ids in order of decreasing area. ``corners``, ``ring`` and ``all`` then
         visit further reference views (:func:`lfsam.pipeline.references.reference_views`): in
         each, the objects found so far are propagated there (steps 1-3), the generator asks
-        only at its grid points where no mask lands, and a new mask that mostly overlaps the
-        existing ones is dropped; each genuinely new object is propagated from its own view
-        (docs/design.md section 8: objects that the center view cannot see).
+        only at its grid points where no mask lands and the center view could not look
+        (:func:`lfsam.pipeline.references.seen_from`: hidden there behind something nearer, or
+        outside its frame), and a new mask that mostly lies on such covered pixels is dropped;
+        each genuinely new object is propagated from its own view (docs/design.md section 8:
+        objects that the center view cannot see).
         """
         from lfsam.pipeline.references import (
             drop_covered_masks,
             reference_views,
+            seen_from,
             uncovered_points,
         )
 
@@ -805,6 +818,12 @@ class LightFieldPredictor:
             points = covered = None
             if k > 0:
                 covered = self._coarse_in_view(self.object_ids, view).any(axis=0)
+                center = views[0]
+                with self.timer("disparity"):
+                    covered |= seen_from(
+                        self.disparity(view), self.disparity(center), center[0] - view[0],
+                        center[1] - view[1], self.config.zbuffer_tolerance,
+                    ).cpu().numpy()
                 points = uncovered_points(per_side, covered)
                 if len(points) == 0:
                     continue

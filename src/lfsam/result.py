@@ -262,13 +262,13 @@ def load_result(path: str | os.PathLike) -> SegmentationResult:
     if "masks_packed" in contents and "masks_shape" in contents:
         try:
             shape = tuple(int(x) for x in np.asarray(contents["masks_shape"]).ravel())
-            if len(shape) != 5 or min(shape) < 0:
-                raise ValueError
         except (TypeError, ValueError):
+            shape = ()
+        if len(shape) != 5 or min(shape) < 0:
             raise LfsamError(
                 f"'masks_shape' in {str(path)!r} is not 5 sizes (N, S, T, U, V); "
                 "re-create the result"
-            ) from None
+            )
         if shape[1:] != labels.shape:
             raise LfsamError(
                 f"masks in {str(path)!r} have shape {shape[1:]} per mask but the labels "

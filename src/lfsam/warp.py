@@ -47,6 +47,13 @@ HALVES = ("even", "up")
 
 
 def _nearest(x: torch.Tensor, halves: str) -> torch.Tensor:
+    """``x`` rounded to the nearest integer, halves to even or up.
+
+    Raises
+    ------
+    ValueError
+        For a ``halves`` not in :data:`HALVES` (the caller's code is at fault).
+    """
     if halves == "even":
         return torch.round(x)
     if halves == "up":

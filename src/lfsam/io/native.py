@@ -251,18 +251,19 @@ def read_native(path: str | os.PathLike) -> LightField:
     try:
         s_count, t_count = (int(x) for x in description["grid"])
         digits = int(description.get("view_digits", 2))
-        if min(s_count, t_count) < 1 or s_count * t_count > 100_000 or not 1 <= digits <= 6:
-            raise ValueError
+        valid = min(s_count, t_count) >= 1 and s_count * t_count <= 100_000 and 1 <= digits <= 6
     except (KeyError, TypeError, ValueError, OverflowError):
-        raise LfsamError(f"{marker} has no valid 'grid'; re-create the scene") from None
+        valid = False
+    if not valid:
+        raise LfsamError(f"{marker} has no valid 'grid'; re-create the scene")
     pattern = _view_pattern(digits)
     present = description.get("present")
     try:
         present = np.ones((s_count, t_count), bool) if present is None else np.array(present)
-        if present.shape != (s_count, t_count) or present.dtype != bool:
-            raise ValueError
     except ValueError:
-        raise LfsamError(f"{marker} has an invalid 'present'; re-create the scene") from None
+        present = None
+    if present is None or present.shape != (s_count, t_count) or present.dtype != bool:
+        raise LfsamError(f"{marker} has an invalid 'present'; re-create the scene")
     paths = [
         [folder / pattern.format(s=s, t=t) if present[s, t] else None for t in range(t_count)]
         for s in range(s_count)

@@ -7,9 +7,17 @@ masks propagated so far do not already land, and each genuinely new object is pr
 own reference view. This module holds the pure parts of that:
 
 - :func:`reference_views`: which views are references for a mode;
+- :func:`seen_from`: the pixels of a reference view whose surface the center view sees too (the
+  center's generator has had its chance there, so asking again could only find the same
+  surfaces, split another way);
 - :func:`uncovered_points`: SAM 2's automatic-generator point grid in a view, without the points
   that fall on pixels already covered;
 - :func:`drop_covered_masks`: which new masks to keep (those not mostly on covered pixels).
+
+A pixel counts as covered when a propagated mask lands on it or when the center view sees it, so
+an extra reference view asks only where the center view could not look: behind nearer objects
+and beyond its frame. On a scene where the center view sees everything, the extra views ask
+(almost) nowhere: they cost little and change no label.
 """
 
 from __future__ import annotations
@@ -25,6 +33,7 @@ __all__ = [
     "check_references",
     "drop_covered_masks",
     "reference_views",
+    "seen_from",
     "uncovered_points",
 ]
 
@@ -62,6 +71,9 @@ def reference_views(grid_shape: tuple[int, int], mode: str) -> list[tuple[int, i
     ------
     LfsamError
         For an unknown mode.
+    ValueError
+        For a grid shape with no views (the caller's code is at fault: a light field always
+        has at least one view).
     """
     check_references(mode)
     s_count, t_count = int(grid_shape[0]), int(grid_shape[1])
@@ -79,6 +91,59 @@ def reference_views(grid_shape: tuple[int, int], mode: str) -> list[tuple[int, i
             others |= {(0, center[1]), (last_s, center[1]), (center[0], 0), (center[0], last_t)}
     others.discard(center)
     return [center, *sorted(others)]
+
+
+def seen_from(
+    disparity: torch.Tensor,
+    other_disparity: torch.Tensor,
+    ds: float,
+    dt: float,
+    tolerance: float,
+) -> torch.Tensor:
+    """Pixels of a view whose surface another view also sees (a backward z-buffer test).
+
+    Pixel ``p`` of the view, with disparity ``d``, shows a surface point that the other view,
+    at offset ``(ds, dt)``, images at ``q = p - d (ds, dt)`` (:func:`lfsam.warp.landing_pixels`,
+    docs/design.md section 1). The other view sees that point unless ``q`` is outside its frame
+    or the other view's own disparity at ``q`` is larger than ``d`` by more than ``tolerance``
+    (something nearer hides it there).
+
+    Parameters
+    ----------
+    disparity : (U, V) float tensor
+        Disparity of this view. Non-finite values count as not seen.
+    other_disparity : (U, V) float tensor
+        Disparity of the other view (e.g. the center view).
+    ds, dt : float
+        Offset of the other view from this one, ``(s_other - s, t_other - t)``.
+    tolerance : float
+        Pixels per view step (the pipeline's ``zbuffer_tolerance``).
+
+    Returns
+    -------
+    (U, V) bool tensor
+        On the device of ``disparity``.
+
+    Examples
+    --------
+    A near bar (disparity 2) in front of a far plane (disparity 0); the other view is one step
+    to the right, where the bar has moved two pixels left and hides the plane's first pixels:
+
+    >>> import torch
+    >>> view = torch.tensor([[0.0, 0.0, 2.0, 2.0, 0.0, 0.0]])
+    >>> other = torch.tensor([[2.0, 2.0, 0.0, 0.0, 0.0, 0.0]])
+    >>> seen_from(view, other, 0, 1, 0.2).int().tolist()
+    [[0, 0, 1, 1, 1, 1]]
+    >>> seen_from(other, view, 0, -1, 0.2).int().tolist()
+    [[1, 1, 0, 0, 1, 1]]
+    """
+    from lfsam.warp import landing_pixels
+
+    disparity = disparity.float()
+    target, valid = landing_pixels(disparity, ds, dt)
+    there = other_disparity.float().to(disparity.device).reshape(-1)[target.clamp(min=0)]
+    seen = valid & (there <= disparity.reshape(-1) + tolerance)
+    return seen.reshape(disparity.shape)
 
 
 def _grid(points_per_side: int) -> np.ndarray:
@@ -113,6 +178,12 @@ def uncovered_points(
         ``((i + 0.5) / n, (j + 0.5) / n)`` scaled by ``(V, U)``, as SAM 2 scales its grid to the
         image; a point at ``(x, y)`` lies on pixel ``(floor(y), floor(x))``. Row-major order of
         the grid; ``(0, 2)`` when every point is covered.
+
+    Raises
+    ------
+    ValueError
+        For ``points_per_side < 1`` or a ``covered`` that is not 2-D (the caller's code is at
+        fault; the CLI and the predictor check their inputs first).
     """
     if int(points_per_side) < 1:
         raise ValueError(f"points_per_side must be >= 1, got {points_per_side}")
@@ -145,6 +216,12 @@ def drop_covered_masks(masks, covered, max_overlap: float = 0.5):
     -------
     keep : (M,) bool
         Of the type (and device) of ``masks``.
+
+    Raises
+    ------
+    ValueError
+        When ``masks`` is not ``(M, U, V)`` with ``covered`` of shape ``(U, V)`` (the caller's
+        code is at fault).
     """
     as_numpy = not isinstance(masks, torch.Tensor)
     m = torch.as_tensor(np.asarray(masks)) if as_numpy else masks

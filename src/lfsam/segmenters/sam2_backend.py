@@ -303,7 +303,9 @@ class Sam2Segmenter(Segmenter):
         side = int(self.model.image_size)
         expected = [side // 16, side // 4, side // 8]
         if [int(level.shape[-1]) for level in levels] != expected:
-            raise ValueError("embedding shapes do not match this model")
+            raise LfsamError(
+                "embedding shapes do not match this model; encode the view with this model"
+            )
         feats = Sam2Features(image_embed=levels[0], high_res_feats=levels[1:])
         return ViewEmbedding(image_size=tuple(image_size), key=tuple(key), data=feats)
 

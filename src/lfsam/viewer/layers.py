@@ -63,6 +63,11 @@ def make_layer(name: str, shape: tuple[int, int, int, int]) -> Any:
     Returns
     -------
     napari.layers.Layer
+
+    Raises
+    ------
+    ValueError
+        For a name not in :data:`LAYER_NAMES` (the caller's code is at fault).
     """
     import pandas as pd
     from napari.layers import Labels, Points, Shapes
