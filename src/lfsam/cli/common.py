@@ -93,6 +93,30 @@ def bounded_int(low: int, high: int | None = None):
     return parse
 
 
+def add_disparity_argument(
+    parser: argparse.ArgumentParser | argparse._ArgumentGroup, *, files: bool = True
+) -> None:
+    """Add ``--disparity`` (default ``estimate``): where each reference view's disparity comes
+    from, the one disparity option of ``segment``, ``view`` and ``evaluate``.
+
+    The value goes unchanged to :func:`lfsam.disparity.resolve_disparity` (through
+    :class:`lfsam.disparity.views.ViewDisparities`), which checks it. ``files=False`` (a data
+    set of many light fields) allows only ``estimate`` and ``gt``.
+    """
+    if files:
+        parser.add_argument(
+            "--disparity", default="estimate", metavar="estimate|gt|FILE.npy",
+            help="disparity: estimated from the views (structure tensor), the scene's ground "
+            "truth, or a center-view (U, V) or every-view (S, T, U, V) .npy in lfsam's "
+            "convention; the disparity of a view other than the center is derived from it",
+        )
+    else:
+        parser.add_argument(
+            "--disparity", choices=["estimate", "gt"], default="estimate",
+            help="disparity: estimated from each light field's views, or its ground truth",
+        )
+
+
 def add_device_argument(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
     """Add ``--device`` (default ``auto``): the one device option of every command.
 

@@ -6,7 +6,7 @@ import argparse
 import functools
 import sys
 
-from lfsam.cli.common import HelpFormatter
+from lfsam.cli.common import HelpFormatter, add_disparity_argument
 from lfsam.cli.models import add_model_arguments
 from lfsam.errors import LfsamError
 
@@ -65,10 +65,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="our method or the SAM 2 video baseline",
     )
     add_model_arguments(parser)
-    parser.add_argument(
-        "--disparity", choices=["estimate", "gt"], default="estimate",
-        help="center-view disparity for propagation: estimated or the scene's ground truth",
-    )
+    add_disparity_argument(parser, files=False)
     parser.add_argument(
         "--ablation", choices=["none", "ref", "ref+occ"], default="ref+occ",
         help="row of paper Table 2: no refinement or occluding, refinement only, or both",

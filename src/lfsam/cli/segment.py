@@ -6,7 +6,13 @@ import argparse
 import json
 import sys
 
-from lfsam.cli.common import HelpFormatter, add_value_range, bounded_int, unit_interval
+from lfsam.cli.common import (
+    HelpFormatter,
+    add_disparity_argument,
+    add_value_range,
+    bounded_int,
+    unit_interval,
+)
 from lfsam.cli.models import add_model_arguments, model_options_from_args
 from lfsam.cli.prompts import PROMPT_PARSERS, PromptAction, objects_from_items
 
@@ -88,11 +94,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     add_model_arguments(parser)
     method = parser.add_argument_group("method switches (paper Table 2 and beyond)")
-    method.add_argument(
-        "--disparity", default="estimate", metavar="estimate|gt|FILE.npy",
-        help="center-view disparity: estimated (structure tensor), the scene's ground truth, "
-        "or a (U, V) .npy in lfsam's convention",
-    )
+    add_disparity_argument(method)
     method.add_argument(
         "--no-refine", action="store_true", help="skip refinement (keep the propagated masks)"
     )

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from lfsam.cli.common import HelpFormatter
+from lfsam.cli.common import HelpFormatter, add_disparity_argument
 
 DESCRIPTION = """\
 Open a light field in napari: the views are one image layer with the view row s and column t on
@@ -48,10 +48,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--model", default=None, help="segmenter: a SAM 2 model name or 'oracle' (default: "
         "the package's default SAM 2 model)"
     )
-    parser.add_argument(
-        "--disparity", default="estimate", metavar="estimate|gt|FILE.npy",
-        help="disparity source of the predictor",
-    )
+    add_disparity_argument(parser)
     parser.add_argument("--cache", metavar="DIR", help="embedding cache folder")
     parser.add_argument("--format", dest="input_format", help="input format (default: detect)")
     parser.set_defaults(func=run)
