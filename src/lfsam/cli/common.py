@@ -25,7 +25,13 @@ __all__ = [
 
 
 class HelpFormatter(argparse.RawDescriptionHelpFormatter, argparse.ArgumentDefaultsHelpFormatter):
-    """Keeps the description's line breaks and shows defaults."""
+    """Keeps the description's line breaks and shows defaults (not a bare "None": an option
+    without a default says in its help what happens when it is left out)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.default is None:
+            return action.help
+        return super()._get_help_string(action)
 
 
 def parse_pair(text: str, sep: str = "x", kind: type = int) -> tuple:
