@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 import torch.nn.functional as F
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import lfsam.segmenters.feature_grid as feature_grid
 from lfsam.segmenters.feature_grid import (
     bilinear_corners,
     grid_cosine_similarity,
@@ -70,3 +72,28 @@ def test_similarity_is_exactly_one_for_a_constant_feature_direction():
     pixels = torch.arange(20 * 24)
     sims = grid_cosine_similarity(grid, torch.zeros_like(pixels), pixels, source, (20, 24))
     assert torch.allclose(sims, torch.ones_like(sims), atol=1e-6)
+
+
+@settings(max_examples=25, deadline=None)
+@given(shape=sizes, masks=st.integers(1, 3), density=st.floats(0.01, 1.0), seed=st.integers(0, 99))
+def test_interpolated_and_gathered_similarities_agree_with_per_pixel_features(
+    shape, masks, density, seed
+):
+    """Both ways of computing the numerator (whole-view interpolation, four-corner gather)."""
+    h, w, u_size, v_size = shape
+    rng = np.random.default_rng(seed)
+    grid = torch.from_numpy(rng.normal(size=(5, h, w)).astype(np.float32))
+    dense = torch.from_numpy(rng.random((masks, u_size, v_size)) < density)
+    mask_index, pixel_index = torch.nonzero(dense.reshape(masks, -1), as_tuple=True)
+    feats = _sampled(grid, pixel_index // v_size, pixel_index % v_size, (u_size, v_size))
+    sources = F.normalize(torch.from_numpy(rng.normal(size=(masks, 5)).astype(np.float32)), dim=1)
+    expected = F.cosine_similarity(feats, sources.double()[mask_index], dim=1, eps=1e-12)
+    results = []
+    for threshold in (0, 10**9):  # never / always interpolate
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(feature_grid, "INTERPOLATE_BELOW", threshold)
+            results.append(
+                grid_cosine_similarity(grid, mask_index, pixel_index, sources, (u_size, v_size))
+            )
+    for sims in results:
+        assert torch.allclose(sims.double(), expected, atol=1e-5)

@@ -68,6 +68,13 @@ REFINE_CHUNK_CUDA = 128
 WARP_CACHE_BYTES = 512 * 2**20
 
 
+def _warp_nbytes(warp: ForwardWarp) -> int:
+    """Memory of a cached warp: its arrays, plus the seen-pixel map it keeps once asked (the
+    holes it keeps are a small fraction of a view)."""
+    arrays = (warp.target, warp.valid, warp.zbuffer)
+    return sum(x.numel() * x.element_size() for x in arrays) + warp.valid.numel()
+
+
 @dataclass
 class _Reference:
     """Step 1 of one object: its mask in its reference view."""
@@ -500,14 +507,11 @@ class LightFieldPredictor:
             warp = forward_warp(
                 self.disparity(source), target[0] - source[0], target[1] - source[1]
             )
-        size = sum(x.numel() * x.element_size() for x in (warp.target, warp.valid, warp.zbuffer))
         self._warps[key] = warp
-        self._warp_bytes += size
+        self._warp_bytes += _warp_nbytes(warp)
         while self._warp_bytes > WARP_CACHE_BYTES and len(self._warps) > 1:
             _, old = self._warps.popitem(last=False)
-            self._warp_bytes -= sum(
-                x.numel() * x.element_size() for x in (old.target, old.valid, old.zbuffer)
-            )
+            self._warp_bytes -= _warp_nbytes(old)
         return warp
 
     def predict_reference(self, obj_id: int) -> tuple[View, np.ndarray, float]:

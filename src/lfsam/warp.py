@@ -24,7 +24,7 @@ half-pixel shift a translation); both are kept so that results are unchanged
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import torch
 import torch.nn.functional as F
@@ -156,6 +156,10 @@ class ForwardWarp:
     zbuffer: torch.Tensor
     ds: float = 0.0
     dt: float = 0.0
+    # Mask-independent answers, computed once per warp (a cached warp serves every object and
+    # every edit of the interactive predictor): view size -> holes, seen pixels.
+    _holes: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+    _seen: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def hole_disparity(self, view_size: tuple[int, int]) -> torch.Tensor:
         """Disparity at each target pixel: the z-buffer, with holes filled from neighbours.
@@ -189,7 +193,16 @@ class ForwardWarp:
         Returns
         -------
         hole_u, hole_v, source_u, source_v : (K,) int64 tensors
+            Computed once per view size and kept with the warp (treat them as read-only).
         """
+        key = (int(view_size[0]), int(view_size[1]))
+        if key not in self._holes:
+            self._holes[key] = self._hole_sources(key)
+        return self._holes[key]
+
+    def _hole_sources(
+        self, view_size: tuple[int, int]
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         height, width = view_size
         filled = self.hole_disparity(view_size)
         landed = torch.isfinite(self.zbuffer).reshape(view_size)
@@ -204,12 +217,16 @@ class ForwardWarp:
         """Target pixels the warp reaches: landed on or fillable holes, ``(U, V)`` bool.
 
         The rest of the target view shows content the source view does not see (mostly a strip
-        entering at the frame border), about which a propagated mask knows nothing.
+        entering at the frame border), about which a propagated mask knows nothing. Computed
+        once per view size and kept with the warp (a copy is returned).
         """
-        seen = torch.isfinite(self.zbuffer).reshape(view_size).clone()
-        hole_u, hole_v, _, _ = self.hole_sources(view_size)
-        seen[hole_u, hole_v] = True
-        return seen
+        key = (int(view_size[0]), int(view_size[1]))
+        if key not in self._seen:
+            seen = torch.isfinite(self.zbuffer).reshape(key).clone()
+            hole_u, hole_v, _, _ = self.hole_sources(key)
+            seen[hole_u, hole_v] = True
+            self._seen[key] = seen
+        return self._seen[key].clone()
 
     def frame_runs(
         self, view_size: tuple[int, int], seen: torch.Tensor | None = None
