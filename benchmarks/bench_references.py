@@ -6,15 +6,27 @@ Two parts, each printing its table:
   mode with ground-truth disparity on a synthetic scene *without* hidden objects, run with
   ``--references center`` (the paper's setting) and then with each extra mode. Prints the
   seconds of each run, its ratio to ``center`` (target <= 1.10), the points the extra views'
-  generator was asked at, the masks it added, and whether every label equals the ``center``
-  run's (target: identical). Each run encodes every view once (no cache shared between runs).
+  generator was asked at, the masks it added, whether every label equals the ``center`` run's
+  (target: identical), and how many views were encoded. Each run encodes every view it needs
+  once (no cache shared between runs). Two regimes (``--answers``):
+
+  - ``random``: SAM 2's own answers. Untrained, its generator keeps no mask at the paper's
+    thresholds, so the ``center`` run is little more than one view's generator: a degenerate
+    regime in which every extra encode and generator point counts in full.
+  - ``oracle``: SAM 2 computes everything it would (every encode, the generator over every
+    point asked, every refinement decode), but the generator's masks are the ground truth's
+    regions under the points asked (what a trained generator finds on these scenes; the same
+    construction as the video-baseline tests). This is the regime of a real run: the center
+    finds the objects, and every view is encoded and refined.
+
 * ``quality`` — the oracle with ground-truth disparity on synthetic scenes *with* hidden objects
   (objects the center view cannot see): object recall (target 1.0 with ``corners``, below 1.0
   with ``center``), AA and UE (target: no worse than ``center``) per mode.
 
 Usage::
 
-    python benchmarks/bench_references.py [--parts speed,quality] [--grid 5x5] [--size 240x320]
+    python benchmarks/bench_references.py [--parts speed,quality] [--answers random,oracle]
+        [--grid 5x5] [--size 240x320]
 """
 
 from __future__ import annotations
@@ -31,7 +43,25 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 from lfsam.api import run_segmentation
 from lfsam.metrics import evaluate_result
 from lfsam.segmenters import load_segmenter
+from lfsam.segmenters.oracle import OracleSegmenter
+from lfsam.segmenters.sam2_backend import Sam2Segmenter
 from lfsam.synth import generate_scene
+
+
+class Sam2CostOracleAnswers(Sam2Segmenter):
+    """SAM 2 doing all its work, with the ground truth's regions as the generator's masks."""
+
+    oracle: OracleSegmenter
+
+    def encode(self, images, keys=None):
+        embeddings = super().encode(images, keys)
+        for embedding in embeddings:
+            embedding.oracle = self.oracle.encode(images[:1], keys=[embedding.key])[0]
+        return embeddings
+
+    def generate(self, embedding, image, points=None):
+        super().generate(embedding, image, points=points)  # SAM 2's cost, answers discarded
+        return self.oracle.generate(embedding.oracle, image, points=points)
 
 
 def _pair(text: str) -> tuple[int, int]:
@@ -53,15 +83,19 @@ def _count_generator_points(segmenter) -> list[int | None]:
     return asked
 
 
-def speed(args: argparse.Namespace) -> None:
+def speed(args: argparse.Namespace, answers: str) -> None:
     lf = generate_scene(grid=args.grid, size=args.size, seed=args.seed, num_objects=args.objects)
     segmenter = load_segmenter(args.model, random_weights=True, device=args.device)
+    if answers == "oracle":
+        sam2 = segmenter
+        segmenter = Sam2CostOracleAnswers(sam2.model, amg_options=sam2.amg_options)
+        segmenter.oracle = OracleSegmenter(lf, device=args.device)
     asked = _count_generator_points(segmenter)
     points_per_side = int(getattr(segmenter, "amg_options", {}).get("points_per_side") or 32)
-    print(f"speed: {args.model} (random weights) on {args.device}; {args.grid[0]}x{args.grid[1]} "
-          f"views of {args.size[0]}x{args.size[1]}, {args.objects} objects, no hidden ones; "
-          f"ground-truth disparity; generator grid {points_per_side}x{points_per_side}",
-          flush=True)
+    print(f"\nspeed ({answers} answers): {args.model} (random weights) on {args.device}; "
+          f"{args.grid[0]}x{args.grid[1]} views of {args.size[0]}x{args.size[1]}, "
+          f"{args.objects} objects, no hidden ones; ground-truth disparity; generator grid "
+          f"{points_per_side}x{points_per_side}", flush=True)
     rows = []
     base = None
     for mode in ["center", *args.modes]:
@@ -115,6 +149,8 @@ def quality(args: argparse.Namespace) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--parts", default="speed,quality")
+    parser.add_argument("--answers", default="random,oracle",
+                        help="speed regimes: SAM 2's own answers, and/or the ground truth's")
     parser.add_argument("--modes", default="corners,ring",
                         help="extra modes compared with center, comma-separated")
     parser.add_argument("--grid", type=_pair, default=(5, 5), help="speed part")
@@ -132,7 +168,8 @@ def main() -> None:
     args.quality_seeds = [int(s) for s in args.quality_seeds.split(",")]
     parts = args.parts.split(",")
     if "speed" in parts:
-        speed(args)
+        for answers in args.answers.split(","):
+            speed(args, answers)
     if "quality" in parts:
         quality(args)
     print("bench_references: done", flush=True)
