@@ -13,6 +13,7 @@ from lfsam.errors import LfsamError
 from lfsam.pipeline.references import (
     REFERENCE_MODES,
     drop_covered_masks,
+    extra_view_points,
     reference_views,
     seen_from,
     uncovered_points,
@@ -161,3 +162,38 @@ def test_corner_pixels_seen_from_the_center_show_the_same_object_there(view):
     for label in lf.meta["generator"]["hidden_labels"]:
         assert not seen[labels == label].any()
     assert seen.mean() >= 0.8
+
+
+# --- extra_view_points: where an extra reference view asks --------------------------------------
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 2**16),
+    shape=st.tuples(st.integers(8, 60), st.integers(8, 60)),
+    density=st.floats(0.5, 0.98),
+    per_side=st.integers(2, 32),
+    min_region=st.integers(1, 30),
+)
+def test_every_large_uncovered_region_gets_a_point_and_points_are_uncovered(
+    seed, shape, density, per_side, min_region
+):
+    from scipy import ndimage
+
+    rng = np.random.default_rng(seed)
+    covered = ndimage.binary_opening(rng.random(shape) < density, np.ones((2, 2)))
+    points = extra_view_points(per_side, covered, min_region)
+    rows, cols = np.floor(points[:, 1]).astype(int), np.floor(points[:, 0]).astype(int)
+    assert not covered[rows, cols].any()
+    regions, count = ndimage.label(~covered, structure=np.ones((3, 3)))
+    sizes = np.bincount(regions.ravel(), minlength=count + 1)
+    reached = set(regions[rows, cols].tolist())
+    for region in range(1, count + 1):
+        if sizes[region] >= min_region:
+            assert region in reached
+    # the half-density grid, then at most one point per region
+    thinned = uncovered_points(max(per_side // 2, 1), covered)
+    assert np.array_equal(points[: len(thinned)], thinned)
+    assert len(points) - len(thinned) <= int((sizes[1:] >= min_region).sum())
+
+
+def test_nothing_uncovered_asks_nowhere():
+    assert extra_view_points(64, np.ones((30, 40), dtype=bool), 5).shape == (0, 2)

@@ -806,11 +806,12 @@ class LightFieldPredictor:
         each genuinely new object is propagated from its own view (docs/design.md section 8:
         objects that the center view cannot see).
         """
+        from lfsam.metrics.recall import default_min_area
         from lfsam.pipeline.references import (
             drop_covered_masks,
+            extra_view_points,
             reference_views,
             seen_from,
-            uncovered_points,
         )
 
         lf = self._require()
@@ -828,7 +829,9 @@ class LightFieldPredictor:
                         self.disparity(view), self.disparity(center), center[0] - view[0],
                         center[1] - view[1], self.config.zbuffer_tolerance,
                     ).cpu().numpy()
-                points = uncovered_points(per_side, covered)
+                points = extra_view_points(
+                    per_side, covered, min_region=default_min_area(lf.view_shape) // 2
+                )
                 if len(points) == 0:
                     continue
             with self.timer("initial"):

@@ -12,6 +12,9 @@ own reference view. This module holds the pure parts of that:
   surfaces, split another way);
 - :func:`uncovered_points`: SAM 2's automatic-generator point grid in a view, without the points
   that fall on pixels already covered;
+- :func:`extra_view_points`: the points an extra reference view asks at: that grid at half
+  density, plus the deepest pixel of every uncovered region large enough to hold a new object
+  that the thinned grid misses;
 - :func:`drop_covered_masks`: which new masks to keep (those not mostly on covered pixels).
 
 A pixel counts as covered when a propagated mask lands on it or when the center view sees it, so
@@ -32,6 +35,7 @@ __all__ = [
     "REFERENCE_MODES",
     "check_references",
     "drop_covered_masks",
+    "extra_view_points",
     "reference_views",
     "seen_from",
     "uncovered_points",
@@ -197,6 +201,77 @@ def uncovered_points(
     rows = np.clip(np.floor(pixels[:, 1]).astype(np.int64), 0, height - 1)
     keep = ~covered[rows, cols]
     return (unit if normalized else pixels)[keep]
+
+
+def extra_view_points(
+    points_per_side: int, covered: np.ndarray, min_region: int
+) -> np.ndarray:
+    """The points an extra reference view's generator asks at (docs/design.md section 8).
+
+    What is left uncovered in an extra view (where no mask lands and the center view could not
+    look, :func:`seen_from`) is thin: strips entering at the frame border and disocclusions
+    along depth edges. SAM 2's full grid would put a point every few pixels along them. Here
+    the grid is thinned to half its density per side (:func:`uncovered_points` with
+    ``points_per_side // 2``), and every uncovered 8-connected region of at least
+    ``min_region`` pixels that none of those points falls in gets one point at its deepest
+    pixel (farthest from any covered pixel or the frame). A smaller region cannot hold the
+    uncovered majority of a new object of ``2 * min_region`` pixels, which is what
+    :func:`drop_covered_masks` would keep.
+
+    Parameters
+    ----------
+    points_per_side : int
+        The generator's ``points_per_side`` (halved here, at least 1).
+    covered : (U, V) bool array
+        Pixels covered already (masks landing there, or seen from the center view).
+    min_region : int
+        Smallest uncovered region that gets its own point (pixels, >= 1).
+
+    Returns
+    -------
+    (P, 2) float64 array
+        ``(x, y)`` pixel positions (a region's point at its pixel's centre), grid points first.
+
+    Raises
+    ------
+    ValueError
+        For ``points_per_side < 1`` or a ``covered`` that is not 2-D (the caller's code is at
+        fault).
+
+    Examples
+    --------
+    A 9-pixel-wide uncovered column in a covered 40 x 40 view (two columns of the thinned 8 x 8
+    grid fall in it: 16 points) and a 3 x 3 uncovered hole that the grid misses (one point, at
+    its centre):
+
+    >>> import numpy as np
+    >>> covered = np.ones((40, 40), dtype=bool)
+    >>> covered[:, 30:39] = False
+    >>> covered[14:17, 14:17] = False
+    >>> points = extra_view_points(16, covered, min_region=9)
+    >>> len(points), points[-1].tolist()
+    (17, [15.5, 15.5])
+    """
+    from scipy import ndimage
+
+    grid = uncovered_points(max(int(points_per_side) // 2, 1), covered)
+    free = ~np.asarray(covered, dtype=bool)
+    regions, count = ndimage.label(free, structure=np.ones((3, 3), dtype=bool))
+    if count == 0:
+        return grid
+    sizes = np.bincount(regions.ravel(), minlength=count + 1)
+    rows = np.floor(grid[:, 1]).astype(np.int64)
+    cols = np.floor(grid[:, 0]).astype(np.int64)
+    hit = np.zeros(count + 1, dtype=bool)
+    hit[regions[rows, cols]] = True
+    wanted = np.flatnonzero((sizes >= max(int(min_region), 1)) & ~hit)
+    wanted = wanted[wanted > 0]
+    if len(wanted) == 0:
+        return grid
+    depth = ndimage.distance_transform_edt(np.pad(free, 1))[1:-1, 1:-1]
+    deepest = ndimage.maximum_position(depth, regions, wanted)
+    extra = np.array([(col + 0.5, row + 0.5) for row, col in deepest], dtype=np.float64)
+    return np.concatenate([grid, extra.reshape(-1, 2)])
 
 
 def drop_covered_masks(masks, covered, max_overlap: float = 0.5):
