@@ -8,7 +8,8 @@ Two parts, each printing its table:
   seconds of each run, its ratio to ``center`` (target <= 1.10), the points the extra views'
   generator was asked at, the masks it added, whether every label equals the ``center`` run's
   (target: identical), and how many views were encoded. Each run encodes every view it needs
-  once (no cache shared between runs). Two regimes (``--answers``):
+  once (no cache shared between runs); after an untimed warm-up the modes run ``--rounds``
+  times in alternation and each counts its fastest run. Two regimes (``--answers``):
 
   - ``random``: SAM 2's own answers. Untrained, its generator keeps no mask at the paper's
     thresholds, so the ``center`` run is little more than one view's generator: a degenerate
@@ -103,23 +104,33 @@ def speed(args: argparse.Namespace, answers: str) -> None:
           f"{args.grid[0]}x{args.grid[1]} views of {args.size[0]}x{args.size[1]}, "
           f"{args.objects} objects, no hidden ones; ground-truth disparity; generator grid "
           f"{points_per_side}x{points_per_side}", flush=True)
+    # ``--rounds`` passes over the modes, alternating (center, corners, ..., center, corners,
+    # ...): each mode's time is its fastest round, so that drift and first-run costs on a busy
+    # 2-core machine do not favour the mode that runs later.
+    modes = ["center", *args.modes]
+    times: dict[str, list[float]] = {mode: [] for mode in modes}
+    results, counts = {}, {}
+    for round_index in range(args.rounds):
+        for mode in modes:
+            asked.clear()
+            start = time.perf_counter()
+            result = run_segmentation(lf, segmenter=segmenter, disparity="gt", references=mode,
+                                      progress=False)
+            times[mode].append(time.perf_counter() - start)
+            results[mode] = result
+            counts[mode] = (sum(1 for n in asked if n is not None),
+                            sum(n for n in asked if n is not None))
+            print(f"  round {round_index + 1}, {mode}: {times[mode][-1]:.1f} s, "
+                  f"{result.num_masks} masks", flush=True)
+    base_seconds, base = min(times["center"]), results["center"]
     rows = []
-    base = None
-    for mode in ["center", *args.modes]:
-        asked.clear()
-        start = time.perf_counter()
-        result = run_segmentation(lf, segmenter=segmenter, disparity="gt", references=mode,
-                                  progress=False)
-        seconds = time.perf_counter() - start
-        if base is None:
-            base = (seconds, result)
-        extra_points = sum(n for n in asked if n is not None)
-        extra_views = sum(1 for n in asked if n is not None)
-        same = np.array_equal(result.labels, base[1].labels)
-        rows.append((mode, seconds, seconds / base[0], result.num_masks,
-                     result.num_masks - base[1].num_masks, extra_views, extra_points, same,
+    for mode in modes:
+        result, seconds = results[mode], min(times[mode])
+        same = np.array_equal(result.labels, base.labels)
+        rows.append((mode, seconds, seconds / base_seconds, result.num_masks,
+                     result.num_masks - base.num_masks, *counts[mode], same,
                      result.meta.get("views_encoded")))
-        print(f"  {mode}: {seconds:.1f} s, {result.num_masks} masks", flush=True)
+    print(f"\n(fastest of {args.rounds} alternating rounds)")
     print("\n| references | seconds | ratio to center | masks | added | extra views asked "
           "| points asked there | labels equal center | views encoded |")
     print("|---|---|---|---|---|---|---|---|---|")
@@ -166,6 +177,8 @@ def main() -> None:
     parser.add_argument("--model", default="sam2.1-hiera-small")
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--rounds", type=int, default=2,
+                        help="speed part: alternating passes over the modes; fastest counts")
     parser.add_argument("--quality-grid", type=_pair, default=(5, 5))
     parser.add_argument("--quality-size", type=_pair, default=(96, 128))
     parser.add_argument("--quality-seeds", default="0,1,2")

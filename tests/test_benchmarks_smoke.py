@@ -46,7 +46,7 @@ CASES = {
     ),
     "bench_references.py": (
         ["--model", "sam2-tiny-test", "--grid", "3x3", "--size", "48x64", "--modes", "corners",
-         "--quality-size", "64x96", "--quality-seeds", "0", "--hidden", "1"],
+         "--rounds", "1", "--quality-size", "64x96", "--quality-seeds", "0", "--hidden", "1"],
         "| corners |",
     ),
 }
