@@ -30,6 +30,7 @@ import torch
 
 from lfsam.errors import LfsamError
 from lfsam.precision import wide_float
+from lfsam.warp import landing_pixels
 
 __all__ = [
     "REFERENCE_MODES",
@@ -141,8 +142,6 @@ def seen_from(
     >>> seen_from(other, view, 0, -1, 0.2).int().tolist()
     [[1, 1, 0, 0, 1, 1]]
     """
-    from lfsam.warp import landing_pixels
-
     disparity = disparity.float()
     target, valid = landing_pixels(disparity, ds, dt)
     there = other_disparity.float().to(disparity.device).reshape(-1)[target.clamp(min=0)]
@@ -235,8 +234,7 @@ def extra_view_points(
     Raises
     ------
     ValueError
-        For ``points_per_side < 1`` or a ``covered`` that is not 2-D (the caller's code is at
-        fault).
+        For a ``covered`` that is not 2-D (the caller's code is at fault).
 
     Examples
     --------
@@ -269,9 +267,8 @@ def extra_view_points(
     if len(wanted) == 0:
         return grid
     depth = ndimage.distance_transform_edt(np.pad(free, 1))[1:-1, 1:-1]
-    deepest = ndimage.maximum_position(depth, regions, wanted)
-    extra = np.array([(col + 0.5, row + 0.5) for row, col in deepest], dtype=np.float64)
-    return np.concatenate([grid, extra.reshape(-1, 2)])
+    deepest = np.asarray(ndimage.maximum_position(depth, regions, wanted), dtype=np.float64)
+    return np.concatenate([grid, deepest.reshape(-1, 2)[:, ::-1] + 0.5])  # (row, col) -> (x, y)
 
 
 def drop_covered_masks(masks, covered, max_overlap: float = 0.5):
