@@ -97,3 +97,28 @@ def test_interpolated_and_gathered_similarities_agree_with_per_pixel_features(
             )
     for sims in results:
         assert torch.allclose(sims.double(), expected, atol=1e-5)
+
+
+def test_a_masks_similarities_do_not_depend_on_the_other_masks_in_the_call():
+    """Per-mask choice of interpolation or gather: a dense and a sparse mask give the same
+    values alone as together (an incremental edit equals a full run)."""
+    rng = np.random.default_rng(0)
+    grid = torch.from_numpy(rng.normal(size=(6, 8, 8)).astype(np.float32))
+    size = (24, 32)
+    dense = torch.ones(size, dtype=torch.bool).reshape(-1)
+    sparse = torch.zeros(size, dtype=torch.bool).reshape(-1)
+    sparse[::37] = True
+    sources = F.normalize(torch.from_numpy(rng.normal(size=(2, 6)).astype(np.float32)), dim=1)
+    together = grid_cosine_similarity(
+        grid,
+        torch.cat([torch.zeros(int(dense.sum()), dtype=torch.long),
+                   torch.ones(int(sparse.sum()), dtype=torch.long)]),
+        torch.cat([torch.nonzero(dense)[:, 0], torch.nonzero(sparse)[:, 0]]),
+        sources, size,
+    )
+    alone = [
+        grid_cosine_similarity(grid, torch.zeros(int(m.sum()), dtype=torch.long),
+                               torch.nonzero(m)[:, 0], sources[k : k + 1], size)
+        for k, m in enumerate((dense, sparse))
+    ]
+    assert torch.equal(together, torch.cat(alone))

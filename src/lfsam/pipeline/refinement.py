@@ -250,25 +250,46 @@ def refine_masks(
     if prompts is None:
         return RefinementOutcome(masks, fallback, iou)
     index = torch.nonzero(prompted, as_tuple=True)[0].to(device)
+    # Prompts with the same number of carried clicks are decoded together, each group without
+    # padding: SAM 2 attends to a padding point (label -1) like to any token, so padding one
+    # mask's prompt to another's length would change its answer, and a mask's refinement would
+    # depend on which other objects share the view (an incremental edit would differ from a
+    # full run).
+    groups = [(torch.arange(len(index), device=device), prompts)]
     if extra_points is not None and extra_points[0].shape[1] > 0:
         rows_np = index.cpu().numpy()
-        prompts = Prompts(
-            points=np.concatenate([prompts.points, extra_points[0][rows_np]], axis=1),
-            point_labels=np.concatenate([prompts.point_labels, extra_points[1][rows_np]], axis=1),
-            boxes=prompts.boxes,
-        )
+        carried = (extra_points[1][rows_np] != -1).sum(axis=1)
+        groups = []
+        for count in np.unique(carried):
+            members = np.flatnonzero(carried == count)
+            groups.append((
+                torch.as_tensor(members, device=device),
+                Prompts(
+                    points=np.concatenate(
+                        [prompts.points[members], extra_points[0][rows_np[members], :count]],
+                        axis=1,
+                    ),
+                    point_labels=np.concatenate(
+                        [prompts.point_labels[members],
+                         extra_points[1][rows_np[members], :count]],
+                        axis=1,
+                    ),
+                    boxes=None if prompts.boxes is None else prompts.boxes[members],
+                ),
+            ))
     # One batched decode per chunk of prompts, each chunk reduced to its chosen masks at once,
     # so the N x 3 x U x V candidates never exist together.
-    for start in range(0, len(index), chunk_size):
-        rows = index[start : start + chunk_size]
-        prediction = segmenter.predict(
-            embedding, prompts.subset(slice(start, start + chunk_size)), multimask_output=True
-        )
-        candidates = prediction.masks.to(device)
-        best_iou, best_k = mask_iou(candidates, coarse[rows], seen).max(dim=1)
-        chosen = candidates[torch.arange(len(rows), device=device), best_k]
-        accept = best_iou > t_iou
-        masks[rows[accept]] = chosen[accept]
-        fallback[rows] = ~accept
-        iou[rows] = best_iou
+    for positions, group in groups:
+        for start in range(0, len(positions), chunk_size):
+            rows = index[positions[start : start + chunk_size]]
+            prediction = segmenter.predict(
+                embedding, group.subset(slice(start, start + chunk_size)), multimask_output=True
+            )
+            candidates = prediction.masks.to(device)
+            best_iou, best_k = mask_iou(candidates, coarse[rows], seen).max(dim=1)
+            chosen = candidates[torch.arange(len(rows), device=device), best_k]
+            accept = best_iou > t_iou
+            masks[rows[accept]] = chosen[accept]
+            fallback[rows] = ~accept
+            iou[rows] = best_iou
     return RefinementOutcome(masks, fallback, iou)

@@ -42,10 +42,10 @@ __all__ = [
 # the ten unordered corner pairs (i <= j) of a cell's 4 x 4 Gram matrix
 _PAIRS = [(i, j) for i in range(4) for j in range(i, 4)]
 
-#: :func:`grid_cosine_similarity` interpolates each mask's whole ``(E . s)`` map to the view
+#: :func:`grid_cosine_similarity` interpolates a mask's whole ``(E . s)`` map to the view
 #: (``F.interpolate``, the same bilinear convention) instead of gathering four corners per
-#: pair when ``masks x U x V <= INTERPOLATE_BELOW x pairs``: one interpolated value costs about
-#: a ninth of a four-corner gather on a CPU (measured on 240 x 320 views).
+#: pixel when ``U x V <= INTERPOLATE_BELOW x`` the mask's pixels: one interpolated value costs
+#: about a ninth of a four-corner gather on a CPU (measured on 240 x 320 views).
 INTERPOLATE_BELOW = 8
 
 
@@ -192,10 +192,12 @@ def grid_cosine_similarity(
     Notes
     -----
     The numerator ``sum_k w_pk (E_k . s_n)`` is the bilinear interpolation of the ``(h, w)``
-    map ``E . s_n``. Where the masks cover much of the view it is interpolated for the whole
-    view at once (``F.interpolate``, :data:`INTERPOLATE_BELOW`); otherwise the four corners of
-    each pair are gathered. Both follow the module's convention; they differ by float
-    rounding only (about 1e-6).
+    map ``E . s_n``. For a mask that covers much of the view it is interpolated for the whole
+    view at once (``F.interpolate``, :data:`INTERPOLATE_BELOW`); for the others the four
+    corners of each pair are gathered. Both follow the module's convention and differ by float
+    rounding only (about 1e-6). The choice is made per mask, from its own pixel count, so a
+    mask's similarities do not depend on which other masks share the call (an incremental
+    edit of one object gives the values of a full run).
     """
     channels, h, w = grid.shape
     device = grid.device
@@ -207,16 +209,23 @@ def grid_cosine_similarity(
     table = sources.to(device).float() @ grid.reshape(channels, h * w).float()
     num_masks = table.shape[0]
     u_size, v_size = int(image_size[0]), int(image_size[1])
-    pairs = pixel_index.numel()
-    if pairs and num_masks * u_size * v_size <= INTERPOLATE_BELOW * pairs:
+    pixels = torch.bincount(mask_index, minlength=num_masks)
+    dense = pixels * INTERPOLATE_BELOW >= u_size * v_size  # (N,) per mask
+    by_map = dense[mask_index]  # (P,) pairs of dense masks
+    numerator = torch.empty(pixel_index.numel(), device=device, dtype=table.dtype)
+    if bool(by_map.any()):
+        slot = torch.cumsum(dense, 0) - 1  # a dense mask's row among the maps
         maps = F.interpolate(
-            table.view(num_masks, 1, h, w), size=(u_size, v_size), mode="bilinear",
+            table[dense].view(-1, 1, h, w), size=(u_size, v_size), mode="bilinear",
             align_corners=False,
         )
-        numerator = maps.reshape(-1)[mask_index * (u_size * v_size) + pixel_index]
-    else:
+        rows = slot[mask_index[by_map]]
+        numerator[by_map] = maps.reshape(-1)[rows * (u_size * v_size) + pixel_index[by_map]]
+    if not bool(by_map.all()):
         # corners of every pixel of the view once (cached per view size), gathered per pair
         corners = _view_corners((u_size, v_size), (h, w), str(device))
-        flat = mask_index[:, None] * (h * w) + corners.index[pixel_index]
-        numerator = (table.reshape(-1)[flat] * corners.weight[pixel_index]).sum(1)
+        sparse = ~by_map
+        pix = pixel_index[sparse]
+        flat = mask_index[sparse][:, None] * (h * w) + corners.index[pix]
+        numerator[sparse] = (table.reshape(-1)[flat] * corners.weight[pix]).sum(1)
     return numerator / norms[pixel_index]
