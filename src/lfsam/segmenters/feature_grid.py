@@ -162,6 +162,22 @@ def pixel_feature_norms(grid: torch.Tensor, image_size: tuple[int, int]) -> torc
     return norm_sq.clamp(min=0.0).sqrt().clamp(min=1e-12).float()
 
 
+def _interpolated(table, mask_index, pixel_index, grid_hw, image_size) -> torch.Tensor:
+    """``sum_k w_pk table[n, k]`` per pair, from each row's map interpolated over the view."""
+    maps = F.interpolate(
+        table.view(-1, 1, *grid_hw), size=image_size, mode="bilinear", align_corners=False
+    )
+    return maps.reshape(-1)[mask_index * (image_size[0] * image_size[1]) + pixel_index]
+
+
+def _gathered(table, mask_index, pixel_index, grid_hw, image_size) -> torch.Tensor:
+    """The same sum per pair from its four grid corners (cached per view size)."""
+    h, w = grid_hw
+    corners = _view_corners(tuple(image_size), grid_hw, str(table.device))
+    flat = mask_index[:, None] * (h * w) + corners.index[pixel_index]
+    return (table.reshape(-1)[flat] * corners.weight[pixel_index]).sum(1)
+
+
 def grid_cosine_similarity(
     grid: torch.Tensor,
     mask_index: torch.Tensor,
@@ -210,22 +226,19 @@ def grid_cosine_similarity(
     num_masks = table.shape[0]
     u_size, v_size = int(image_size[0]), int(image_size[1])
     pixels = torch.bincount(mask_index, minlength=num_masks)
-    dense = pixels * INTERPOLATE_BELOW >= u_size * v_size  # (N,) per mask
-    by_map = dense[mask_index]  # (P,) pairs of dense masks
-    numerator = torch.empty(pixel_index.numel(), device=device, dtype=table.dtype)
-    if bool(by_map.any()):
-        slot = torch.cumsum(dense, 0) - 1  # a dense mask's row among the maps
-        maps = F.interpolate(
-            table[dense].view(-1, 1, h, w), size=(u_size, v_size), mode="bilinear",
-            align_corners=False,
+    dense = pixels * INTERPOLATE_BELOW >= u_size * v_size  # (N,): the choice, per mask
+    sizes = ((h, w), (u_size, v_size))
+    if pixel_index.numel() == 0 or not bool(dense.any()):
+        numerator = _gathered(table, mask_index, pixel_index, *sizes)
+    elif bool(dense.all()):
+        numerator = _interpolated(table, mask_index, pixel_index, *sizes)
+    else:
+        by_map = dense[mask_index]  # (P,) pairs of dense masks
+        slot = torch.cumsum(dense, 0) - 1  # a dense mask's row among the dense ones
+        numerator = torch.empty(pixel_index.numel(), device=device, dtype=table.dtype)
+        numerator[by_map] = _interpolated(
+            table[dense], slot[mask_index[by_map]], pixel_index[by_map], *sizes
         )
-        rows = slot[mask_index[by_map]]
-        numerator[by_map] = maps.reshape(-1)[rows * (u_size * v_size) + pixel_index[by_map]]
-    if not bool(by_map.all()):
-        # corners of every pixel of the view once (cached per view size), gathered per pair
-        corners = _view_corners((u_size, v_size), (h, w), str(device))
         sparse = ~by_map
-        pix = pixel_index[sparse]
-        flat = mask_index[sparse][:, None] * (h * w) + corners.index[pix]
-        numerator[sparse] = (table.reshape(-1)[flat] * corners.weight[pix]).sum(1)
+        numerator[sparse] = _gathered(table, mask_index[sparse], pixel_index[sparse], *sizes)
     return numerator / norms[pixel_index]
