@@ -16,6 +16,7 @@ from lfsam.pipeline.references import (
     extra_view_points,
     reference_views,
     seen_from,
+    unasked_region_points,
     uncovered_points,
 )
 from lfsam.synth import generate_scene
@@ -193,6 +194,37 @@ def test_every_large_uncovered_region_gets_a_point_and_points_are_uncovered(
     thinned = uncovered_points(max(per_side // 2, 1), covered)
     assert np.array_equal(points[: len(thinned)], thinned)
     assert len(points) - len(thinned) <= int((sizes[1:] >= min_region).sum())
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 2**16),
+    shape=st.tuples(st.integers(4, 50), st.integers(4, 50)),
+    density=st.floats(0.3, 0.95),
+    asked_count=st.integers(0, 12),
+    min_region=st.integers(1, 20),
+)
+def test_unasked_regions_get_one_point_each_at_a_free_pixel(
+    seed, shape, density, asked_count, min_region
+):
+    from scipy import ndimage
+
+    rng = np.random.default_rng(seed)
+    free = rng.random(shape) >= density
+    asked = rng.random((asked_count, 2)) * np.array([shape[1], shape[0]])
+    points = unasked_region_points(free, min_region, asked)
+    rows, cols = np.floor(points[:, 1]).astype(int), np.floor(points[:, 0]).astype(int)
+    assert free[rows, cols].all()
+    regions, count = ndimage.label(free, structure=np.ones((3, 3)))
+    sizes = np.bincount(regions.ravel(), minlength=count + 1)
+    hit = set(regions[np.floor(asked[:, 1]).astype(int), np.floor(asked[:, 0]).astype(int)])
+    expected = {r for r in range(1, count + 1) if sizes[r] >= min_region and r not in hit}
+    got = regions[rows, cols].tolist()
+    assert sorted(got) == sorted(expected)  # each such region once, and no other
+    # the deepest pixel: as far from the non-free pixels (and the frame) as any in its region
+    depth = ndimage.distance_transform_edt(np.pad(free, 1))[1:-1, 1:-1]
+    for row, col, region in zip(rows, cols, got, strict=True):
+        assert depth[row, col] == depth[regions == region].max()
 
 
 def test_nothing_uncovered_asks_nowhere():

@@ -186,6 +186,26 @@ def test_click_commit_segment_everything_reopen_labels(make_napari_viewer, qtbot
     np.testing.assert_array_equal(widget.layers[L.COMMITTED].data, scene.labels)
 
 
+def test_segment_everything_from_the_corners_finds_hidden_objects(make_napari_viewer, qtbot):
+    """"Everything from: corners" finds the objects the center view cannot see (issue 16)."""
+    from lfsam.metrics import evaluate_result
+
+    hidden_scene = generate_scene(grid=(5, 5), size=(96, 128), seed=0, hidden_objects=2)
+    recall = {}
+    _viewer, widget = _open(make_napari_viewer, qtbot, hidden_scene)
+    for references in ("center", "corners"):
+        for obj_id in list(widget.session.object_ids):
+            widget.remove_object(obj_id)
+        _idle(qtbot, widget)
+        widget.references_box.setCurrentText(references)
+        widget.segment_everything()
+        _idle(qtbot, widget)
+        result = widget.session.to_result()
+        np.testing.assert_array_equal(widget.layers[L.AUTO].data, result.labels)
+        recall[references] = evaluate_result(result, hidden_scene, device="cpu")["recall"]
+    assert recall["center"] < 1.0 and recall["corners"] == 1.0
+
+
 def test_negative_click_fixes_a_merge_and_undo_redo(make_napari_viewer, qtbot, scene, tmp_path):
     viewer, widget = _open(
         make_napari_viewer, qtbot, scene, segmenter_options={"oracle_options": {"merge_prob": 1.0}}

@@ -64,6 +64,10 @@ View = tuple[int, int]
 #: measured on an H100 with bench_gpu.py, docs/performance.md); 64 elsewhere.
 REFINE_CHUNK_CUDA = 128
 
+#: Generator rounds in an extra reference view of the automatic mode: the thinned grid, then
+#: points in the regions no answer explains (docs/design.md section 8).
+EXTRA_VIEW_ROUNDS = 3
+
 #: Forward warps (reference view, target view) kept for reuse across edits, in bytes.
 WARP_CACHE_BYTES = 512 * 2**20
 
@@ -799,61 +803,197 @@ class LightFieldPredictor:
         ``center`` is the paper's setting (section 4, implementation details): masks of the
         center view, ids in order of decreasing area. ``corners``, ``ring`` and ``all`` then
         visit further reference views (:func:`lfsam.pipeline.references.reference_views`): in
-        each, the objects found so far are propagated there (steps 1-3), the generator asks
-        only at its grid points where no mask lands and the center view could not look
+        each, the objects found so far are carried there (steps 1-4), the generator asks only
+        where no mask lands and the center view could not look
         (:func:`lfsam.pipeline.references.seen_from`: hidden there behind something nearer, or
-        outside its frame), and a new mask that mostly lies on such covered pixels is dropped;
-        each genuinely new object is propagated from its own view (docs/design.md section 8:
-        objects that the center view cannot see).
+        outside its frame; :func:`~lfsam.pipeline.references.extra_view_points`), and a new
+        mask that mostly lies on such covered pixels is dropped. Up to
+        :data:`EXTRA_VIEW_ROUNDS` rounds per view: later rounds ask once in each region that
+        no answer explains (:func:`~lfsam.pipeline.references.unasked_region_points`). A new
+        object that is an object of an earlier extra view seen again is merged with it
+        (the find with the larger reference mask stays). Each genuinely new object is
+        propagated from its own view (docs/design.md section 8: objects that the center view
+        cannot see).
         """
+        from lfsam.pipeline.references import reference_views
+
+        lf = self._require()
+        views = [v for v in reference_views(lf.grid_shape, references) if lf.present[v]]
+        new_ids: list[int] = []
+        for k, view in enumerate(views):
+            if k == 0:
+                with self.timer("initial"):
+                    source = initial_segmentation(
+                        self.segmenter, self.embedding(view), lf.views[view], None
+                    )
+                masks = source.masks.cpu().numpy()
+                new_ids += self._add_automatic(view, masks, source.scores, np.arange(len(masks)))
+            else:
+                new_ids = self._generate_in_extra_view(view, views[0], new_ids)
+        return self._renumber(new_ids)
+
+    def _generate_in_extra_view(self, view: View, center: View, new_ids: list[int]) -> list[int]:
+        """One extra reference view of :meth:`generate`; returns ``new_ids`` updated (objects
+        added, objects that turned out to be found twice removed)."""
         from lfsam.metrics.recall import default_min_area
         from lfsam.pipeline.references import (
             drop_covered_masks,
             extra_view_points,
-            reference_views,
             seen_from,
+            unasked_region_points,
         )
 
         lf = self._require()
-        views = [v for v in reference_views(lf.grid_shape, references) if lf.present[v]]
+        embedding = self.embedding(view)
         per_side = int(getattr(self.segmenter, "amg_options", {}).get("points_per_side") or 32)
-        new_ids: list[int] = []
-        for k, view in enumerate(views):
-            embedding = self.embedding(view)
-            points = covered = None
-            if k > 0:
-                covered = self._coarse_in_view(self.object_ids, view).any(axis=0)
-                center = views[0]
-                with self.timer("disparity"):
-                    covered |= seen_from(
-                        self.disparity(view), self.disparity(center), center[0] - view[0],
-                        center[1] - view[1], self.config.zbuffer_tolerance,
-                    ).cpu().numpy()
-                points = extra_view_points(
-                    per_side, covered, min_region=default_min_area(lf.view_shape) // 2
-                )
-                if len(points) == 0:
-                    continue
+        min_region = default_min_area(lf.view_shape) // 2
+        carried_ids = self.object_ids
+        carried = self._masks_in_view(carried_ids, view)
+        # objects found in earlier extra views, with their masks carried here
+        found_before = [
+            (i, carried[n]) for n, i in enumerate(carried_ids)
+            if i in new_ids and self._objects[i].given_view != center
+        ]
+        covered = carried.any(axis=0)
+        with self.timer("disparity"):
+            covered |= seen_from(
+                self.disparity(view), self.disparity(center), center[0] - view[0],
+                center[1] - view[1], self.config.zbuffer_tolerance,
+            ).cpu().numpy()
+        points = extra_view_points(per_side, covered, min_region)
+        asked = np.zeros((0, 2), dtype=np.float64)
+        explained = covered.copy()
+        for _ in range(EXTRA_VIEW_ROUNDS):
+            if len(points) == 0:
+                break
             with self.timer("initial"):
                 source = initial_segmentation(
                     self.segmenter, embedding, lf.views[view], None, points=points
                 )
             masks = source.masks.cpu().numpy()
-            keep = (
-                np.ones(len(masks), dtype=bool)
-                if covered is None
-                else drop_covered_masks(masks, covered)
-            )
-            first = self.next_id()
-            for n, index in enumerate(np.flatnonzero(keep)):
-                obj_id = first + n
-                self.add_mask(obj_id, masks[index], view=view, score=float(source.scores[index]))
-                self._objects[obj_id].extra["auto"] = True
-                new_ids.append(obj_id)
+            keep = drop_covered_masks(masks, covered)
+            replaced = self._larger_views(masks, keep, found_before)
+            keep[list(replaced)] = True
+            added = self._add_automatic(view, masks, source.scores, np.flatnonzero(keep))
+            for obj_id in replaced.values():
+                self.remove_object(obj_id)
+            removed = set(replaced.values())
+            removed |= set(self._merge_found_before(
+                added, [i for i in new_ids if self._objects.get(i) is not None
+                        and self._objects[i].given_view != center]
+            ))
+            new_ids = [i for i in new_ids + added if i not in removed]
+            found_before = [(i, m) for i, m in found_before if i not in removed]
+            covered |= masks[keep].any(axis=0)
+            explained |= covered | masks.any(axis=0)
+            asked = np.concatenate([asked, points])
+            # Regions that no answer explains and no point was asked in: e.g. a second
+            # hidden object beside one that a grid point found, in one uncovered strip.
+            points = unasked_region_points(~explained, min_region, asked)
         return new_ids
 
-    def _coarse_in_view(self, ids: list[int], view: View) -> np.ndarray:
-        """Steps 1-3 of the objects ``ids`` in one view, ``(N, U, V)`` bool (not stored)."""
+    def _larger_views(
+        self, masks: np.ndarray, keep: np.ndarray, found_before: list[tuple[int, np.ndarray]]
+    ) -> dict[int, int]:
+        """Dropped answers that are a larger view of an object found in an earlier extra view.
+
+        An answer dropped because an earlier find's carried mask covers most of it, with more
+        pixels than that find's own reference mask, shows the object better: it replaces the
+        find (a larger view carries an object further; docs/design.md section 8).
+
+        Returns
+        -------
+        dict
+            Answer index -> id of the object it replaces (each object replaced at most once,
+            by its largest such answer).
+        """
+        best: dict[int, tuple[int, int]] = {}  # object id -> (area, answer index)
+        for index in np.flatnonzero(~keep):
+            area = int(np.count_nonzero(masks[index]))
+            if area == 0 or not found_before:
+                continue
+            overlaps = [np.count_nonzero(masks[index] & carried) for _, carried in found_before]
+            n = int(np.argmax(overlaps))
+            obj_id = found_before[n][0]
+            if 2 * overlaps[n] <= area:
+                continue
+            if area > np.count_nonzero(self._objects[obj_id].given_mask) and area > best.get(
+                obj_id, (0, -1)
+            )[0]:
+                best[obj_id] = (area, int(index))
+        return {index: obj_id for obj_id, (_, index) in best.items()}
+
+    def _renumber(self, ids: list[int]) -> list[int]:
+        """Give the objects ``ids`` (new ones, in order) consecutive ids from the smallest,
+        closing the gaps that merged finds left; returns the new ids."""
+        if not ids:
+            return []
+        start = min(ids)
+        moved = {old: self._objects.pop(old) for old in ids}
+        counts = {old: self.decode_counts.pop(old, 0) for old in ids}
+        for k, old in enumerate(ids):
+            self._objects[start + k] = moved[old]
+            if counts[old]:
+                self.decode_counts[start + k] = counts[old]
+        self._objects = dict(sorted(self._objects.items()))
+        self._labels_cache.clear()
+        return list(range(start, start + len(ids)))
+
+    def _merge_found_before(self, added: list[int], earlier: list[int]) -> list[int]:
+        """Resolve the new objects ``added`` that are objects of ``earlier`` seen again.
+
+        An object found in one extra reference view may not be carried into another one when
+        the two views see disjoint parts of it (a small object peeking out on different sides
+        of its occluder): it is then found a second time. Each new object is carried back into
+        the reference view of each earlier one; when most of what lands there lands on that
+        object's reference mask, the two are one object, and the one with the smaller
+        reference mask is removed (a larger view of an object carries it further).
+
+        Returns
+        -------
+        list of int
+            The ids removed (new or earlier).
+        """
+        removed: list[int] = []
+        for obj_id in added:
+            new = self._objects[obj_id]
+            for other in earlier:
+                if other in removed:
+                    continue
+                old = self._objects[other]
+                if old.given_view == new.given_view:
+                    continue
+                there = self._masks_in_view([obj_id], old.given_view)[0]
+                on_old = np.count_nonzero(there & old.given_mask)
+                if on_old == 0 or 2 * on_old <= np.count_nonzero(there):
+                    continue
+                smaller = (
+                    obj_id
+                    if np.count_nonzero(new.given_mask) <= np.count_nonzero(old.given_mask)
+                    else other
+                )
+                self.remove_object(smaller)
+                removed.append(smaller)
+                if smaller == obj_id:
+                    break
+        return removed
+
+    def _add_automatic(
+        self, view: View, masks: np.ndarray, scores: Any, keep: np.ndarray
+    ) -> list[int]:
+        """Add the generator's masks ``masks[keep]`` of ``view`` as new objects (their ids)."""
+        first = self.next_id()
+        ids = []
+        for n, index in enumerate(keep):
+            obj_id = first + n
+            self.add_mask(obj_id, masks[index], view=view, score=float(scores[index]))
+            self._objects[obj_id].extra["auto"] = True
+            ids.append(obj_id)
+        return ids
+
+    def _masks_in_view(self, ids: list[int], view: View) -> np.ndarray:
+        """The objects ``ids``' final masks in one view (steps 1-4, or 1-3 without refinement),
+        ``(N, U, V)`` bool; computed for this view only and not stored."""
         lf = self._require()
         height, width = lf.view_shape
         if not ids:
@@ -871,9 +1011,12 @@ class LightFieldPredictor:
 
         out = {i: blank() for i in ids}
         coarse = {i: blank() for i in ids}
-        embedding = self.embedding(view) if self.config.semantic else None
-        self._view_step(view, ids, embedding, False, out, coarse)
-        packed = np.stack([coarse[i].bits[view] for i in ids])
+        refine = self.config.refine
+        needs_embedding = refine or self.config.semantic
+        embedding = self.embedding(view) if needs_embedding else None
+        self._view_step(view, ids, embedding, refine, out, coarse)
+        final = out if refine else coarse
+        packed = np.stack([final[i].bits[view] for i in ids])
         bits = np.unpackbits(packed, axis=1, count=height * width)
         return bits.reshape(len(ids), height, width).astype(bool)
 

@@ -37,7 +37,8 @@ output on disk: a second run on the same views encodes nothing (the result's vie
 
 --references (with --auto) sets where masks are generated: center (the paper's setting), or also
 the corner views (corners), the outer ring's corners and edge midpoints (ring), or every view
-(all), there only where no mask lands yet, to find objects the center view cannot see.
+(all), there only where no mask lands yet, to find objects the center view cannot see (an object
+found from two of them is kept once).
 """
 
 EPILOG = """\

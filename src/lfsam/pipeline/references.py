@@ -15,6 +15,8 @@ own reference view. This module holds the pure parts of that:
 - :func:`extra_view_points`: the points an extra reference view asks at: that grid at half
   density, plus the deepest pixel of every uncovered region large enough to hold a new object
   that the thinned grid misses;
+- :func:`unasked_region_points`: one point in every region still to explain that no point has
+  been asked in (after a generator round: the regions no answer explains);
 - :func:`drop_covered_masks`: which new masks to keep (those not mostly on covered pixels).
 
 A pixel counts as covered when a propagated mask lands on it or when the center view sees it, so
@@ -39,6 +41,7 @@ __all__ = [
     "extra_view_points",
     "reference_views",
     "seen_from",
+    "unasked_region_points",
     "uncovered_points",
 ]
 
@@ -250,25 +253,75 @@ def extra_view_points(
     >>> len(points), points[-1].tolist()
     (17, [15.5, 15.5])
     """
+    grid = uncovered_points(max(int(points_per_side) // 2, 1), covered)
+    deepest = unasked_region_points(~np.asarray(covered, dtype=bool), min_region, grid)
+    return np.concatenate([grid, deepest])
+
+
+def unasked_region_points(free: np.ndarray, min_region: int, asked: np.ndarray) -> np.ndarray:
+    """The deepest pixel of every free region that no point has been asked in yet.
+
+    A region is an 8-connected component of ``free`` with at least ``min_region`` pixels; its
+    deepest pixel is the one farthest from every non-free pixel and from the frame (the
+    first in row-major order on ties), where a point is least likely to fall on a region's
+    border. Used twice by the automatic mode (docs/design.md section 8): for the regions that
+    :func:`extra_view_points`'s thinned grid misses, and after each generator round for the
+    regions that no answer explains (e.g. a hidden object beside another hidden object that a
+    grid point found, in one uncovered strip).
+
+    Parameters
+    ----------
+    free : (U, V) bool array
+        Pixels still to explain.
+    min_region : int
+        Smallest region that gets a point (pixels; values below 1 count as 1).
+    asked : (P, 2) float array
+        ``(x, y)`` pixel positions asked already; a region holding one of them gets no point.
+
+    Returns
+    -------
+    (R, 2) float64 array
+        ``(x, y)`` of each region's point, at its pixel's centre, in label order (row-major
+        order of the regions' first pixels); ``(0, 2)`` when no region qualifies.
+
+    Raises
+    ------
+    ValueError
+        For a ``free`` that is not 2-D (the caller's code is at fault).
+
+    Examples
+    --------
+    Two free squares; a point was asked in the left one already:
+
+    >>> import numpy as np
+    >>> free = np.zeros((6, 12), dtype=bool)
+    >>> free[1:4, 1:4] = free[1:4, 7:10] = True
+    >>> unasked_region_points(free, 4, np.array([[1.5, 1.5]])).tolist()
+    [[8.5, 2.5]]
+    """
     from scipy import ndimage
 
-    grid = uncovered_points(max(int(points_per_side) // 2, 1), covered)
-    free = ~np.asarray(covered, dtype=bool)
+    free = np.asarray(free, dtype=bool)
+    if free.ndim != 2:
+        raise ValueError(f"free must be (U, V), got shape {free.shape}")
+    none = np.zeros((0, 2), dtype=np.float64)
     regions, count = ndimage.label(free, structure=np.ones((3, 3), dtype=bool))
     if count == 0:
-        return grid
+        return none
     sizes = np.bincount(regions.ravel(), minlength=count + 1)
-    rows = np.floor(grid[:, 1]).astype(np.int64)
-    cols = np.floor(grid[:, 0]).astype(np.int64)
+    asked = np.asarray(asked, dtype=np.float64).reshape(-1, 2)
+    height, width = free.shape
+    rows = np.clip(np.floor(asked[:, 1]).astype(np.int64), 0, height - 1)
+    cols = np.clip(np.floor(asked[:, 0]).astype(np.int64), 0, width - 1)
     hit = np.zeros(count + 1, dtype=bool)
     hit[regions[rows, cols]] = True
     wanted = np.flatnonzero((sizes >= max(int(min_region), 1)) & ~hit)
     wanted = wanted[wanted > 0]
     if len(wanted) == 0:
-        return grid
+        return none
     depth = ndimage.distance_transform_edt(np.pad(free, 1))[1:-1, 1:-1]
     deepest = np.asarray(ndimage.maximum_position(depth, regions, wanted), dtype=np.float64)
-    return np.concatenate([grid, deepest.reshape(-1, 2)[:, ::-1] + 0.5])  # (row, col) -> (x, y)
+    return deepest.reshape(-1, 2)[:, ::-1] + 0.5  # (row, col) -> (x, y) at the pixel centre
 
 
 def drop_covered_masks(masks, covered, max_overlap: float = 0.5):

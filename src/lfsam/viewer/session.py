@@ -370,10 +370,15 @@ class ViewerSession:
             self.predictor.remove_object(self.current_id)
         self.history.reset()
 
-    def generate(self) -> Any:
-        """Automatic mode: add every object found, then predict (worker thread)."""
+    def generate(self, references: str = "center") -> Any:
+        """Automatic mode: add every object found, then predict (worker thread).
+
+        ``references`` is :meth:`LightFieldPredictor.generate`'s: ``center`` (the paper's
+        setting), or also ``corners``, ``ring`` or ``all`` to find objects the center view
+        cannot see (docs/design.md section 8).
+        """
         pred = self._require()
-        ids = pred.generate()
+        ids = pred.generate(references)
         self.auto.update(int(i) for i in ids)
         if self.current_id in self.auto:
             self.current_id = self.next_id()

@@ -37,6 +37,7 @@ from qtpy.QtWidgets import (
 
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
+from lfsam.pipeline.references import REFERENCE_MODES
 from lfsam.viewer import layers as L
 from lfsam.viewer.plugin_io import LIGHTFIELD_KEY, RESULT_KEY, SESSION_KEY, lightfield_layers
 from lfsam.viewer.session import (
@@ -135,6 +136,12 @@ class LightFieldWidget(QWidget):
             if self.disparity_box.findText(text) < 0:
                 self.disparity_box.insertItem(self.disparity_box.count() - 1, text)
             self.disparity_box.setCurrentText(text)
+        self.references_box = QComboBox()
+        self.references_box.addItems(list(REFERENCE_MODES))
+        self.references_box.setToolTip(
+            "Segment everything from the center view (the paper's setting), or also from the "
+            "corner views, the outer ring or every view, to find objects the center cannot see"
+        )
         self.load_button = QPushButton("Load model")
         self.polarity_label = QLabel()
         self.segment_button = QPushButton("Segment [S]")
@@ -164,6 +171,7 @@ class LightFieldWidget(QWidget):
         form = QFormLayout()
         form.addRow("Model", self.model_box)
         form.addRow("Disparity", self.disparity_box)
+        form.addRow("Everything from", self.references_box)
         grid = QGridLayout()
         buttons = [
             self.segment_button, self.commit_button, self.toggle_button, self.clear_button,
@@ -580,8 +588,10 @@ class LightFieldWidget(QWidget):
                 self.load_model()
                 self._when_idle(run)
                 return
+            references = self.references_box.currentText()
             self._start(
-                lambda: iter([("all", None, self.session.generate())]), 1, "segmenting everything"
+                lambda: iter([("all", None, self.session.generate(references))]), 1,
+                "segmenting everything" + ("" if references == "center" else f" ({references})"),
             )
 
         self._when_idle(run)
