@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 import torch.nn.functional as F
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 import lfsam.segmenters.feature_grid as feature_grid
@@ -48,6 +48,7 @@ def test_corner_weights_reproduce_grid_sample(shape, seed):
 
 @settings(max_examples=25, deadline=None)
 @given(shape=sizes, masks=st.integers(1, 4), seed=st.integers(0, 2**16))
+@example(shape=(4, 1, 25, 23), masks=1, seed=498)  # a float32 sum off by 2e-4 out of ~230
 def test_sums_and_similarities_match_per_pixel_features(shape, masks, seed):
     h, w, u_size, v_size = shape
     rng = np.random.default_rng(seed)
@@ -58,7 +59,10 @@ def test_sums_and_similarities_match_per_pixel_features(shape, masks, seed):
     feats = _sampled(grid, rows, cols, (u_size, v_size))  # (P, C), float64
     expected_sums = torch.zeros(masks, 5, dtype=torch.float64).index_add_(0, mask_index, feats)
     sums = grid_feature_sums(grid, mask_index, pixel_index, masks, (u_size, v_size))
-    assert torch.allclose(sums.double(), expected_sums, atol=1e-4)
+    # float32 sums of up to 900 terms: rounding grows with the summed magnitudes, so the bound
+    # is relative to the sum of absolute values (a wrong weight is off by a whole feature)
+    magnitude = torch.zeros(masks, 5, dtype=torch.float64).index_add_(0, mask_index, feats.abs())
+    assert bool(((sums.double() - expected_sums).abs() <= 1e-5 * magnitude + 1e-5).all())
     sources = F.normalize(torch.from_numpy(rng.normal(size=(masks, 5)).astype(np.float32)), dim=1)
     expected = F.cosine_similarity(feats, sources.double()[mask_index], dim=1, eps=1e-12)
     sims = grid_cosine_similarity(grid, mask_index, pixel_index, sources, (u_size, v_size))
