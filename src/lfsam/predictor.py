@@ -878,10 +878,8 @@ class LightFieldPredictor:
             for obj_id in replaced.values():
                 self.remove_object(obj_id)
             removed = set(replaced.values())
-            removed |= set(self._merge_found_before(
-                added, [i for i in new_ids if self._objects.get(i) is not None
-                        and self._objects[i].given_view != center]
-            ))
+            removed |= set(self._merge_found_before(added, [i for i, _ in found_before
+                                                            if i not in removed]))
             new_ids = [i for i in new_ids + added if i not in removed]
             found_before = [(i, m) for i, m in found_before if i not in removed]
             covered |= masks[keep].any(axis=0)
@@ -908,9 +906,11 @@ class LightFieldPredictor:
             by its largest such answer).
         """
         best: dict[int, tuple[int, int]] = {}  # object id -> (area, answer index)
+        if not found_before:
+            return {}
         for index in np.flatnonzero(~keep):
             area = int(np.count_nonzero(masks[index]))
-            if area == 0 or not found_before:
+            if area == 0:
                 continue
             overlaps = [np.count_nonzero(masks[index] & carried) for _, carried in found_before]
             n = int(np.argmax(overlaps))
@@ -957,13 +957,16 @@ class LightFieldPredictor:
         removed: list[int] = []
         for obj_id in added:
             new = self._objects[obj_id]
+            carried: dict[View, np.ndarray] = {}  # the new object in each earlier view, once
             for other in earlier:
                 if other in removed:
                     continue
                 old = self._objects[other]
                 if old.given_view == new.given_view:
                     continue
-                there = self._masks_in_view([obj_id], old.given_view)[0]
+                if old.given_view not in carried:
+                    carried[old.given_view] = self._masks_in_view([obj_id], old.given_view)[0]
+                there = carried[old.given_view]
                 on_old = np.count_nonzero(there & old.given_mask)
                 if on_old == 0 or 2 * on_old <= np.count_nonzero(there):
                     continue
