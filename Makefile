@@ -17,6 +17,8 @@ $(STAMP): pyproject.toml constraints.txt
 	$(PY) -m pip install --quiet -c constraints.txt torch torchvision
 	SAM2_BUILD_CUDA=0 SAM2_BUILD_ALLOW_ERRORS=1 $(PY) -m pip install --quiet --no-build-isolation -c constraints.txt sam2
 	$(PY) -m pip install --quiet -c constraints.txt -e ".[dev]"
+	@# the viewer moved to Qt 6: a PyQt5 left in an older .venv would still be picked by qtpy
+	-@$(PY) -m pip uninstall --quiet -y PyQt5 PyQt5-Qt5 PyQt5-sip >/dev/null 2>&1
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -22,6 +22,7 @@ DEVICE_COMMANDS = {
     "evaluate": ["evaluate", "DATASET", "--model", "oracle", "--disparity", "gt",
                  "--out", "OUT/ev"],
     "demo": ["demo", "--out", "OUT/demo", "--quiet"],
+    "view": ["view", "SCENE", "--model", "oracle", "--disparity", "gt"],
 }
 
 
@@ -67,7 +68,7 @@ def test_the_commands_with_device_share_one_option():
     assert set(DEVICE_COMMANDS) <= set(SUBCOMMANDS)
 
 
-def test_evaluate_and_demo_share_the_model_options_of_segment():
+def test_evaluate_view_and_demo_share_the_model_options_of_segment():
     parsers = _sub_parsers()
 
     def model_options(name):
@@ -79,6 +80,7 @@ def test_evaluate_and_demo_share_the_model_options_of_segment():
         }
 
     assert model_options("evaluate") == model_options("segment")
+    assert model_options("view") == model_options("segment")
     assert len(model_options("evaluate")) == 5
     demo, segment = model_options("demo"), model_options("segment")
     assert demo.keys() == segment.keys()

@@ -124,20 +124,23 @@ class ModelOptions:
     oracle: dict[str, Any] | None = None
     seed: int = 0
 
+    def segmenter_keywords(self) -> dict[str, Any]:
+        """The keywords of :func:`lfsam.segmenters.load_segmenter` besides the model's name
+        (the viewer's session keeps them to rebuild the segmenter when the model changes)."""
+        return {
+            "checkpoint": self.checkpoint,
+            "random_weights": self.random_weights,
+            "device": self.device,
+            "amg_options": dict(self.amg) if self.amg else None,
+            "oracle_options": dict(self.oracle) if self.oracle else None,
+            "seed": self.seed,
+        }
+
     def build(self, lightfield: LightField | None = None) -> Segmenter:
         """The segmenter these options describe."""
         from lfsam.segmenters import load_segmenter
 
-        return load_segmenter(
-            self.name,
-            checkpoint=self.checkpoint,
-            random_weights=self.random_weights,
-            device=self.device,
-            lightfield=lightfield,
-            amg_options=dict(self.amg) if self.amg else None,
-            oracle_options=dict(self.oracle) if self.oracle else None,
-            seed=self.seed,
-        )
+        return load_segmenter(self.name, lightfield=lightfield, **self.segmenter_keywords())
 
 
 @dataclass(frozen=True)

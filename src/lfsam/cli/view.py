@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import signal
+import sys
 from typing import Any
 
 from lfsam.cli.common import HelpFormatter, add_disparity_argument
+from lfsam.cli.models import add_model_arguments, model_options_from_args
 
 DESCRIPTION = """\
 Open a light field in napari: the views are one image layer with the view row s and column t on
@@ -26,6 +29,8 @@ EPILOG = """\
 examples:
   lfsam view scene --model oracle --disparity gt         # a synthetic scene with ground truth
   lfsam view ../shared/data/hci_antinous --cache ~/.cache/lfsam-embeddings
+  lfsam view ../shared/data/lytro_2067 --model sam2.1-hiera-large --checkpoint sam2.1_hiera_large.pt
+  lfsam view scene --model sam2-tiny-test --random-weights --device cpu   # try the viewer quickly
   lfsam view scene --result result.npz --model oracle    # reopen a result and correct it
   lfsam view                                             # empty viewer; File > Open a light field
 """
@@ -44,10 +49,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "path", nargs="?", help="light field: a folder of views, .npz/.npy/.h5/.mat, ..."
     )
     parser.add_argument("--result", metavar="R.npz", help="reopen this result's objects to edit")
-    parser.add_argument(
-        "--model", default=None, help="segmenter: a SAM 2 model name or 'oracle' (default: "
-        "the package's default SAM 2 model)"
-    )
+    add_model_arguments(parser)
     add_disparity_argument(parser)
     parser.add_argument("--cache", metavar="DIR", help="embedding cache folder")
     parser.add_argument("--format", dest="input_format", help="input format (default: detect)")
@@ -64,8 +66,10 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
         result; nothing is opened then.
     """
     from lfsam.viewer import require_napari
+    from lfsam.viewer.native_libraries import preload_native_libraries
 
     require_napari()
+    preload_native_libraries()  # before napari draws with OpenGL (native_libraries docstring)
     from lfsam.errors import LfsamError
     from lfsam.io import read_lightfield
     from lfsam.result import load_result
@@ -79,13 +83,15 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
 
     from lfsam.viewer.widget import LightFieldWidget
 
+    model = model_options_from_args(args)
     viewer = napari.Viewer(title="lfsam", show=show)
     widget = LightFieldWidget(
         viewer,
         lightfield=lightfield,
-        model=args.model,
+        model=model.name,
         disparity=args.disparity,
         cache_dir=args.cache,
+        segmenter_options=model.segmenter_keywords(),
     )
     viewer.window.add_dock_widget(widget, name="lfsam", area="right")
     if result is not None:
@@ -94,9 +100,27 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``lfsam view``: returns when the window is closed."""
-    open_viewer(args)
+    """Run ``lfsam view``: returns when the window is closed (or on Ctrl-C / SIGTERM, which
+    close it as its close button does). The dock's status lines are echoed on stderr."""
+    viewer, widget = open_viewer(args)
     import napari
+    from qtpy.QtCore import QTimer
 
-    napari.run()
+    widget.status_changed.connect(lambda text: print(f"lfsam view: {text}", file=sys.stderr,
+                                                     flush=True))
+
+    def close(_signum: int, _frame: Any) -> None:
+        viewer.close()
+
+    previous = {sig: signal.signal(sig, close) for sig in (signal.SIGINT, signal.SIGTERM)}
+    # Python runs signal handlers only between bytecodes: wake it while Qt's loop waits
+    waker = QTimer()
+    waker.timeout.connect(lambda: None)
+    waker.start(200)
+    try:
+        napari.run()
+    finally:
+        waker.stop()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     return 0

@@ -21,15 +21,21 @@ import numpy as np
 
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
+from lfsam.segmenters.registry import ORACLE
+from lfsam.viewer.native_libraries import preload_native_libraries
 
 __all__ = [
     "DISPARITY_SOURCES",
+    "SAM2_ONLY_OPTIONS",
     "PromptHistory",
     "ViewerSession",
     "layers_from_prompts",
     "prompts_from_layers",
     "select_labels",
 ]
+
+#: Keywords of :func:`lfsam.segmenters.load_segmenter` that only a SAM 2 model takes.
+SAM2_ONLY_OPTIONS = ("checkpoint", "random_weights", "amg_options")
 
 #: Disparity sources the widget offers besides a file (``set_lightfield(disparity=...)``).
 DISPARITY_SOURCES = ("estimate", "gt")
@@ -236,9 +242,12 @@ class ViewerSession:
         from lfsam.predictor import LightFieldPredictor
         from lfsam.segmenters import load_segmenter
 
+        preload_native_libraries()  # a no-op when the widget did it in the main thread
         options = dict(self.segmenter_options)
-        if self.model != "oracle":
-            options.pop("oracle_options", None)
+        # the options of the other kind of segmenter stay for when the model box switches back
+        dropped = SAM2_ONLY_OPTIONS if self.model == ORACLE else ("oracle_options",)
+        for key in dropped:
+            options.pop(key, None)
         segmenter = load_segmenter(self.model, lightfield=self.lightfield, **options)
         predictor = LightFieldPredictor(segmenter, cache_dir=self.cache_dir)
         predictor.set_lightfield(self.lightfield, disparity=self.disparity)

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from qtpy.QtCore import QTimer
+from qtpy.QtCore import QTimer, Signal
 from qtpy.QtWidgets import (
     QComboBox,
     QFileDialog,
@@ -38,7 +38,9 @@ from qtpy.QtWidgets import (
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.pipeline.references import REFERENCE_MODES
+from lfsam.segmenters.registry import ORACLE
 from lfsam.viewer import layers as L
+from lfsam.viewer.native_libraries import preload_native_libraries
 from lfsam.viewer.plugin_io import LIGHTFIELD_KEY, RESULT_KEY, SESSION_KEY, lightfield_layers
 from lfsam.viewer.session import (
     DISPARITY_SOURCES,
@@ -51,6 +53,16 @@ from lfsam.viewer.session import (
 __all__ = ["LightFieldWidget"]
 
 _FILE_ITEM = "file…"
+#: The weights box: the model hub's trained weights (cached), untrained ones, or a .pt file.
+_HUB_WEIGHTS = "trained (hub cache)"
+_RANDOM_WEIGHTS = "random (tests only)"
+
+
+def _choose_item(box: QComboBox, text: str) -> None:
+    """Select ``text`` in ``box``, inserting it before the last item ("file…") if it is new."""
+    if box.findText(text) < 0:
+        box.insertItem(box.count() - 1, text)
+    box.setCurrentText(text)
 
 
 def _notify_error(message: str) -> None:
@@ -94,6 +106,9 @@ class LightFieldWidget(QWidget):
         Load the model as soon as a light field is known.
     """
 
+    #: Emitted with every status line the dock shows (``lfsam view`` echoes them on stderr).
+    status_changed = Signal(str)
+
     def __init__(
         self,
         napari_viewer: Any,
@@ -108,6 +123,8 @@ class LightFieldWidget(QWidget):
         super().__init__()
         from lfsam.segmenters import available_models
         from lfsam.segmenters.registry import DEFAULT_MODEL
+
+        preload_native_libraries()  # here, in the main thread, not in the worker (module doc)
 
         self.viewer = napari_viewer
         self.session: ViewerSession | None = None
@@ -129,13 +146,20 @@ class LightFieldWidget(QWidget):
         self.model_box = QComboBox()
         self.model_box.addItems(available_models())
         self.model_box.setCurrentText(model or DEFAULT_MODEL)
+        self.weights_box = QComboBox()
+        self.weights_box.addItems([_HUB_WEIGHTS, _RANDOM_WEIGHTS, _FILE_ITEM])
+        self.weights_box.setToolTip(
+            "SAM 2 weights: the model hub's (downloaded once into the cache), untrained ones "
+            "of the same architecture, or a checkpoint file (Meta's .pt) of the chosen model"
+        )
+        if self._options.get("checkpoint"):
+            _choose_item(self.weights_box, str(self._options["checkpoint"]))
+        elif self._options.get("random_weights"):
+            self.weights_box.setCurrentText(_RANDOM_WEIGHTS)
         self.disparity_box = QComboBox()
         self.disparity_box.addItems([*DISPARITY_SOURCES, _FILE_ITEM])
         if disparity is not None:
-            text = str(disparity)
-            if self.disparity_box.findText(text) < 0:
-                self.disparity_box.insertItem(self.disparity_box.count() - 1, text)
-            self.disparity_box.setCurrentText(text)
+            _choose_item(self.disparity_box, str(disparity))
         self.references_box = QComboBox()
         self.references_box.addItems(list(REFERENCE_MODES))
         self.references_box.setToolTip(
@@ -170,6 +194,7 @@ class LightFieldWidget(QWidget):
 
         form = QFormLayout()
         form.addRow("Model", self.model_box)
+        form.addRow("Weights", self.weights_box)
         form.addRow("Disparity", self.disparity_box)
         form.addRow("Everything from", self.references_box)
         grid = QGridLayout()
@@ -207,6 +232,8 @@ class LightFieldWidget(QWidget):
 
         self.load_button.clicked.connect(self.load_model)
         self.model_box.currentTextChanged.connect(self._on_model_changed)
+        self._on_model_changed(self.model_box.currentText())
+        self.weights_box.activated.connect(self._on_weights_activated)
         self.disparity_box.activated.connect(self._on_disparity_activated)
         self.segment_button.clicked.connect(self.segment)
         self.commit_button.clicked.connect(self.commit)
@@ -284,7 +311,7 @@ class LightFieldWidget(QWidget):
             model=self.model_box.currentText(),
             disparity=self._disparity_value(),
             cache_dir=self._cache_dir,
-            segmenter_options=self._options,
+            segmenter_options=dict(self._options),
         )
         shape = lightfield.views.shape[:4]
         for name in L.LAYER_NAMES:
@@ -349,8 +376,13 @@ class LightFieldWidget(QWidget):
         except LfsamError as exc:
             self._error(str(exc))
 
+    def _set_status(self, text: str) -> None:
+        self.status.setText(text)
+        if text:
+            self.status_changed.emit(text)
+
     def _error(self, message: str) -> None:
-        self.status.setText(message)
+        self._set_status(message)
         _notify_error(message)
 
     def _start(self, func: Callable[[], Iterator[tuple]], total: int, desc: str) -> None:
@@ -358,7 +390,7 @@ class LightFieldWidget(QWidget):
 
         self.progress.setRange(0, total)
         self.progress.setValue(0)
-        self.status.setText(desc + "…")
+        self._set_status(desc + "…")
         self.worker = create_worker(
             _guarded(func),
             _progress={"total": total, "desc": desc},
@@ -380,11 +412,13 @@ class LightFieldWidget(QWidget):
             self._queue.clear()
             self._segment_pending = False
         elif kind == "loaded":
-            self.status.setText(f"model {self.session.model} loaded")
+            device = getattr(self.session.predictor.segmenter, "device", None)
+            where = f" on {device}" if device is not None else ""
+            self._set_status(f"model {self.session.model} loaded{where}")
         elif kind == "reference":
             view, mask, score = value
             self._show_current(obj_id, view=tuple(view), mask=np.asarray(mask))
-            self.status.setText(f"object {obj_id}: view {tuple(view)} (score {score:.2f})")
+            self._set_status(f"object {obj_id}: view {tuple(view)} (score {score:.2f})")
         elif kind == "coarse":
             self._show_current(obj_id, masks=value.masks.get(obj_id))
         elif kind in ("final", "all"):
@@ -393,7 +427,7 @@ class LightFieldWidget(QWidget):
     def _on_errored(self, exc: Exception) -> None:  # a bug, not a user error: keep its traceback
         self._queue.clear()
         self._segment_pending = False
-        self.status.setText(f"error: {exc}")
+        self._set_status(f"error: {exc}")
 
     def _on_finished(self) -> None:
         self.worker = None
@@ -415,18 +449,53 @@ class LightFieldWidget(QWidget):
         return self.disparity_box.currentText()
 
     def _on_model_changed(self, name: str) -> None:
+        self.weights_box.setEnabled(name != ORACLE)  # the oracle has no weights
         if self.session is not None and self.session.model != name:
             self.session.model = name
             if self.session.loaded:
                 self.load_model()
 
+    def _on_weights_activated(self, _index: int) -> None:
+        text = self.weights_box.currentText()
+        if text == _FILE_ITEM:
+            text = self._pick_file(self.weights_box, "SAM 2 checkpoint (.pt)", "*.pt *.pth")
+            if text is None:  # cancelled: show the weights in use again
+                self.set_weights(**{k: self._options.get(k) for k in ("checkpoint",
+                                                                      "random_weights")})
+                return
+        self.set_weights(
+            checkpoint=None if text in (_HUB_WEIGHTS, _RANDOM_WEIGHTS) else text,
+            random_weights=text == _RANDOM_WEIGHTS,
+        )
+
+    def set_weights(self, checkpoint: str | None = None, random_weights: bool = False) -> None:
+        """Use a checkpoint file, untrained weights or (neither) the hub's; reloads a loaded
+        model (the CLI's ``--checkpoint`` and ``--random-weights``)."""
+        if checkpoint:
+            _choose_item(self.weights_box, str(checkpoint))
+        else:
+            self.weights_box.setCurrentText(_RANDOM_WEIGHTS if random_weights else _HUB_WEIGHTS)
+        weights = {"checkpoint": checkpoint or None, "random_weights": bool(random_weights)}
+        changed = any(self._options.get(key) != value for key, value in weights.items())
+        self._options.update(weights)
+        if self.session is not None and changed:
+            self.session.segmenter_options = dict(self._options)
+            if self.session.loaded and self.session.model != ORACLE:
+                self.load_model()
+
+    def _pick_file(self, box: QComboBox, title: str, pattern: str) -> str | None:
+        """Ask for a file with a dialog; it becomes the box's chosen item (None: cancelled)."""
+        path, _ = QFileDialog.getOpenFileName(self, title, "", pattern)
+        if path:
+            _choose_item(box, path)
+        return path or None
+
     def _on_disparity_activated(self, _index: int) -> None:
         if self.disparity_box.currentText() == _FILE_ITEM:
-            path, _ = QFileDialog.getOpenFileName(self, "Disparity (.npy)", "", "*.npy")
-            if not path:
+            if self._pick_file(self.disparity_box, "Disparity (.npy)", "*.npy") is None:
+                if self.session is not None:  # cancelled: show the source in use again
+                    _choose_item(self.disparity_box, str(self.session.disparity))
                 return
-            self.disparity_box.insertItem(self.disparity_box.count() - 1, path)
-            self.disparity_box.setCurrentText(path)
         if self.session is not None and self.session.disparity != self._disparity_value():
             self.session.disparity = self._disparity_value()
             if self.session.loaded:
@@ -664,7 +733,7 @@ class LightFieldWidget(QWidget):
     def save(self, path: str | os.PathLike) -> Path:
         """Write the session as an lfsam result (prompts included)."""
         out = self.session.save(path)
-        self.status.setText(f"saved {out}")
+        self._set_status(f"saved {out}")
         return out
 
     def export(self, out: str | os.PathLike, to: str = "png") -> Any:
@@ -673,7 +742,7 @@ class LightFieldWidget(QWidget):
         if module is None:
             raise LfsamError("export is not available in this version; save the result instead")
         path = module.export_result(self.session.to_result(), out, to=to)
-        self.status.setText(f"exported {path} ({to})")
+        self._set_status(f"exported {path} ({to})")
         return path
 
     # --- display ------------------------------------------------------------------------------
@@ -710,7 +779,7 @@ class LightFieldWidget(QWidget):
         self._show_labels(L.AUTO, select_labels(labels, self.session.auto))
         self._show_current(self.session.current_id, masks=self._mask_of(self.session.current_id))
         self._refresh_objects()
-        self.status.setText(f"{len(prediction.masks)} object(s) segmented in every view")
+        self._set_status(f"{len(prediction.masks)} object(s) segmented in every view")
 
     def _mask_of(self, obj_id: int) -> np.ndarray | None:
         """Object ``obj_id``'s mask in the last prediction, ``(S, T, U, V)`` bool, or None."""
