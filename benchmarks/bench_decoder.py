@@ -76,7 +76,10 @@ def main() -> int:
     multimask = not args.single_mask
     chunks = [int(c) for c in args.chunks.split(",")]
 
-    seg = load_segmenter(args.model, random_weights=True, device=args.device)
+    # no decoder state kept with the embedding: every Sam2Segmenter.predict below does the
+    # decoder's image side again, as the decode_prompts rows it is compared with do
+    seg = load_segmenter(args.model, random_weights=True, device=args.device,
+                         keep_decoder_state=False)
     model, device = seg.model, seg.device
     rng = np.random.default_rng(0)
     view = rng.integers(0, 256, (u_size, v_size, 3), dtype=np.uint8)

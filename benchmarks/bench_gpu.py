@@ -14,17 +14,18 @@ bf16 autocast (lfsam's :func:`~lfsam.segmenters.sam2_build.inference_context`).
 Measured in one run, after a warm-up (one batched encoder pass, the video predictor built, and on
 CUDA one untimed LFSAM run):
 
-- LFSAM end to end (``lfsam.api.run_segmentation(method="lfsam")``, ground-truth disparity as in
-  the paper's timing; the disparity estimate's own time is printed on a separate row): the best of
-  ``--repeats`` runs. ms per mask per view = total seconds / (N x views); encoder share = the
-  ``encode`` stage / total; peak GPU memory = ``torch.cuda.max_memory_allocated`` over the run.
-- The SAM 2 video baseline (``method="video-baseline"``, starting on the center view with the
-  same prompts) on the same light field. Tracking all N objects would take ceil(N / 15) passes
-  over all views, each costing the frame encodes plus memory attention per object per frame; to
-  keep this affordable the baseline is timed on one pass of the first ``--baseline-objects``
-  prompts (default 15, the authors' objects per pass), and its ms per mask per view = that pass's
-  total seconds / (objects x views). A full run's figure differs only by its last, partial pass.
-  ``--baseline-objects 0`` times all N (ceil(N / 15) passes).
+- LFSAM end to end (``lfsam.segment`` with ``RunOptions(method="lfsam")``, ground-truth disparity
+  as in the paper's timing; the disparity estimate's own time is printed on a separate row): the
+  best of ``--repeats`` runs. ms per mask per view = total seconds / (N x views); encoder share =
+  the ``encode`` stage / total; peak GPU memory = ``torch.cuda.max_memory_allocated`` over the
+  run.
+- The SAM 2 video baseline (``RunOptions(method="video-baseline")``, starting on the center view
+  with the same prompts) on the same light field. Tracking all N objects would take ceil(N / 15)
+  passes over all views, each costing the frame encodes plus memory attention per object per
+  frame; to keep this affordable the baseline is timed on one pass of the first
+  ``--baseline-objects`` prompts (default 15, the authors' objects per pass), and its ms per mask
+  per view = that pass's total seconds / (objects x views). A full run's figure differs only by
+  its last, partial pass. ``--baseline-objects 0`` times all N (ceil(N / 15) passes).
 
 Run on a GPU (``make gpu-check`` runs this)::
 
@@ -46,7 +47,7 @@ import time
 import numpy as np
 import torch
 
-from lfsam.api import run_segmentation
+from lfsam.api import RunOptions, SegmentOptions, segment
 from lfsam.baseline import video_predictor_for
 from lfsam.disparity import resolve_disparity
 from lfsam.pipeline import PipelineConfig
@@ -155,9 +156,12 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     points = prompt_points(lf.center_labels, n, seed=args.seed)
     prompts = [Prompts(points=points[:, None, :], point_labels=np.ones((n, 1)))]
     num_views = grid[0] * grid[1]
-    segmenter = load_segmenter(args.model, random_weights=True, device=device)
+    # batch runs: no decoder state kept with the embeddings (each view is decoded once)
+    segmenter = load_segmenter(args.model, random_weights=True, device=device,
+                               keep_decoder_state=False)
     segmenter.encode_batch_size = batch
     config = PipelineConfig(encode_batch_size=batch)
+    ours_options = SegmentOptions(pipeline=config, run=RunOptions(method="lfsam", progress=False))
     dtype = autocast_dtype(device)
     gpu = torch.cuda.get_device_name(device) if cuda else platform.processor() or "cpu"
     print(f"bench_gpu: {args.model} (random weights) on {device} ({gpu}), "
@@ -170,8 +174,8 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     segmenter.encode(views[: min(batch, num_views)])
     video_predictor_for(segmenter)
     if cuda:
-        run_segmentation(lf, method="lfsam", segmenter=segmenter, disparity=lf.center_disparity,
-                         prompts=prompts, progress=False, config=config)
+        segment(lf, prompts, model=segmenter, disparity=lf.center_disparity,
+                options=ours_options)
 
     disparity_s = float("nan")
     if not (args.no_estimate or args.quick):
@@ -180,9 +184,8 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     _reset_peak(device)
     runs = []
     for _ in range(repeats):
-        result, wall = _timed(device, lambda: run_segmentation(
-            lf, method="lfsam", segmenter=segmenter, disparity=lf.center_disparity,
-            prompts=prompts, progress=False, config=config))
+        result, wall = _timed(device, lambda: segment(
+            lf, prompts, model=segmenter, disparity=lf.center_disparity, options=ours_options))
         runs.append((wall, result))
     wall, ours = min(runs, key=lambda item: item[0])
     peak = _peak_gib(device)
@@ -193,10 +196,11 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     if not args.no_baseline:
         sub = prompts[0].subset(slice(0, base_objects))
         _reset_peak(device)
-        base, base_wall = _timed(device, lambda: run_segmentation(
-            lf, method="video-baseline", segmenter=segmenter, prompts=[sub], progress=False,
-            disparity=lf.center_disparity,
-            baseline_options={"start": "center", "objects_per_pass": 15}))
+        base_options = SegmentOptions(run=RunOptions(
+            method="video-baseline", progress=False,
+            baseline={"start": "center", "objects_per_pass": 15}))
+        base, base_wall = _timed(device, lambda: segment(
+            lf, [sub], model=segmenter, disparity=lf.center_disparity, options=base_options))
         base_peak = _peak_gib(device)
         base_ms = 1000 * base_wall / (base.num_masks * num_views)
         passes = math.ceil(n / 15)

@@ -35,7 +35,7 @@ def _rss_mb() -> float:
 
 
 def quality(args: argparse.Namespace) -> None:
-    from lfsam.api import run_segmentation
+    from lfsam.api import RunOptions, SegmentOptions, segment
     from lfsam.metrics import evaluate_labels
     from lfsam.metrics.report import format_metrics_table
     from lfsam.pipeline import PipelineConfig
@@ -65,9 +65,9 @@ def quality(args: argparse.Namespace) -> None:
             for k in keys:
                 ceiling[k] += ceil[k] / len(scenes)
             for name, config in settings:
-                result = run_segmentation(
-                    lf, segmenter=load_segmenter("oracle", lightfield=lf), disparity=disparity,
-                    config=config, progress=False,
+                result = segment(
+                    lf, model=load_segmenter("oracle", lightfield=lf), disparity=disparity,
+                    options=SegmentOptions(pipeline=config, run=RunOptions(progress=False)),
                 )
                 scores = evaluate_labels(result.labels, lf)
                 for k in keys:
@@ -89,7 +89,7 @@ def quality(args: argparse.Namespace) -> None:
 
 
 def speed(args: argparse.Namespace) -> None:
-    from lfsam.api import make_prompts, run_segmentation
+    from lfsam.api import RunOptions, SegmentOptions, make_prompts, segment
     from lfsam.segmenters import load_segmenter
     from lfsam.synth import generate_scene
 
@@ -97,7 +97,8 @@ def speed(args: argparse.Namespace) -> None:
     size = tuple(int(x) for x in args.size.split("x"))
     lf = generate_scene(grid=grid, size=size, seed=0, num_objects=8)
     rss_before = _rss_mb()
-    segmenter = load_segmenter(args.model, random_weights=True)
+    # a batch run: no decoder state kept with the embeddings (each view is decoded once)
+    segmenter = load_segmenter(args.model, random_weights=True, keep_decoder_state=False)
     height, width = size
     side = int(np.ceil(np.sqrt(args.prompts)))
     xs = np.linspace(width * 0.1, width * 0.9, side)
@@ -109,8 +110,9 @@ def speed(args: argparse.Namespace) -> None:
         segmenter.encode(lf.views[st][None], keys=[st])
     encoder_alone = time.perf_counter() - start
     segmenter.encode_calls = 0
-    result = run_segmentation(
-        lf, segmenter=segmenter, disparity="gt", prompts=make_prompts(points), progress=False
+    result = segment(
+        lf, make_prompts(points), model=segmenter, disparity="gt",
+        options=SegmentOptions(run=RunOptions(progress=False)),
     )
     total = result.timings["total"]
     print(f"\n## Speed: {args.model} (random weights), {grid[0]}x{grid[1]} views of "
@@ -130,8 +132,9 @@ def speed(args: argparse.Namespace) -> None:
 
 def _memory_child(masks_count: int) -> None:
     """Runs in a fresh process: 200 oracle masks on 9x9x480x640; prints JSON."""
+    from lfsam.api import RunOptions, SegmentOptions, segment
     from lfsam.lightfield import LightField
-    from lfsam.pipeline import PipelineConfig, segment_lightfield
+    from lfsam.pipeline import PipelineConfig
     from lfsam.segmenters import load_segmenter
 
     s_count = t_count = 9
@@ -158,8 +161,13 @@ def _memory_child(masks_count: int) -> None:
     segmenter = load_segmenter("oracle", lightfield=lf)
     base = _rss_mb()
     start = time.perf_counter()
-    result = segment_lightfield(
-        lf, segmenter, lf.center_disparity, None, PipelineConfig(), progress=False
+    # automatic mode with the center view's disparity; a 2048 MB in-memory embedding budget
+    # (LightFieldPredictor's default, the budget this benchmark has always run with)
+    result = segment(
+        lf, None, model=segmenter, disparity=lf.center_disparity,
+        options=SegmentOptions(
+            pipeline=PipelineConfig(), run=RunOptions(memory_budget_mb=2048.0, progress=False)
+        ),
     )
     print(json.dumps({
         "masks": result.num_masks, "seconds": time.perf_counter() - start,

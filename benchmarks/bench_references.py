@@ -43,7 +43,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
-from lfsam.api import run_segmentation
+from lfsam.api import RunOptions, SegmentOptions, segment
 from lfsam.errors import LfsamError
 from lfsam.metrics import evaluate_result
 from lfsam.pipeline.references import uncovered_points
@@ -83,6 +83,11 @@ def _seeds(text: str) -> list[int]:
     return seeds
 
 
+def _options(references: str) -> SegmentOptions:
+    """A batch run of the automatic mode from ``references``, the paper's pipeline."""
+    return SegmentOptions(run=RunOptions(references=references, progress=False))
+
+
 def _count_generator_points(segmenter) -> list[int | None]:
     """Wrap ``segmenter.generate`` to record how many points each call asks at (None: the
     generator's own full grid, i.e. the center view)."""
@@ -99,10 +104,13 @@ def _count_generator_points(segmenter) -> list[int | None]:
 
 def speed(args: argparse.Namespace, answers: str) -> None:
     lf = generate_scene(grid=args.grid, size=args.size, seed=args.seed, num_objects=args.objects)
-    segmenter = load_segmenter(args.model, random_weights=True, device=args.device)
+    # batch runs: no decoder state kept with the embeddings (each view is decoded once)
+    segmenter = load_segmenter(args.model, random_weights=True, device=args.device,
+                               keep_decoder_state=False)
     if answers == "oracle":
         sam2 = segmenter
-        segmenter = Sam2CostOracleAnswers(sam2.model, amg_options=sam2.amg_options)
+        segmenter = Sam2CostOracleAnswers(sam2.model, amg_options=sam2.amg_options,
+                                          keep_decoder_state=False)
         segmenter.oracle = OracleSegmenter(lf, device=args.device)
     # Untimed warm-up (first-call costs: kernels, allocator): one view encoded and the
     # generator over 64 points, so that the first timed mode does not pay for it.
@@ -126,8 +134,7 @@ def speed(args: argparse.Namespace, answers: str) -> None:
         for mode in modes:
             asked.clear()
             start = time.perf_counter()
-            result = run_segmentation(lf, segmenter=segmenter, disparity="gt", references=mode,
-                                      progress=False)
+            result = segment(lf, model=segmenter, disparity="gt", options=_options(mode))
             times[mode].append(time.perf_counter() - start)
             results[mode] = result
             counts[mode] = (sum(1 for n in asked if n is not None),
@@ -180,8 +187,7 @@ def quality(args: argparse.Namespace) -> None:
         used.append(seed)
         for mode in modes:
             segmenter = load_segmenter("oracle", lightfield=lf, device="cpu")
-            result = run_segmentation(lf, segmenter=segmenter, disparity="gt", references=mode,
-                                      progress=False)
+            result = segment(lf, model=segmenter, disparity="gt", options=_options(mode))
             scores[mode].append(evaluate_result(result, lf, device="cpu"))
             twice[mode] += _found_twice(result, lf)
     print(f"\n{len(used)} scenes, {len(used) * args.hidden} hidden objects; means over scenes")

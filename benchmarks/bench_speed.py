@@ -12,10 +12,11 @@ deep inside it):
 
 - the cost of one image-encoder pass per view (LFSAM's own ``encode`` stage, in which each view is
   encoded exactly once, or with ``--encoder-reference`` a separate pass over all views);
-- LFSAM (``lfsam.api.run_segmentation(method="lfsam")``, ground-truth or estimated disparity);
-- the baseline (``method="video-baseline"``) starting on the center view with the same prompts
-  (the fair comparison), and optionally starting on the first view (the paper's setting, the
-  prompts carried there by disparity);
+- LFSAM (``lfsam.segment`` with ``RunOptions(method="lfsam")``, ground-truth or estimated
+  disparity);
+- the baseline (``RunOptions(method="video-baseline")``) starting on the center view with the
+  same prompts (the fair comparison), and optionally starting on the first view (the paper's
+  setting, the prompts carried there by disparity);
 
 and prints T, the ratio, LFSAM's total over the encoder time, and every stage's seconds. Each
 model is warmed up first (one encoder pass, and the video predictor built) so no one-time cost
@@ -46,7 +47,7 @@ import time
 import numpy as np
 import torch
 
-from lfsam.api import run_segmentation
+from lfsam.api import RunOptions, SegmentOptions, segment
 from lfsam.baseline import video_predictor_for
 from lfsam.segmenters import Prompts, load_segmenter
 from lfsam.synth import generate_scene
@@ -102,7 +103,9 @@ def _stages(timings: dict[str, float]) -> str:
 
 def bench_model(model: str, lf, prompts: list[Prompts], args) -> dict[str, float]:
     """Time the encoder reference, LFSAM and the baseline(s) on one model; print the lines."""
-    segmenter = load_segmenter(model, random_weights=True, device=args.device)
+    # batch runs: no decoder state kept with the embeddings (each view is decoded once)
+    segmenter = load_segmenter(model, random_weights=True, device=args.device,
+                               keep_decoder_state=False)
     views = lf.views.reshape(-1, *lf.views.shape[2:])
     num_views = len(views)
     n = len(prompts[0])
@@ -124,9 +127,9 @@ def bench_model(model: str, lf, prompts: list[Prompts], args) -> dict[str, float
     profiler = cProfile.Profile() if args.profile else None
     if profiler is not None:
         profiler.enable()
-    ours = _best_of(args.repeats, lambda: run_segmentation(
-        lf, method="lfsam", segmenter=segmenter, disparity=disparity, prompts=prompts,
-        progress=False))
+    ours = _best_of(args.repeats, lambda: segment(
+        lf, prompts, model=segmenter, disparity=disparity,
+        options=SegmentOptions(run=RunOptions(method="lfsam", progress=False))))
     if profiler is not None:
         profiler.disable()
     ours_t = ours.ms_per_mask_view
@@ -143,10 +146,11 @@ def bench_model(model: str, lf, prompts: list[Prompts], args) -> dict[str, float
     row = {"encoder_s": encode, "lfsam_s": ours.timings["total"], "lfsam_T": ours_t}
 
     for start in args.starts:
-        options = {"start": start, "objects_per_pass": args.objects_per_pass}
-        base = _best_of(args.repeats, lambda options=options: run_segmentation(
-            lf, method="video-baseline", segmenter=segmenter, prompts=prompts, progress=False,
-            disparity=disparity, baseline_options=options))
+        options = SegmentOptions(run=RunOptions(
+            method="video-baseline", progress=False,
+            baseline={"start": start, "objects_per_pass": args.objects_per_pass}))
+        base = _best_of(args.repeats, lambda options=options: segment(
+            lf, prompts, model=segmenter, disparity=disparity, options=options))
         base_t = base.ms_per_mask_view
         print(f"video baseline (start {start}): total {base.timings['total']:.2f} s, "
               f"N={base.num_masks}, {base.meta['passes']} pass(es), "

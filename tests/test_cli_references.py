@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lfsam.api import run_segmentation
+from lfsam.api import RunOptions, SegmentOptions, segment
 from lfsam.cli.main import main
 from lfsam.errors import LfsamError
 from lfsam.io import write_lightfield
@@ -64,7 +64,8 @@ def test_references_need_auto_and_lfsam(scene, scene_path, tmp_path, capsys):
     assert main(argv) == 2
     assert "--references corners needs --auto" in capsys.readouterr().err
     with pytest.raises(LfsamError, match="needs --method lfsam"):
-        run_segmentation(scene, method="video-baseline", model="oracle", references="ring")
+        segment(scene, model="oracle", options=SegmentOptions(
+            run=RunOptions(method="video-baseline", references="ring")))
 
 
 def test_segment_passes_the_mode_to_the_predictor(scene_path, tmp_path, spy):

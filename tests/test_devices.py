@@ -6,9 +6,10 @@ import pytest
 import torch
 
 import lfsam.pipeline.config as pipeline_config
+from lfsam.api import RunOptions, SegmentOptions, segment
 from lfsam.devices import check_device_spec, default_encode_batch_size, resolve_device
 from lfsam.errors import LfsamError
-from lfsam.pipeline import PipelineConfig, segment_lightfield
+from lfsam.pipeline import PipelineConfig
 from lfsam.segmenters.oracle import OracleSegmenter
 from lfsam.synth import generate_scene
 
@@ -87,9 +88,12 @@ def test_pipeline_encodes_views_in_batches_of_the_device_default(monkeypatch):
 
     monkeypatch.setattr(segmenter, "encode", counting_encode)
     monkeypatch.setattr(pipeline_config, "default_encode_batch_size", lambda device: 3)
-    segment_lightfield(scene, segmenter, scene.disparity[1, 1], progress=False)
+    quiet = RunOptions(progress=False)
+    segment(scene, model=segmenter, disparity=scene.disparity[1, 1],
+            options=SegmentOptions(run=quiet))
     assert sizes == [1, 3, 3, 2]  # the center view, then the 8 others three at a time
     sizes.clear()
     config = PipelineConfig(encode_batch_size=5)
-    segment_lightfield(scene, segmenter, scene.disparity[1, 1], config=config, progress=False)
+    segment(scene, model=segmenter, disparity=scene.disparity[1, 1],
+            options=SegmentOptions(pipeline=config, run=quiet))
     assert sizes == [1, 5, 3]  # an explicit size wins over the device's

@@ -74,12 +74,13 @@ def test_user_errors_are_one_line_lfsam_errors(make):
 
 
 def test_a_disparity_of_another_size_is_a_user_error():
-    from lfsam.pipeline import segment_lightfield
+    from lfsam.api import RunOptions, SegmentOptions, segment
     from lfsam.segmenters.oracle import OracleSegmenter
     from lfsam.synth import generate_scene
 
     scene = generate_scene(grid=(3, 3), size=(24, 32), seed=1, num_objects=1)
     with pytest.raises(LfsamError, match=r"expected \(24, 32\)"):
-        segment_lightfield(
-            scene, OracleSegmenter(scene, device="cpu"), np.zeros((24, 31)), progress=False
+        segment(
+            scene, model=OracleSegmenter(scene, device="cpu"), disparity=np.zeros((24, 31)),
+            options=SegmentOptions(run=RunOptions(progress=False)),
         )

@@ -210,17 +210,19 @@ def test_cli_evaluate_and_compare(dataset, tmp_path, monkeypatch, capsys):
 
     seen = {}
 
-    def fake_run_segmentation(lf, **kwargs):
+    def fake_segment(lf, **kwargs):
         seen.update(kwargs)
         return oracle(lf)
 
-    monkeypatch.setattr(lfsam.api, "run_segmentation", fake_run_segmentation)
+    monkeypatch.setattr(lfsam.api, "segment", fake_segment)
     out = tmp_path / "cli"
     status = main(["evaluate", str(dataset), "--model", "oracle", "--disparity", "gt",
                    "--ablation", "ref", "--out", str(out)])
     assert status == 0
-    assert seen["method"] == "lfsam" and seen["model"] == "oracle"
-    assert seen["disparity"] == "gt" and seen["ablation"] == "ref" and seen["prompts"] is None
+    options = seen["options"]
+    assert options.run.method == "lfsam" and options.model.name == "oracle"
+    assert seen["disparity"] == "gt" and options.pipeline.ablation == "ref"
+    assert "prompts" not in seen  # automatic
     printed = capsys.readouterr()
     assert "| lfsam ref (oracle, gt disparity) |" in printed.out
     assert "3 scene(s) scored" in printed.err

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import torch
 
-from lfsam.api import run_segmentation
+from lfsam.api import ModelOptions, RunOptions, SegmentOptions, segment
 from lfsam.segmenters import load_segmenter
 from lfsam.synth import generate_scene
 
@@ -54,8 +54,11 @@ def test_batched_cuda_encoding_matches_single_views_and_cpu():
 
 def test_oracle_pipeline_on_cuda_matches_cpu():
     lf = generate_scene(grid=(3, 3), size=(48, 64), seed=1, num_objects=4)
-    cpu = run_segmentation(lf, model="oracle", disparity="gt", device="cpu", progress=False)
-    gpu = run_segmentation(lf, model="oracle", disparity="gt", device="cuda", progress=False)
+    cpu, gpu = (
+        segment(lf, disparity="gt", options=SegmentOptions(
+            model=ModelOptions(name="oracle", device=device), run=RunOptions(progress=False)))
+        for device in ("cpu", "cuda")
+    )
     assert gpu.num_masks == cpu.num_masks > 0
     agree = float(np.mean(np.asarray(gpu.labels) == np.asarray(cpu.labels)))
     assert agree > 0.999, f"CUDA and CPU labels agree on only {agree:.4%} of the pixels"

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 import torch
 
-from lfsam.api import make_prompts, run_segmentation
+from lfsam.api import RunOptions, SegmentOptions, make_prompts, segment
 from lfsam.metrics import evaluate_labels
-from lfsam.pipeline import PipelineConfig, segment_lightfield
+from lfsam.pipeline import PipelineConfig
 from lfsam.segmenters import load_segmenter
 from lfsam.synth import generate_scene
 
@@ -29,9 +29,11 @@ def scenes():
 
 def _oracle_run(lf, config, disparity="gt"):
     segmenter = load_segmenter("oracle", lightfield=lf)
-    return run_segmentation(
-        lf, segmenter=segmenter, disparity=disparity, config=config, progress=False
-    )
+    return segment(lf, model=segmenter, disparity=disparity, options=_quiet(config))
+
+
+def _quiet(config=None):
+    return SegmentOptions(pipeline=config or PipelineConfig(), run=RunOptions(progress=False))
 
 
 @pytest.mark.parametrize("index", [0, 1, 2])
@@ -88,9 +90,9 @@ def test_prompts_make_one_object_each_with_labels_in_prompt_order(scenes):
         k = len(rows) // 2
         picks.append((label, (float(cols[k]), float(rows[k]))))
     prompts = make_prompts([xy for _, xy in picks])
-    result = run_segmentation(
-        lf, segmenter=load_segmenter("oracle", lightfield=lf), disparity="gt",
-        prompts=prompts, progress=False,
+    result = segment(
+        lf, prompts, model=load_segmenter("oracle", lightfield=lf), disparity="gt",
+        options=_quiet(),
     )
     assert result.num_masks == 2
     for i, (label, _) in enumerate(picks):
@@ -112,9 +114,9 @@ def test_tiny_sam2_end_to_end_encodes_each_view_once():
     lf = generate_scene(grid=(3, 3), size=(48, 64), seed=3, num_objects=3)
     segmenter = load_segmenter("sam2-tiny-test", random_weights=True, device="cpu")
     prompts = make_prompts([(20.0, 20.0), (40.0, 30.0)], [])
-    result = segment_lightfield(
-        lf, segmenter, lf.center_disparity, prompts, PipelineConfig(occlusion="both"),
-        progress=False,
+    result = segment(
+        lf, prompts, model=segmenter, disparity=lf.center_disparity,
+        options=_quiet(PipelineConfig(occlusion="both")),
     )
     assert segmenter.encode_calls == lf.num_views
     assert result.labels.shape == (3, 3, 48, 64)
@@ -128,9 +130,8 @@ def test_tiny_sam2_end_to_end_encodes_each_view_once():
 def test_no_refine_no_semantic_encodes_only_the_center(scenes):
     lf = scenes[2]
     segmenter = load_segmenter("oracle", lightfield=lf)
-    run_segmentation(
-        lf, segmenter=segmenter, disparity="gt", ablation="none", progress=False
-    )
+    none = PipelineConfig.from_ablation("none")
+    segment(lf, model=segmenter, disparity="gt", options=_quiet(none))
     assert segmenter.encode_calls == 1
 
 

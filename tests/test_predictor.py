@@ -10,14 +10,22 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from lfsam.api import RunOptions, SegmentOptions, segment
 from lfsam.embeddings import embedding_nbytes
 from lfsam.errors import LfsamError
-from lfsam.pipeline import segment_lightfield
+from lfsam.generator import LightFieldMaskGenerator
 from lfsam.pipeline.propagation import propagate_masks
 from lfsam.predictor import LightFieldPredictor
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.segmenters import load_segmenter
 from lfsam.synth import generate_scene
+
+_QUIET = SegmentOptions(run=RunOptions(progress=False))
+
+
+def _from(references: str) -> SegmentOptions:
+    """Quiet batch options with automatic mode from ``references``."""
+    return SegmentOptions(run=RunOptions(progress=False, references=references))
 
 
 def _iou(a: np.ndarray, b: np.ndarray) -> float:
@@ -144,10 +152,10 @@ def test_coarse_to_fine_stages(scene):
 def test_batch_path_is_the_predictor(scene):
     lf = scene
     oracle = load_segmenter("oracle", lightfield=lf, device="cpu")
-    batch = segment_lightfield(lf, oracle, lf.center_disparity, None, progress=False)
+    batch = segment(lf, model=oracle, disparity=lf.center_disparity, options=_QUIET)
     predictor = LightFieldPredictor(load_segmenter("oracle", lightfield=lf, device="cpu"))
     predictor.set_lightfield(lf, disparity=lf.center_disparity)
-    ids = predictor.generate()
+    ids = LightFieldMaskGenerator(predictor).generate()
     assert ids == list(range(1, batch.num_masks + 1))
     assert np.array_equal(predictor.predict().labels, batch.labels)
     assert batch.meta["views_encoded"] == lf.num_views
@@ -160,7 +168,7 @@ def test_reopened_result_reproduces_labels(scene, tmp_path):
     predictor = LightFieldPredictor(load_segmenter("oracle", lightfield=lf, device="cpu"))
     predictor.set_lightfield(lf, disparity="gt")
     predictor.add_prompts(3, points=[(40, 30), (10, 10)], labels=[1, 0], view=(1, 1))
-    predictor.generate()
+    LightFieldMaskGenerator(predictor).generate()
     path = save_result(predictor.to_result(), tmp_path / "r.npz")
     result = load_result(path)
     again = LightFieldPredictor(load_segmenter("oracle", lightfield=lf, device="cpu"))
@@ -190,7 +198,7 @@ def test_absent_views_get_no_labels():
     lf.views[0, 0] = 0
     predictor = LightFieldPredictor(load_segmenter("oracle", lightfield=lf, device="cpu"))
     predictor.set_lightfield(lf, disparity="gt")
-    predictor.generate()
+    LightFieldMaskGenerator(predictor).generate()
     labels = predictor.predict().labels
     assert not labels[0, 0].any() and labels[1, 1].any()
     assert predictor.views_encoded == 8
@@ -276,7 +284,7 @@ def test_memory_budget_evicts_and_recomputes(tiny_scene):
     predictor.add_prompts(1, points=[(30, 20)])
     labels = predictor.predict().labels
     # only the last view and the pinned reference view (the center) are kept
-    assert set(predictor._store._memory) == {tiny_scene.center, (2, 2)}
+    assert set(predictor.engine.store._memory) == {tiny_scene.center, (2, 2)}
     reference = LightFieldPredictor(load_segmenter("sam2-tiny-test", random_weights=True,
                                                    device="cpu"))
     reference.set_lightfield(tiny_scene, disparity="gt")
@@ -286,15 +294,14 @@ def test_memory_budget_evicts_and_recomputes(tiny_scene):
 
 # --- automatic mode from several reference views (issue 16) -------------------------------------
 def test_corner_references_find_the_hidden_objects():
-    from lfsam.api import run_segmentation
     from lfsam.metrics import evaluate_result
 
     lf = generate_scene(grid=(5, 5), size=(96, 128), seed=0, hidden_objects=2)
     scores = {}
     for references in ("center", "corners"):
-        result = run_segmentation(
-            lf, segmenter=load_segmenter("oracle", lightfield=lf, device="cpu"),
-            disparity="gt", references=references, progress=False,
+        result = segment(
+            lf, model=load_segmenter("oracle", lightfield=lf, device="cpu"),
+            disparity="gt", options=_from(references),
         )
         scores[references] = evaluate_result(result, lf, device="cpu")
         assert result.meta["references"] == references
@@ -316,13 +323,12 @@ def test_extra_references_find_each_hidden_object_once(seed, references):
     found twice and the two finds are merged, keeping the larger; with ``ring``, seed 7's
     object is first found as 4 pixels in (0, 2), and its 25 pixels in (0, 4) replace that find.
     Each hidden object is then recalled, by exactly one automatic object."""
-    from lfsam.api import run_segmentation
     from lfsam.metrics import evaluate_result
 
     lf = generate_scene(grid=(5, 5), size=(96, 128), seed=seed, hidden_objects=2)
-    result = run_segmentation(
-        lf, segmenter=load_segmenter("oracle", lightfield=lf, device="cpu"),
-        disparity="gt", references=references, progress=False,
+    result = segment(
+        lf, model=load_segmenter("oracle", lightfield=lf, device="cpu"),
+        disparity="gt", options=_from(references),
     )
     assert evaluate_result(result, lf, device="cpu")["recall"] == 1.0
     found = {}
@@ -338,8 +344,6 @@ def test_extra_references_find_each_hidden_object_once(seed, references):
 def test_extra_references_ask_nowhere_the_center_sees_and_change_no_label():
     """A scene without hidden objects: the corners' generator is asked only where the center
     view could not look, finds no new object, and every label stays as with ``center``."""
-    from lfsam.api import run_segmentation
-
     lf = generate_scene(grid=(5, 5), size=(96, 128), seed=1)
     asked = []
     segmenter = load_segmenter("oracle", lightfield=lf, device="cpu")
@@ -351,8 +355,7 @@ def test_extra_references_ask_nowhere_the_center_sees_and_change_no_label():
 
     segmenter.generate = counting_generate
     results = {
-        references: run_segmentation(lf, segmenter=segmenter, disparity="gt",
-                                     references=references, progress=False)
+        references: segment(lf, model=segmenter, disparity="gt", options=_from(references))
         for references in ("center", "corners")
     }
     assert np.array_equal(results["center"].labels, results["corners"].labels)
@@ -370,7 +373,7 @@ def test_extra_reference_views_are_encoded_once_under_a_small_memory_budget():
     one_view_mb = embedding_nbytes(segmenter.encode(lf.views[0, :1], keys=[(0, 0)])[0]) / 2**20
     predictor = LightFieldPredictor(segmenter, memory_budget_mb=6 * one_view_mb, progress=False)
     predictor.set_lightfield(lf, disparity="gt")
-    predictor.generate("corners")
+    LightFieldMaskGenerator(predictor, "corners").generate()
     predictor.predict()
     assert predictor.views_encoded == 25
 

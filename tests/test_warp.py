@@ -13,8 +13,8 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from lfsam.api import make_prompts
-from lfsam.pipeline import PipelineConfig, segment_lightfield
+from lfsam.api import RunOptions, SegmentOptions, make_prompts, segment
+from lfsam.pipeline import PipelineConfig
 from lfsam.pipeline.propagation import propagate_masks
 from lfsam.segmenters import load_segmenter
 from lfsam.synth import PlanarObject, SceneSpec, render_scene
@@ -143,9 +143,10 @@ def slanted_behind_bar():
 
 def _object_masks(lf, occlusion, propagation, point):
     config = PipelineConfig(refine=False, occlusion=occlusion, propagation=propagation)
-    result = segment_lightfield(
-        lf, load_segmenter("oracle", lightfield=lf), lf.center_disparity,
-        make_prompts([point]), config, progress=False,
+    result = segment(
+        lf, make_prompts([point]), model=load_segmenter("oracle", lightfield=lf),
+        disparity=lf.center_disparity,
+        options=SegmentOptions(pipeline=config, run=RunOptions(progress=False)),
     )
     return result.masks.mask(0)
 

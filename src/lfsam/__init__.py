@@ -4,14 +4,15 @@ Implements Goncharov & Dansereau, "Segment Anything in Light Fields for Real-Tim
 Constrained Prompting", WACV 2025 workshops. The pipeline's four steps are
 :mod:`lfsam.pipeline.initial` (initial segmentation), :mod:`lfsam.pipeline.propagation`
 (disparity propagation), :mod:`lfsam.pipeline.occlusion` (semantic occluding) and
-:mod:`lfsam.pipeline.refinement` (segmentation refinement).
+:mod:`lfsam.pipeline.refinement` (segmentation refinement). Batch use: :func:`lfsam.segment`;
+interactive use: :class:`lfsam.LightFieldPredictor`, wrapped by
+:class:`lfsam.LightFieldMaskGenerator` for the automatic mode.
 """
-
-__version__ = "0.1.0"
 
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField, snake_order
 from lfsam.result import SegmentationResult, load_result, save_result
+from lfsam.version import __version__
 
 
 def __getattr__(name: str):
@@ -25,11 +26,16 @@ def __getattr__(name: str):
         from lfsam.predictor import LightFieldPredictor
 
         return LightFieldPredictor
+    if name == "LightFieldMaskGenerator":
+        from lfsam.generator import LightFieldMaskGenerator
+
+        return LightFieldMaskGenerator
     raise AttributeError(f"module 'lfsam' has no attribute {name!r}")
 
 __all__ = [
     "LfsamError",
     "LightField",
+    "LightFieldMaskGenerator",
     "LightFieldPredictor",
     "ModelOptions",
     "RunOptions",

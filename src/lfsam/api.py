@@ -5,8 +5,8 @@ It builds the segmenter (:class:`ModelOptions`), runs LFSAM on the interactive p
 object's own reference view) or the SAM 2 video baseline (:mod:`lfsam.baseline`, paper section
 4), and records everything needed to reproduce the run in the result's metadata. Options come in
 three small groups (:class:`SegmentOptions`: the pipeline's :class:`PipelineConfig`, the model,
-the run). :func:`run_segmentation` is the same with flat keywords; ``lfsam segment`` and
-``lfsam evaluate`` are thin layers over them.
+the run). ``lfsam segment``, ``lfsam evaluate``, the Ray path and the benchmarks are thin
+layers over it; interactive use goes through :class:`lfsam.predictor.LightFieldPredictor`.
 """
 
 from __future__ import annotations
@@ -20,10 +20,12 @@ from typing import Any
 import numpy as np
 
 from lfsam.errors import LfsamError
+from lfsam.generator import LightFieldMaskGenerator
 from lfsam.lightfield import LightField
 from lfsam.pipeline import PipelineConfig
-from lfsam.pipeline.segment import objects_from_prompts
-from lfsam.prompts import ObjectPrompts, load_prompts, validate_objects
+from lfsam.pipeline.references import check_references
+from lfsam.predictor import LightFieldPredictor
+from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt, load_prompts, validate_objects
 from lfsam.result import SegmentationResult
 from lfsam.segmenters.base import Prompts, Segmenter
 from lfsam.segmenters.registry import DEFAULT_MODEL
@@ -35,7 +37,7 @@ __all__ = [
     "SegmentOptions",
     "as_objects",
     "make_prompts",
-    "run_segmentation",
+    "objects_from_prompts",
     "segment",
 ]
 
@@ -83,10 +85,23 @@ def make_prompts(
     return groups
 
 
+def objects_from_prompts(prompts: Prompts, first_id: int = 1) -> list[ObjectPrompts]:
+    """Center-view :class:`~lfsam.segmenters.base.Prompts` rows as objects ``first_id, ...``
+    (padding points, label -1, are dropped)."""
+    objects = []
+    for n in range(len(prompts)):
+        points = []
+        if prompts.points is not None:
+            for (x, y), label in zip(prompts.points[n], prompts.point_labels[n], strict=True):
+                if label in (0, 1):
+                    points.append(PointPrompt(float(x), float(y), bool(label == 1)))
+        box = None if prompts.boxes is None else BoxPrompt(*map(float, prompts.boxes[n]))
+        objects.append(ObjectPrompts(first_id + n, tuple(points), box))
+    return objects
+
+
 def _check_references(references: str, method: str, prompts) -> None:
     """Reject ``references`` other than ``center`` where they mean nothing (one-line errors)."""
-    from lfsam.pipeline.references import check_references
-
     check_references(references)
     if references != "center" and prompts is not None:
         raise LfsamError(f"--references {references} needs --auto; prompts set their own views")
@@ -136,11 +151,17 @@ class ModelOptions:
             "seed": self.seed,
         }
 
-    def build(self, lightfield: LightField | None = None) -> Segmenter:
-        """The segmenter these options describe."""
+    def build(
+        self, lightfield: LightField | None = None, *, keep_decoder_state: bool = True
+    ) -> Segmenter:
+        """The segmenter these options describe (``keep_decoder_state``: see
+        :func:`lfsam.segmenters.load_segmenter`; batch runs turn it off)."""
         from lfsam.segmenters import load_segmenter
 
-        return load_segmenter(self.name, lightfield=lightfield, **self.segmenter_keywords())
+        return load_segmenter(
+            self.name, lightfield=lightfield, keep_decoder_state=keep_decoder_state,
+            **self.segmenter_keywords(),
+        )
 
 
 @dataclass(frozen=True)
@@ -267,7 +288,9 @@ def segment(
         segmenter, model_name = model, model.name
     else:
         model_options = options.model if model is None else replace(options.model, name=model)
-        segmenter, model_name = model_options.build(lightfield), model_options.name
+        # a batch run decodes each view once: no decoder state kept with the embeddings
+        segmenter = model_options.build(lightfield, keep_decoder_state=False)
+        model_name = model_options.name
     run_meta: dict[str, Any] = {
         "input": str(lightfield.meta.get("source", "<array>")),
         "input_format": lightfield.meta.get("format"),
@@ -291,19 +314,16 @@ def segment(
         result.meta.update(run_meta)
         return result
 
-    from lfsam.predictor import LightFieldPredictor
-
     predictor = LightFieldPredictor(
         segmenter,
         options.pipeline,
         cache_dir=run.cache_dir,
         memory_budget_mb=run.memory_budget_mb,
         progress=run.progress,
-        keep_decoder_state=False,  # a batch run decodes each view once
     )
     predictor.set_lightfield(lightfield, disparity=disparity)
     if objects is None:
-        predictor.generate(references=run.references)
+        LightFieldMaskGenerator(predictor, run.references).generate()
     else:
         for obj in objects:
             predictor.set_object(obj)
@@ -311,6 +331,7 @@ def segment(
     result.timings["total"] = time.perf_counter() - start
     result.meta.update(run_meta)
     result.meta["prompt_mode"] = "auto" if objects is None else "prompts"
+    result.meta["ablation"] = options.pipeline.ablation
     if objects is None:
         result.meta["references"] = run.references
     return result
@@ -336,60 +357,3 @@ def _center_prompts(objects: Sequence[ObjectPrompts], lightfield: LightField) ->
             )
         )
     return groups
-
-
-def run_segmentation(
-    lightfield: LightField,
-    *,
-    method: str = "lfsam",
-    model: str = DEFAULT_MODEL,
-    checkpoint: str | None = None,
-    random_weights: bool = False,
-    disparity: Any = "estimate",
-    ablation: str | None = None,
-    config: PipelineConfig | None = None,
-    prompts: PromptsLike = None,
-    device: str | None = None,
-    amg_options: dict[str, Any] | None = None,
-    segmenter: Segmenter | None = None,
-    baseline_options: dict[str, Any] | None = None,
-    progress: bool = True,
-    references: str = "center",
-    cache_dir: str | None = None,
-    oracle_options: dict[str, Any] | None = None,
-    seed: int = 0,
-) -> SegmentationResult:
-    """:func:`segment` with flat keyword options (what ``lfsam evaluate`` and the benchmarks
-    call); ``ablation`` (a row of the paper's Table 2: ``none``, ``ref``, ``ref+occ``)
-    overrides ``config``'s refinement and occluding."""
-    config = config or PipelineConfig()
-    if ablation is not None:
-        config = PipelineConfig.from_ablation(
-            ablation,
-            **{k: v for k, v in config.to_dict().items() if k not in ("refine", "occlusion")},
-        )
-    options = SegmentOptions(
-        pipeline=config,
-        model=ModelOptions(
-            name=model,
-            checkpoint=checkpoint,
-            random_weights=random_weights,
-            device=device,
-            amg=amg_options,
-            oracle=oracle_options,
-            seed=seed,
-        ),
-        run=RunOptions(
-            method=method,
-            references=references,
-            cache_dir=cache_dir,
-            progress=progress,
-            baseline=baseline_options,
-        ),
-    )
-    result = segment(
-        lightfield, prompts, model=segmenter, disparity=disparity, options=options
-    )
-    if method == "lfsam":
-        result.meta["ablation"] = ablation
-    return result

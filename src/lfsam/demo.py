@@ -99,7 +99,7 @@ def run_demo(
     -------
     DemoReport
     """
-    from lfsam.api import run_segmentation
+    from lfsam.api import ModelOptions, RunOptions, SegmentOptions, segment
     from lfsam.io import write_lightfield
     from lfsam.metrics import evaluate_labels, evaluate_result
     from lfsam.metrics.report import format_metrics_table
@@ -124,16 +124,14 @@ def run_demo(
 
     lightfield = demo_scene()
     files = [write_lightfield(lightfield, out / "scene")]
-    result = run_segmentation(
-        lightfield,
-        model=name,
-        checkpoint=checkpoint,
-        random_weights=random_weights,
-        amg_options=amg_options,
-        disparity="estimate",
-        device=device,
-        progress=progress,
+    options = SegmentOptions(
+        model=ModelOptions(
+            name=name, checkpoint=checkpoint, random_weights=random_weights, device=device,
+            amg=amg_options,
+        ),
+        run=RunOptions(progress=progress),
     )
+    result = segment(lightfield, disparity="estimate", options=options)
     files.append(save_result(result, out / "result.npz"))
 
     ours = evaluate_result(result, lightfield, device=device)

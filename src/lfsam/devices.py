@@ -20,9 +20,11 @@ from lfsam.errors import LfsamError
 
 __all__ = [
     "CUDA_ENCODE_BATCH_SIZE",
+    "CUDA_PROMPT_BATCH_SIZE",
     "DEVICE_HELP",
     "check_device_spec",
     "default_encode_batch_size",
+    "default_prompt_batch_size",
     "resolve_device",
 ]
 
@@ -31,6 +33,13 @@ DEVICE_HELP = "auto (CUDA, then MPS, then CPU), cpu, cuda, cuda:N or mps"
 
 CUDA_ENCODE_BATCH_SIZE = 4
 """Views per image-encoder call on CUDA (batching pays off there; on a CPU it only costs memory)."""
+
+CUDA_PROMPT_BATCH_SIZE = 128
+"""Prompts of one view per mask-decoder call on CUDA: the paper's 100 masks of a view in one call
+(chunks of 16 were launch-bound on an H100; benchmarks/bench_gpu.py, docs/performance.md)."""
+
+CPU_PROMPT_BATCH_SIZE = 64
+"""Prompts per mask-decoder call elsewhere (bounds the N x 3 x U x V logits in memory)."""
 
 _SPEC = re.compile(r"auto|cpu|mps|cuda(:\d+)?")
 
@@ -117,6 +126,20 @@ def default_encode_batch_size(device: str | torch.device) -> int:
     1
     """
     return CUDA_ENCODE_BATCH_SIZE if torch.device(device).type == "cuda" else 1
+
+
+def default_prompt_batch_size(device: str | torch.device) -> int:
+    """Prompts of one view the mask decoder takes per call on ``device``: 128 on CUDA, 64
+    elsewhere; the single source for refinement (:class:`lfsam.pipeline.PipelineConfig`) and
+    :class:`lfsam.segmenters.sam2_backend.Sam2Segmenter`.
+
+    Examples
+    --------
+    >>> default_prompt_batch_size("cpu")
+    64
+    """
+    cuda = torch.device(device).type == "cuda"
+    return CUDA_PROMPT_BATCH_SIZE if cuda else CPU_PROMPT_BATCH_SIZE
 
 
 def _mps_available() -> bool:

@@ -272,7 +272,7 @@ def evaluate_dataset(
     out_dir : path
         Output folder (created if missing).
     segment_fn : callable(LightField) -> SegmentationResult
-        The method, e.g. ``functools.partial(lfsam.api.run_segmentation, method="lfsam")``.
+        The method, e.g. ``functools.partial(lfsam.segment, model="oracle", disparity="gt")``.
         When its result has no ``timings["total"]``, the harness's own wall-clock time of the
         call is stored there, so T is always the time of the whole segmentation.
     method_label : str

@@ -2,7 +2,7 @@
 
 Everything that carries pixels between views by disparity goes through this module: disparity
 propagation (:mod:`lfsam.pipeline.propagation`), geometric occluding
-(:mod:`lfsam.pipeline.segment`) and the metrics' projection into the center view
+(:mod:`lfsam.pipeline.propagation`) and the metrics' projection into the center view
 (:mod:`lfsam.metrics.projection`). It is reference-agnostic: a *source* view (any view whose
 disparity is known, not only the center) is warped into a *target* view at offset
 ``(ds, dt) = (s_target - s_source, t_target - t_source)`` by the convention of

@@ -7,7 +7,7 @@ import functools
 import sys
 
 from lfsam.cli.common import HelpFormatter, add_disparity_argument
-from lfsam.cli.models import add_model_arguments
+from lfsam.cli.models import add_model_arguments, model_options_from_args
 from lfsam.errors import LfsamError
 
 DESCRIPTION = """\
@@ -134,24 +134,19 @@ def run(args: argparse.Namespace) -> int:
     if args.references != "center" and args.method != "lfsam":
         raise LfsamError(f"--references {args.references} needs --method lfsam")
     try:
-        from lfsam.api import run_segmentation
+        from lfsam.api import RunOptions, SegmentOptions, segment
+        from lfsam.pipeline import PipelineConfig
     except ImportError as exc:
         raise LfsamError(f"segmentation is unavailable in this installation ({exc})") from exc
 
-    segment_fn = functools.partial(
-        run_segmentation,
-        method=args.method,
-        model=args.model,
-        checkpoint=args.checkpoint,
-        random_weights=args.random_weights,
-        amg_options=dict(args.amg) or None,
-        disparity=args.disparity,
-        ablation=args.ablation if args.method == "lfsam" else None,
-        prompts=None,
-        device=args.device,
-        progress=False,
-        references=args.references,
+    options = SegmentOptions(
+        pipeline=PipelineConfig.from_ablation(args.ablation)
+        if args.method == "lfsam"
+        else PipelineConfig(),
+        model=model_options_from_args(args),
+        run=RunOptions(method=args.method, references=args.references, progress=False),
     )
+    segment_fn = functools.partial(segment, disparity=args.disparity, options=options)
     mapper = None
     if args.gpus_per_task is not None and not args.ray:
         raise LfsamError("--gpus-per-task applies to Ray runs only; add --ray [ADDRESS]")

@@ -5,8 +5,10 @@
 3. :mod:`lfsam.pipeline.occlusion` — semantic (and geometric) occluding;
 4. :mod:`lfsam.pipeline.refinement` — refinement by re-prompting SAM 2;
 
-then :mod:`lfsam.pipeline.fusion` (label fusion) and :mod:`lfsam.pipeline.segment`, which streams
-the light field view by view through the four steps.
+then :mod:`lfsam.pipeline.fusion` (label fusion). :mod:`lfsam.pipeline.engine` streams the views
+through the four steps for the objects of :mod:`lfsam.pipeline.objects` (each object's clicks
+carried into other views there); :mod:`lfsam.pipeline.references` chooses where the automatic
+mode looks beyond the center view.
 """
 
 from lfsam.pipeline.config import ABLATIONS, OCCLUSION_MODES, PipelineConfig
@@ -15,7 +17,6 @@ from lfsam.pipeline.initial import SourceMasks, initial_segmentation, validate_p
 from lfsam.pipeline.occlusion import semantic_occlusion, source_features
 from lfsam.pipeline.propagation import forward_warp, propagate_masks
 from lfsam.pipeline.refinement import refine_masks, refinement_prompts
-from lfsam.pipeline.segment import segment_lightfield
 
 __all__ = [
     "ABLATIONS",
@@ -28,7 +29,6 @@ __all__ = [
     "propagate_masks",
     "refine_masks",
     "refinement_prompts",
-    "segment_lightfield",
     "semantic_occlusion",
     "source_features",
     "validate_prompts",

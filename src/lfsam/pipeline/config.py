@@ -7,7 +7,7 @@ from typing import Any
 
 import torch
 
-from lfsam.devices import default_encode_batch_size
+from lfsam.devices import default_encode_batch_size, default_prompt_batch_size
 from lfsam.errors import LfsamError
 from lfsam.pipeline.propagation import PROPAGATION_MODES
 
@@ -25,7 +25,7 @@ ABLATIONS: dict[str, dict[str, Any]] = {
 
 @dataclass(frozen=True)
 class PipelineConfig:
-    """Switches and thresholds of :func:`lfsam.pipeline.segment_lightfield`.
+    """Switches and thresholds of the pipeline (:class:`lfsam.pipeline.engine.StreamingEngine`).
 
     Parameters
     ----------
@@ -109,6 +109,11 @@ class PipelineConfig:
             return int(self.encode_batch_size)
         return default_encode_batch_size(device)
 
+    def refine_chunk_for(self, device: str | torch.device) -> int:
+        """Prompts of one view refined per decoder call on ``device``
+        (:func:`lfsam.devices.default_prompt_batch_size`)."""
+        return default_prompt_batch_size(device)
+
     @property
     def semantic(self) -> bool:
         """Whether semantic occluding runs."""
@@ -118,6 +123,15 @@ class PipelineConfig:
     def geometric(self) -> bool:
         """Whether geometric (z-buffer) occluding runs."""
         return self.occlusion in ("geometric", "both")
+
+    @property
+    def ablation(self) -> str | None:
+        """The row of the paper's Table 2 this configuration is (``none``, ``ref``,
+        ``ref+occ``), or None (e.g. geometric occluding)."""
+        for name, switches in ABLATIONS.items():
+            if all(getattr(self, key) == value for key, value in switches.items()):
+                return name
+        return None
 
     @property
     def needs_view_encoding(self) -> bool:

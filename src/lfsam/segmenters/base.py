@@ -153,6 +153,9 @@ class Segmenter(abc.ABC):
     name: str = "segmenter"
     device: torch.device = torch.device("cpu")
     random_weights: bool = False
+    points_per_side: int = 32
+    """Density of the automatic mode's point grid (points per image side); the extra reference
+    views of :class:`lfsam.generator.LightFieldMaskGenerator` ask at half of it."""
 
     def __init__(self) -> None:
         self.encode_calls = 0

@@ -35,6 +35,7 @@ def load_segmenter(
     amg_options: dict[str, Any] | None = None,
     seed: int = 0,
     oracle_options: dict[str, Any] | None = None,
+    keep_decoder_state: bool = True,
     **sam2_options: Any,
 ) -> Segmenter:
     """Build the segmenter called ``model``.
@@ -59,6 +60,10 @@ def load_segmenter(
     oracle_options : dict, optional
         ``min_area``, ``boundary_jitter``, ``merge_prob`` of
         :class:`~lfsam.segmenters.oracle.OracleSegmenter`.
+    keep_decoder_state : bool
+        SAM 2: keep the decoder's image side with each embedding (interactive edits decode a
+        view again; about three times the memory per view). Batch runs, which decode each view
+        once, turn it off. The oracle has no such state.
     **sam2_options
         Further keywords of :class:`~lfsam.segmenters.sam2_backend.Sam2Segmenter`
         (``max_prompts_per_batch``, ``encode_batch_size``, ``mask_threshold``).
@@ -95,5 +100,6 @@ def load_segmenter(
         device=device,
         seed=seed,
         amg_options=amg_options,
+        keep_decoder_state=keep_decoder_state,
         **sam2_options,
     )

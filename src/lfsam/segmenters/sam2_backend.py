@@ -26,7 +26,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from lfsam.devices import default_encode_batch_size
+from lfsam.devices import default_encode_batch_size, default_prompt_batch_size
 from lfsam.errors import LfsamError
 from lfsam.segmenters.base import AutoMasks, MaskPrediction, Prompts, Segmenter, ViewEmbedding
 from lfsam.segmenters.feature_grid import (
@@ -94,9 +94,10 @@ class Sam2Features:
 class Sam2Segmenter(Segmenter):
     """Meta's SAM 2 image model as an lfsam :class:`Segmenter`.
 
-    :attr:`keep_decoder_state` (default off) keeps the decoder's prompt-independent image side
-    with each embedding (:class:`Sam2Features`), so a view decoded again (an interactive edit)
-    skips it; it about triples an embedding's memory.
+    ``keep_decoder_state`` (default on) keeps the decoder's prompt-independent image side with
+    each embedding (:class:`Sam2Features`), so a view decoded again (an interactive edit) skips
+    it; it about triples an embedding's memory, so batch runs, which decode each view once,
+    build the segmenter with it off (:func:`lfsam.segment`).
 
     Parameters
     ----------
@@ -116,6 +117,8 @@ class Sam2Segmenter(Segmenter):
         (:func:`lfsam.devices.default_encode_batch_size`: batched on CUDA, 1 elsewhere).
     mask_threshold : float
         Logit threshold of the masks (SAM 2's default 0).
+    keep_decoder_state : bool
+        Keep the decoder's image side with each embedding (above).
 
     Examples
     --------
@@ -123,8 +126,6 @@ class Sam2Segmenter(Segmenter):
     >>> emb = seg.encode(views[None])[0]  # doctest: +SKIP
     >>> pred = seg.predict(emb, Prompts(points=[[[40, 30]]], point_labels=[[1]]))  # doctest: +SKIP
     """
-
-    keep_decoder_state: bool = False
 
     def __init__(
         self,
@@ -134,12 +135,13 @@ class Sam2Segmenter(Segmenter):
         max_prompts_per_batch: int | None = None,
         encode_batch_size: int | None = None,
         mask_threshold: float = 0.0,
+        keep_decoder_state: bool = True,
     ) -> None:
         super().__init__()
         if encode_batch_size is None:
             encode_batch_size = default_encode_batch_size(model.device)
         if max_prompts_per_batch is None:
-            max_prompts_per_batch = 128 if model.device.type == "cuda" else 64
+            max_prompts_per_batch = default_prompt_batch_size(model.device)
         if max_prompts_per_batch < 1 or encode_batch_size < 1:
             raise LfsamError("max_prompts_per_batch and encode_batch_size must be at least 1")
         self.model = model.eval()
@@ -151,6 +153,8 @@ class Sam2Segmenter(Segmenter):
         self.encode_batch_size = int(encode_batch_size)
         self.mask_threshold = float(mask_threshold)
         self.amg_options = self._check_amg_options(amg_options or {})
+        self.points_per_side = int(self.amg_options.get("points_per_side") or 32)
+        self.keep_decoder_state = bool(keep_decoder_state)
         self._predictor = make_image_predictor(
             model, CachedFeaturePredictor, mask_threshold=self.mask_threshold
         )

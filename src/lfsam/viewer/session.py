@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from lfsam.errors import LfsamError
+from lfsam.generator import LightFieldMaskGenerator
 from lfsam.lightfield import LightField
 from lfsam.segmenters.registry import ORACLE
 from lfsam.viewer.native_libraries import preload_native_libraries
@@ -382,12 +383,12 @@ class ViewerSession:
     def generate(self, references: str = "center") -> Any:
         """Automatic mode: add every object found, then predict (worker thread).
 
-        ``references`` is :meth:`LightFieldPredictor.generate`'s: ``center`` (the paper's
-        setting), or also ``corners``, ``ring`` or ``all`` to find objects the center view
-        cannot see (docs/design.md section 8).
+        ``references`` is :class:`lfsam.generator.LightFieldMaskGenerator`'s: ``center`` (the
+        paper's setting), or also ``corners``, ``ring`` or ``all`` to find objects the center
+        view cannot see (docs/design.md section 8).
         """
         pred = self._require()
-        ids = pred.generate(references)
+        ids = LightFieldMaskGenerator(pred, references).generate()
         self.auto.update(int(i) for i in ids)
         if self.current_id in self.auto:
             self.current_id = self.next_id()

@@ -1,0 +1,414 @@
+"""The streaming engine: the four steps run over a light field's views for a set of objects.
+
+Paper section 3, streamed (docs/design.md sections 3 and 8): step 1 in each object's reference
+view (:meth:`StreamingEngine.ensure_references`); then the views in batches, each view encoded at
+most once (:class:`lfsam.embeddings.EmbeddingStore`), and in each view steps 2-4 for every object,
+all prompts of a view decoded together per reference view (:meth:`StreamingEngine.view_step`);
+masks kept bit-packed, and labels fused view by view on the device when every object is in the
+pass. The engine owns what a light field's objects share: embeddings, disparities, forward warps
+(an LRU within :data:`WARP_CACHE_BYTES`) and the stage timer. Which objects exist, and which of
+their stages are up to date, is the caller's (:class:`lfsam.predictor.LightFieldPredictor`).
+"""
+
+from __future__ import annotations
+
+from collections import Counter, OrderedDict, defaultdict
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import torch
+from tqdm.auto import tqdm
+
+from lfsam.disparity.views import ViewDisparities
+from lfsam.embeddings import EmbeddingStore
+from lfsam.lightfield import LightField
+from lfsam.pipeline.config import PipelineConfig
+from lfsam.pipeline.fusion import fuse_labels
+from lfsam.pipeline.initial import initial_segmentation
+from lfsam.pipeline.objects import (
+    Clicks,
+    ObjectViews,
+    Reference,
+    TrackedObject,
+    View,
+    agreeing_clicks,
+    clicks_in_view,
+)
+from lfsam.pipeline.occlusion import semantic_occlusion, source_features, uniform_weights
+from lfsam.pipeline.propagation import ForwardWarp, forward_warp, propagate_masks
+from lfsam.pipeline.refinement import refine_masks
+from lfsam.result import pack_masks
+from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
+from lfsam.timing import StageTimer
+
+__all__ = ["WARP_CACHE_BYTES", "StreamingEngine"]
+
+#: Forward warps (reference view, target view) kept for reuse across edits, in bytes.
+WARP_CACHE_BYTES = 512 * 2**20
+
+
+def _warp_nbytes(warp: ForwardWarp) -> int:
+    """Memory of a cached warp: its arrays, plus the seen-pixel map it keeps once asked (the
+    holes it keeps are a small fraction of a view)."""
+    arrays = (warp.target, warp.valid, warp.zbuffer)
+    return sum(x.numel() * x.element_size() for x in arrays) + warp.valid.numel()
+
+
+class StreamingEngine:
+    """The four steps over one light field's views (module docstring).
+
+    Parameters
+    ----------
+    segmenter : Segmenter
+    config : PipelineConfig
+    lightfield : LightField
+    disparity : {"estimate", "gt"}, path to a .npy, or ndarray
+        Resolved lazily, once per view asked (:class:`lfsam.disparity.views.ViewDisparities`).
+    cache_dir : path, optional
+        On-disk embedding cache.
+    memory_budget_mb : float
+        In-memory embedding budget.
+    progress : bool
+        A progress bar over views in :meth:`run`.
+    """
+
+    def __init__(
+        self,
+        segmenter: Segmenter,
+        config: PipelineConfig,
+        lightfield: LightField,
+        disparity: Any = "estimate",
+        *,
+        cache_dir: Any = None,
+        memory_budget_mb: float = 2048.0,
+        progress: bool = False,
+    ) -> None:
+        self.segmenter = segmenter
+        self.config = config
+        self.lightfield = lightfield
+        self.device = segmenter.device
+        self.progress = progress
+        self.timer = StageTimer(self.device)
+        self.decode_counts: Counter[int] = Counter()
+        """Prompts decoded per object id (each decoder row counts once)."""
+        self.disparities = ViewDisparities(lightfield, disparity, device=str(self.device))
+        self.store = EmbeddingStore(
+            segmenter, lightfield.views, cache_dir=cache_dir, memory_budget_mb=memory_budget_mb
+        )
+        self._disp_tensors: dict[View, torch.Tensor] = {}
+        self._warps: OrderedDict[tuple[View, View], ForwardWarp] = OrderedDict()
+        self._warp_bytes = 0
+
+    # --- shared per-view data ----------------------------------------------------------------
+    def embedding(self, view: View) -> ViewEmbedding:
+        """The embedding of ``view`` (encoded on first use, then cached)."""
+        with self.timer("encode"):
+            return self.store.get(view)
+
+    def disparity(self, view: View) -> torch.Tensor:
+        """Disparity of ``view`` on the segmenter's device (resolved once)."""
+        view = (int(view[0]), int(view[1]))
+        if view not in self._disp_tensors:
+            with self.timer("disparity"):
+                disp = self.disparities.get(view)
+            self._disp_tensors[view] = torch.tensor(disp, dtype=torch.float32, device=self.device)
+        return self._disp_tensors[view]
+
+    def warp(self, source: View, target: View) -> ForwardWarp:
+        """The forward warp of ``source``'s disparity into ``target`` (cached, LRU)."""
+        key = (source, target)
+        if key in self._warps:
+            self._warps.move_to_end(key)
+            return self._warps[key]
+        with self.timer("propagate"):
+            warp = forward_warp(
+                self.disparity(source), target[0] - source[0], target[1] - source[1]
+            )
+        self._warps[key] = warp
+        self._warp_bytes += _warp_nbytes(warp)
+        while self._warp_bytes > WARP_CACHE_BYTES and len(self._warps) > 1:
+            _, old = self._warps.popitem(last=False)
+            self._warp_bytes -= _warp_nbytes(old)
+        return warp
+
+    def clicks_in_view(
+        self, obj: TrackedObject, view: View, zbuffer_test: bool = True
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The object's clicks carried into ``view`` (:func:`lfsam.pipeline.objects.
+        clicks_in_view`), with the z-buffer test of the cached warps."""
+        if obj.clicks is None:
+            obj.clicks = Clicks.of(obj.prompts, self.disparities.get, self.lightfield.view_shape)
+        zbuffer = (lambda source: self.warp(source, view).zbuffer) if zbuffer_test else None
+        return clicks_in_view(
+            obj.clicks, view, self.lightfield.view_shape, zbuffer, self.config.zbuffer_tolerance
+        )
+
+    # --- step 1 ------------------------------------------------------------------------------
+    def ensure_references(self, objects: Mapping[int, TrackedObject], ids: Sequence[int]) -> None:
+        """Step 1 for the objects ``ids`` without one: grouped by reference view, each view
+        encoded once (and pinned in memory), prompts decoded in batches."""
+        center = self.lightfield.center
+        groups: dict[View, list[int]] = defaultdict(list)
+        for i in ids:
+            if objects[i].reference is None:
+                groups[objects[i].reference_view(center)].append(i)
+        for view, members in groups.items():
+            embedding = self.embedding(view)
+            self.store.pin(view)
+            masks: dict[int, torch.Tensor] = {}
+            scores: dict[int, float] = {}
+            prompted = []
+            for i in members:
+                obj = objects[i]
+                if obj.prompts is None:
+                    masks[i] = torch.as_tensor(obj.given_mask, device=self.device)
+                    scores[i] = obj.given_score
+                else:
+                    prompted.append(i)
+            with self.timer("initial"):
+                self._decode_references(objects, view, embedding, prompted, masks, scores)
+            stacked = torch.stack([masks[i] for i in members]).to(torch.bool)
+            with self.timer("occlude"):
+                features = (
+                    source_features(self.segmenter, embedding, stacked)
+                    if self.config.semantic
+                    else None
+                )
+            for k, i in enumerate(members):
+                objects[i].reference = Reference(
+                    view=view,
+                    mask=stacked[k],
+                    score=scores[i],
+                    feature=None if features is None else features[k],
+                )
+
+    def _decode_references(
+        self,
+        objects: Mapping[int, TrackedObject],
+        view: View,
+        embedding: ViewEmbedding,
+        ids: list[int],
+        masks: dict[int, torch.Tensor],
+        scores: dict[int, float],
+    ) -> None:
+        """Decode the prompts of objects in their reference view, one batch per prompt shape
+        (same number of points, box or not): a single point without a box asks for SAM 2's
+        three candidates and keeps the best (paper section 3.1, as :func:`initial_segmentation`).
+        """
+        shapes: dict[tuple[int, bool], list[int]] = defaultdict(list)
+        carried = {i: self.clicks_in_view(objects[i], view) for i in ids}
+        for i in ids:
+            shapes[(len(carried[i][1]), objects[i].prompts.box is not None)].append(i)
+        for (count, has_box), members in shapes.items():
+            if count == 0 and not has_box:  # every click was dropped: nothing to segment
+                for i in members:
+                    masks[i] = torch.zeros(
+                        self.lightfield.view_shape, dtype=torch.bool, device=self.device
+                    )
+                    scores[i] = 0.0
+                continue
+            prompts = Prompts(
+                points=np.stack([carried[i][0] for i in members]) if count else None,
+                point_labels=np.stack([carried[i][1] for i in members]) if count else None,
+                boxes=np.array([objects[i].prompts.box.xyxy for i in members])
+                if has_box
+                else None,
+            )
+            source = initial_segmentation(
+                self.segmenter, embedding, self.lightfield.views[view], [prompts]
+            )
+            for k, i in enumerate(members):
+                masks[i] = source.masks[k]
+                scores[i] = float(source.scores[k])
+                self.decode_counts[i] += 1
+
+    # --- steps 2-4, streamed -----------------------------------------------------------------
+    def run(
+        self,
+        objects: Mapping[int, TrackedObject],
+        ids: list[int],
+        refine: bool,
+        paint_order: list[int] | None = None,
+    ) -> np.ndarray | None:
+        """Stream the views once for the objects ``ids`` (step 1 must have run): each view
+        encoded at most once, all objects' prompts of a view decoded together (per reference
+        view). Sets each object's ``coarse`` masks, and ``refined`` with ``refine`` (or, when the
+        configuration does not refine, the coarse ones).
+
+        With ``paint_order`` (``ids`` in paint order: every object of the session is in this
+        pass) each view's labels are fused on the device as it is done, and returned.
+        """
+        lf = self.lightfield
+        config = self.config
+        refine = refine and config.refine
+        out = {i: ObjectViews.empty(lf.grid_shape, lf.view_shape) for i in ids}
+        coarse_out = {i: out[i].copy() for i in ids}
+        views = list(lf.view_indices(present_only=True))
+        batch_size = config.batch_size_for(self.device)
+        bar = tqdm(
+            total=len(views), desc="views", unit="view", disable=not self.progress or None,
+            leave=False,
+        )
+        labels = None
+        if paint_order is not None:
+            labels = np.zeros((*lf.grid_shape, *lf.view_shape), dtype=np.int32)
+            rank = {i: k for k, i in enumerate(ids)}
+            paint = torch.as_tensor([rank[i] for i in paint_order], device=self.device)
+            lookup = torch.as_tensor([0, *ids], dtype=torch.int32, device=self.device)
+        # The reference views are encoded already (step 1): they go first, on their own, so
+        # that every later batch encodes a full ``batch_size`` of new views. Views whose
+        # embedding is in memory (e.g. the extra reference views of the automatic mode) come
+        # next, before new encodes could push them out of the memory budget.
+        references = {objects[i].reference.view for i in ids}
+        pending = [v for v in views if v not in references]
+        pending.sort(key=lambda v: not self.store.in_memory(v))
+        batches = [[v for v in views if v in references]]
+        batches += [pending[k : k + batch_size] for k in range(0, len(pending), batch_size)]
+        for batch in batches:
+            # A view needs its embedding unless it is the reference of every object here.
+            others = [v for v in batch if any(v != r for r in references)]
+            embeddings = {}
+            if (refine or config.semantic) and others:
+                with self.timer("encode"):
+                    embeddings = dict(zip(others, self.store.get_many(others), strict=True))
+            for view in batch:
+                final = self.view_step(
+                    objects, view, ids, embeddings.get(view), refine, out, coarse_out
+                )
+                if labels is not None:
+                    with self.timer("fuse"):
+                        fused = fuse_labels(torch.stack([final[i] for i in ids]), paint)
+                        labels[view] = lookup[fused.long()].cpu().numpy()
+                bar.update(1)
+        bar.close()
+        for i in ids:
+            obj = objects[i]
+            obj.coarse = coarse_out[i]
+            if refine:
+                obj.refined = out[i]
+            elif not config.refine:
+                obj.refined = coarse_out[i]  # the ablation without refinement ends here
+        return labels
+
+    def view_step(
+        self,
+        objects: Mapping[int, TrackedObject],
+        view: View,
+        ids: list[int],
+        embedding: ViewEmbedding | None,
+        refine: bool,
+        out: dict[int, ObjectViews],
+        coarse_out: dict[int, ObjectViews],
+    ) -> dict[int, torch.Tensor]:
+        """Steps 2-4 of the objects ``ids`` in one view; writes their packed masks into
+        ``out`` (final) and ``coarse_out`` and returns each object's final mask there (refined,
+        or coarse without refinement) on the device."""
+        final: dict[int, torch.Tensor] = {}
+        config = self.config
+        height, width = self.lightfield.view_shape
+        groups: dict[View, list[int]] = defaultdict(list)
+        for i in ids:
+            groups[objects[i].reference.view].append(i)
+        for ref_view, members in groups.items():
+            refs = [objects[i].reference for i in members]
+            if ref_view == view:  # the reference view keeps its step-1 mask
+                stacked = torch.stack([r.mask for r in refs])
+                with self.timer("fuse"):
+                    bits = pack_masks(stacked)
+                for k, i in enumerate(members):
+                    out[i].bits[view] = coarse_out[i].bits[view] = bits[k]
+                    final[i] = stacked[k]
+                continue
+            ds, dt = view[0] - ref_view[0], view[1] - ref_view[1]
+            warp = self.warp(ref_view, view)
+            with self.timer("propagate"):
+                coarse = propagate_masks(
+                    torch.stack([r.mask for r in refs]), self.disparity(ref_view), ds, dt,
+                    config.propagation, warp=warp, fill_holes=config.fill_holes,
+                    occlusion_tolerance=config.zbuffer_tolerance if config.geometric else None,
+                )
+            with self.timer("occlude"):
+                weights = None
+                if config.semantic:
+                    sources = torch.stack([r.feature for r in refs])
+                    weights = semantic_occlusion(
+                        self.segmenter, embedding, coarse, sources, config.t_sim
+                    )
+                    coarse = weights.surviving_masks()
+                elif refine:
+                    weights = uniform_weights(coarse)
+            with self.timer("fuse"):
+                coarse_bits = pack_masks(coarse)
+            for k, i in enumerate(members):
+                coarse_out[i].bits[view] = coarse_bits[k]
+            if not refine:
+                for k, i in enumerate(members):
+                    final[i] = coarse[k]
+                continue
+            with self.timer("refine"):
+                seen = warp.seen((height, width))
+                carried = [self.clicks_in_view(objects[i], view, zbuffer_test=False)
+                           for i in members]
+                outcome = refine_masks(
+                    self.segmenter, embedding, coarse, weights, config.t_iou,
+                    seen=seen, frame_runs=warp.frame_runs((height, width), seen),
+                    extra_points=agreeing_clicks(carried, coarse),
+                    chunk_size=config.refine_chunk_for(self.device),
+                )
+                prompted = (weights.weight > 0).new_zeros(len(members))
+                prompted[weights.mask_index[weights.weight > 0]] = True
+            for k in torch.nonzero(prompted, as_tuple=True)[0].tolist():
+                self.decode_counts[members[k]] += 1
+            with self.timer("fuse"):
+                bits = pack_masks(outcome.masks)
+                fallback = outcome.fallback.cpu().numpy()
+                iou = outcome.iou.cpu().numpy()
+            for k, i in enumerate(members):
+                out[i].bits[view] = bits[k]
+                out[i].fallback[view] = fallback[k]
+                out[i].iou[view] = iou[k]
+                final[i] = outcome.masks[k]
+        return final
+
+    def masks_in_view(
+        self, objects: Mapping[int, TrackedObject], ids: list[int], view: View
+    ) -> np.ndarray:
+        """The objects ``ids``' final masks in one view (steps 1-4, or 1-3 without
+        refinement), ``(N, U, V)`` bool; computed for this view only and not stored."""
+        lf = self.lightfield
+        height, width = lf.view_shape
+        if not ids:
+            return np.zeros((0, height, width), dtype=bool)
+        self.ensure_references(objects, ids)
+        out = {i: ObjectViews.empty(lf.grid_shape, lf.view_shape, iou=0.0) for i in ids}
+        coarse = {i: out[i].copy() for i in ids}
+        refine = self.config.refine
+        embedding = self.embedding(view) if self.config.needs_view_encoding else None
+        self.view_step(objects, view, ids, embedding, refine, out, coarse)
+        final = out if refine else coarse
+        packed = np.stack([final[i].bits[view] for i in ids])
+        bits = np.unpackbits(packed, axis=1, count=height * width)
+        return bits.reshape(len(ids), height, width).astype(bool)
+
+    # --- labels ------------------------------------------------------------------------------
+    def fuse(
+        self, ids: list[int], bits: Mapping[int, np.ndarray], paint_order: list[int]
+    ) -> np.ndarray:
+        """Label field of the objects ``ids`` (values = ids) from their packed masks, painted
+        in ``paint_order`` view by view (docs/design.md section 3.6)."""
+        lf = self.lightfield
+        height, width = lf.view_shape
+        labels = np.zeros((*lf.grid_shape, height, width), dtype=np.int32)
+        if not ids:
+            return labels
+        rank = {i: k for k, i in enumerate(ids)}
+        paint = torch.as_tensor([rank[i] for i in paint_order])
+        lookup = np.concatenate([[0], np.asarray(ids, dtype=np.int32)])
+        with self.timer("fuse"):
+            for s, t in lf.view_indices(present_only=True):
+                packed = np.stack([bits[i][s, t] for i in ids])
+                masks = np.unpackbits(packed, axis=1, count=height * width).astype(bool)
+                fused = fuse_labels(torch.from_numpy(masks.reshape(-1, height, width)), paint)
+                labels[s, t] = lookup[fused.numpy()]
+        return labels
