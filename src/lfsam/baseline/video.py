@@ -29,7 +29,6 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
-from lfsam import __version__
 from lfsam.baseline.frames import FRAME_TRANSFORMS, init_video_state, video_frames
 from lfsam.baseline.predictor import quiet_sam2_video, video_predictor_for
 from lfsam.baseline.prompts import transfer_prompts
@@ -41,6 +40,7 @@ from lfsam.result import PackedMasks, SegmentationResult
 from lfsam.segmenters.base import Prompts, Segmenter
 from lfsam.segmenters.sam2_build import inference_context
 from lfsam.timing import StageTimer
+from lfsam.version import __version__
 
 __all__ = ["BASELINE_STARTS", "video_baseline"]
 

@@ -13,9 +13,9 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-from lfsam import __version__
 from lfsam.devices import resolve_device
 from lfsam.errors import LfsamError
+from lfsam.version import __version__
 
 # Subcommand modules, in the order `lfsam --help` lists them.
 SUBCOMMANDS = [
