@@ -1,19 +1,29 @@
-"""Writing output files atomically: a temporary file in the same folder, then a rename.
+"""Writing outputs atomically, and checking where they go.
 
-A run that fails or is interrupted leaves no partial or corrupt output file behind.
+A file (:func:`atomic_output`) or a folder (:func:`atomic_folder_output`) is written under a
+temporary name in the same folder and renamed onto its final name only when complete, so a run
+that fails or is interrupted leaves no partial or corrupt output behind (and a folder it
+replaces stays as it was). :func:`check_output_path` checks an output file's folder before any
+work.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
 from lfsam.errors import LfsamError
 
-__all__ = ["atomic_output", "check_output_path"]
+__all__ = [
+    "atomic_folder_output",
+    "atomic_output",
+    "check_output_path",
+    "replace_folder",
+]
 
 
 def check_output_path(path: str | os.PathLike) -> Path:
@@ -65,3 +75,58 @@ def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
         raise
+
+
+@contextlib.contextmanager
+def atomic_folder_output(path: str | os.PathLike, mode: int | None = None) -> Iterator[Path]:
+    """Yield a temporary folder next to ``path``; rename it onto ``path`` only on success.
+
+    An existing ``path`` is moved aside and deleted only once the new folder is in place
+    (:func:`replace_folder`); on any error the temporary folder is deleted and ``path`` is left
+    as it was. The caller checks first that ``path`` may be replaced.
+
+    Parameters
+    ----------
+    path : path-like
+        The folder to create or replace.
+    mode : int, optional
+        Permissions of the finished folder; default those ``mkdir`` would give (``0o777`` less
+        the umask).
+
+    Examples
+    --------
+    >>> with atomic_folder_output("export") as tmp:  # doctest: +SKIP
+    ...     (tmp / "labels.json").write_text("{}")
+    """
+    path = Path(path)
+    parent = path.parent if str(path.parent) else Path(".")
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".part", dir=parent))
+    try:
+        yield tmp
+        if mode is None:
+            umask = os.umask(0)
+            os.umask(umask)
+            mode = 0o777 & ~umask
+        os.chmod(tmp, mode)
+        replace_folder(tmp, path)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def replace_folder(new: Path, target: Path) -> None:
+    """Rename the folder ``new`` onto ``target``, moving an existing ``target`` aside first (it
+    is put back if the rename fails, and deleted after it succeeds)."""
+    if not target.exists():
+        os.replace(new, target)
+        return
+    old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
+    os.rmdir(old)
+    os.replace(target, old)
+    try:
+        os.replace(new, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.replace(old, target)
+        raise
+    shutil.rmtree(old, ignore_errors=True)
