@@ -3,8 +3,8 @@
 A file (:func:`atomic_output`) or a folder (:func:`atomic_folder_output`) is written under a
 temporary name in the same folder and renamed onto its final name only when complete, so a run
 that fails or is interrupted leaves no partial or corrupt output behind (and a folder it
-replaces stays as it was). :func:`check_output_path` checks an output file's folder before any
-work.
+replaces stays as it was). :func:`check_output_path` and :func:`check_cache_dir` check an output
+file's folder and a cache folder before any work.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from lfsam.errors import LfsamError
 __all__ = [
     "atomic_folder_output",
     "atomic_output",
+    "check_cache_dir",
     "check_output_path",
     "replace_folder",
 ]
@@ -43,6 +44,50 @@ def check_output_path(path: str | os.PathLike) -> Path:
         )
     if path.is_dir():
         raise LfsamError(f"output {str(path)!r} is a folder; give a file name")
+    return path
+
+
+def check_cache_dir(path: str | os.PathLike) -> Path:
+    """Create the cache folder ``path`` (and its parents) if it is missing, or fail in one line.
+
+    Commands that take ``--cache`` call it before any work, so a folder that cannot be made is
+    an :class:`~lfsam.errors.LfsamError` naming it, not a traceback after the light field was
+    read. A folder that exists is taken as it is (a read-only cache can still be read; entries
+    that cannot be written are warnings of :class:`lfsam.embeddings.EmbeddingStore`).
+
+    Parameters
+    ----------
+    path : path-like
+        The cache folder.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    LfsamError
+        If ``path`` is a file, or the folder cannot be created (a parent is a file, no
+        permission, a read-only or virtual file system).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     check_cache_dir(Path(tmp) / "cache" / "sam2").is_dir()
+    True
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise LfsamError(f"cache folder {str(path)!r} is a file; give a folder with --cache")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        raise LfsamError(
+            f"cannot create the cache folder {str(path)!r} ({reason}); give a folder you can "
+            "create or write to with --cache, or leave --cache out"
+        ) from None
     return path
 
 
