@@ -24,7 +24,6 @@ from dataclasses import replace
 
 import numpy as np
 import torch
-from scipy.ndimage import distance_transform_edt
 
 from lfsam.errors import LfsamError
 from lfsam.synth.raster import local_coordinates, region, zbuffer
@@ -175,6 +174,10 @@ def add_hidden_objects(
     reach = max(abs(o) for offset in _corner_offsets(spec) for o in offset)
     short = min(height, width)
     first_label = max(obj.label for obj in spec.objects) + 1
+    # scipy loads only when hidden objects are asked for: lfsam.synth (and so `lfsam --help`)
+    # imports this module
+    from scipy.ndimage import distance_transform_edt
+
     rows, cols = _pixel_grid(spec.size)
     labels: list[int] = []
     offsets = _corner_offsets(spec)
