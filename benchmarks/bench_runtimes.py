@@ -5,7 +5,7 @@ runs it (``_encode_batch``): SAM 2's transforms (resize to the model's square in
 normalisation) outside, then ``forward_image`` (trunk, neck and the decoder's two 1x1 high-res
 convolutions), ``_prepare_backbone_features`` and ``no_mem_embed`` inside the exported graph.
 The graph's three outputs are everything the mask decoder and semantic occluding use
-(DESIGN.md section 3, "efficiency facts"): ``image_embed`` (1, 256, 64, 64) and the two
+(docs/design.md section 3, "efficiency facts"): ``image_embed`` (1, 256, 64, 64) and the two
 high-resolution levels (1, 32, 256, 256) and (1, 64, 128, 128).
 
 One run: export to ONNX once, build an ONNX Runtime session and an OpenVINO CPU model from the

@@ -16,8 +16,8 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from lfsam.disparity import ViewDisparities, estimate_disparity, resolve_disparity
+from lfsam.disparity.center_warp import warp_center_disparity
 from lfsam.disparity.epi import epi_stacks
-from lfsam.disparity.views import warp_center_disparity
 from lfsam.errors import LfsamError
 from lfsam.geometry import project_pixels
 from lfsam.lightfield import LightField
@@ -225,16 +225,16 @@ def test_non_finite_and_misshaped_maps_are_one_line_errors(scene, tmp_path):
 
 
 def test_view_disparities_resolve_each_view_once(scene, tmp_path, monkeypatch):
-    import lfsam.disparity.structure_tensor as structure_tensor
+    import lfsam.disparity.source as source  # the resolver's (module-level) estimator
 
     calls = []
-    real = structure_tensor.estimate_disparity
+    real = source.estimate_disparity
 
     def counting(*args, **kwargs):
         calls.append(kwargs.get("view"))
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(structure_tensor, "estimate_disparity", counting)
+    monkeypatch.setattr(source, "estimate_disparity", counting)
     small = LightField(scene.views[:, :, :32, :48].copy())
     views = ViewDisparities(small, "estimate", device="cpu")
     first = views.get((0, 4))

@@ -1,4 +1,4 @@
-"""Object recall and SIoU over center-present masks (DESIGN.md section 8), on hand-made fields.
+"""Object recall and SIoU over center-present masks (docs/design.md section 8), on hand-made fields.
 
 A 1 x 3 light field (views t = 0, 1, 2; center t = 1) of 4 x 6 pixels, disparity 0 everywhere
 (every view projects onto the center unchanged). Ground truth (0 = no ground truth):

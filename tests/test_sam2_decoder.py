@@ -23,6 +23,7 @@ from lfsam.segmenters.sam2_decoder import (
     decode_prompts,
     embed_prompts,
     prepare_image,
+    stability_scores,
 )
 
 LOGIT_ATOL = 1e-4  # float32 on CPU (task spec: low-res logits within 1e-4, IoU within 1e-5)
@@ -129,6 +130,22 @@ def test_variants_really_differ(variants):
     for i, a in enumerate(names):
         for b in names[i + 1 :]:
             assert not torch.allclose(outs[a], outs[b], atol=1e-3), (a, b)
+
+
+def test_stability_scores_equal_meta(tiny):
+    """The decoder's own stability score (no private sam2 name) equals ``_get_stability_scores``,
+    also for masks empty at ``-delta`` (score 1) and logits exactly at the thresholds."""
+    dec = tiny.sam_mask_decoder
+    delta = dec.dynamic_multimask_stability_delta
+    gen = torch.Generator().manual_seed(7)
+    logits = 3 * torch.randn(5, 3, 16, 16, generator=gen)
+    logits[0, 0] = -10.0  # nothing passes -delta
+    logits[1, 1, :4] = delta  # on the thresholds
+    logits[1, 1, 4:8] = -delta
+    ours = stability_scores(dec, logits)
+    assert ours.shape == (5, 3) and ours.dtype == torch.float32
+    assert torch.equal(ours, dec._get_stability_scores(logits))
+    assert ours[0, 0] == 1.0
 
 
 def test_dynamic_multimask_takes_both_branches(tiny):

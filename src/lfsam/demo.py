@@ -16,7 +16,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from lfsam import synth
+from lfsam.api import ModelOptions, RunOptions, SegmentOptions, segment
 from lfsam.errors import LfsamError
+from lfsam.io import write_lightfield
+from lfsam.metrics import evaluate_labels, evaluate_result
+from lfsam.metrics.report import format_metrics_table
+from lfsam.result import save_result
+from lfsam.segmenters.sam2_build import cached_checkpoint, hub_offline, hub_reachable
+from lfsam.viz import animation_frames, epi_figure, save_image, view_grid, write_animation
 
 __all__ = ["DemoReport", "choose_segmenter", "run_demo"]
 
@@ -49,8 +57,6 @@ def choose_segmenter(requested: str | None = None) -> tuple[str, str]:
     """
     if requested:
         return requested, f"{requested} was requested with --model"
-    from lfsam.segmenters.sam2_build import cached_checkpoint, hub_offline, hub_reachable
-
     if cached_checkpoint(DEFAULT_SAM2) is not None:
         return DEFAULT_SAM2, f"SAM 2 weights for {DEFAULT_SAM2} are cached"
     if not hub_offline() and hub_reachable():
@@ -99,20 +105,6 @@ def run_demo(
     -------
     DemoReport
     """
-    from lfsam.api import ModelOptions, RunOptions, SegmentOptions, segment
-    from lfsam.io import write_lightfield
-    from lfsam.metrics import evaluate_labels, evaluate_result
-    from lfsam.metrics.report import format_metrics_table
-    from lfsam.result import save_result
-    from lfsam.synth import demo_scene
-    from lfsam.viz import (
-        animation_frames,
-        epi_figure,
-        save_image,
-        view_grid,
-        write_animation,
-    )
-
     start = time.perf_counter()
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
@@ -122,7 +114,7 @@ def run_demo(
         model = DEFAULT_SAM2
     name, reason = choose_segmenter(model)
 
-    lightfield = demo_scene()
+    lightfield = synth.demo_scene()  # looked up on use (tests swap in a smaller scene)
     files = [write_lightfield(lightfield, out / "scene")]
     options = SegmentOptions(
         model=ModelOptions(

@@ -33,6 +33,7 @@ from tqdm import tqdm
 
 from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_output
+from lfsam.io import detect_format, read_lightfield
 from lfsam.lightfield import LightField
 from lfsam.metrics import (
     OBJECT_METRICS,
@@ -304,8 +305,6 @@ def evaluate_dataset(
         (without ``force``).
     """
     if reader is None or detect is None:
-        from lfsam.io import detect_format, read_lightfield
-
         reader = reader or read_lightfield
         detect = detect or detect_format
     out = Path(out_dir)

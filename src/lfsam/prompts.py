@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from lfsam.errors import LfsamError
+from lfsam.fileutil import atomic_output
 
 __all__ = [
     "BoxPrompt",
@@ -366,8 +367,6 @@ def load_prompts(
 
 def save_prompts(objects: Sequence[ObjectPrompts], path: str | os.PathLike) -> Path:
     """Write a prompt file atomically (temp file + rename)."""
-    from lfsam.fileutil import atomic_output
-
     with atomic_output(path) as tmp:
         tmp.write_text(json.dumps(prompts_to_json(objects), indent=1), encoding="utf-8")
     return Path(path)

@@ -29,10 +29,10 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
-from lfsam import __version__
 from lfsam.baseline.frames import FRAME_TRANSFORMS, init_video_state, video_frames
 from lfsam.baseline.predictor import quiet_sam2_video, video_predictor_for
 from lfsam.baseline.prompts import transfer_prompts
+from lfsam.disparity import resolve_disparity
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.pipeline.fusion import fuse_labels
@@ -41,6 +41,7 @@ from lfsam.result import PackedMasks, SegmentationResult
 from lfsam.segmenters.base import Prompts, Segmenter
 from lfsam.segmenters.sam2_build import inference_context
 from lfsam.timing import StageTimer
+from lfsam.version import __version__
 
 __all__ = ["BASELINE_STARTS", "video_baseline"]
 
@@ -246,6 +247,4 @@ def _resolve_disparity(
     """The center disparity used to carry prompts to the start view, and where it came from."""
     if disparity is None:
         disparity = "gt" if lightfield.center_disparity is not None else "estimate"
-    from lfsam.disparity import resolve_disparity
-
     return resolve_disparity(disparity, lightfield, device=str(device))

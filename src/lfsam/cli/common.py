@@ -20,6 +20,7 @@ __all__ = [
     "bounded_int",
     "parse_floats",
     "parse_pair",
+    "probability",
     "unit_interval",
 ]
 
@@ -59,15 +60,21 @@ def parse_floats(text: str, count: int) -> tuple[float, ...]:
     return values
 
 
-def unit_interval(text: str) -> float:
-    """Parse a number in [0, 1] (a threshold such as ``--t-sim``)."""
+def unit_interval(text: str, what: str = "a number") -> float:
+    """Parse a number in [0, 1] (a threshold such as ``--t-sim``); ``what`` names it in the
+    error ("expected a number in [0, 1], got '2'")."""
     try:
         value = float(text)
     except ValueError:
         value = float("nan")
     if not 0.0 <= value <= 1.0:  # also rejects NaN
-        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected {what} in [0, 1], got {text!r}")
     return value
+
+
+def probability(text: str) -> float:
+    """Parse a probability, a number in [0, 1] (``--oracle-merge``)."""
+    return unit_interval(text, "a probability")
 
 
 def add_value_range(parser: argparse.ArgumentParser) -> None:

@@ -6,7 +6,12 @@ import argparse
 import json
 import time
 
+import numpy as np
+
 from lfsam.cli.common import HelpFormatter, add_device_argument, parse_pair
+from lfsam.errors import LfsamError
+from lfsam.fileutil import atomic_output, check_output_path
+from lfsam.io import read_lightfield
 
 DESCRIPTION = """\
 Estimate the disparity of one view (the center view unless --view is given) with the structure
@@ -62,12 +67,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``lfsam disparity``."""
-    import numpy as np
-
-    from lfsam.disparity import estimate_disparity
-    from lfsam.errors import LfsamError
-    from lfsam.fileutil import atomic_output, check_output_path
-    from lfsam.io import read_lightfield
+    from lfsam.disparity import estimate_disparity  # loads on use, keeping `lfsam --help` light
 
     if not str(args.out).endswith(".npy"):
         raise LfsamError(f"--out must end in .npy, got {args.out!r}")

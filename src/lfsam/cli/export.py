@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 
 from lfsam.cli.common import HelpFormatter
+from lfsam.export import EXPORT_FORMATS, check_export_target, export_result
+from lfsam.io import read_lightfield
+from lfsam.lightfield import check_result_shape
+from lfsam.result import load_result
 
 DESCRIPTION = """\
 Export a segmentation result (.npz from `lfsam segment`) into a folder, for the next tool:
@@ -32,8 +36,6 @@ examples:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``export`` subcommand."""
-    from lfsam.export import EXPORT_FORMATS
-
     parser = subparsers.add_parser(
         "export",
         help="write a result as label PNGs, binary masks, COCO JSON or NumPy arrays",
@@ -55,15 +57,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Load the result (and its light field), export it, print what was written."""
-    from lfsam.export import check_export_target, export_result
-    from lfsam.result import load_result
-
     check_export_target(args.out, args.force)
     result = load_result(args.result)
     if args.lightfield:
-        from lfsam.io import read_lightfield
-        from lfsam.lightfield import check_result_shape
-
         lightfield = read_lightfield(args.lightfield)
         check_result_shape(result.labels.shape, lightfield, args.result)
         if result.present is None:

@@ -6,7 +6,9 @@ import argparse
 import json
 import math
 
-from lfsam.cli.common import HelpFormatter, add_device_argument
+from lfsam.cli.common import HelpFormatter, add_device_argument, bounded_int
+from lfsam.io import read_lightfield
+from lfsam.result import load_result
 
 DESCRIPTION = """\
 Score a segmentation result with the paper's metrics (section 4.1) and print them as JSON.
@@ -42,16 +44,6 @@ examples:
 """
 
 
-def _positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
-    return value
-
-
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``metrics`` subcommand."""
     parser = subparsers.add_parser(
@@ -69,7 +61,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_device_argument(parser)
     parser.add_argument(
         "--min-area",
-        type=_positive,
+        type=bounded_int(1),
         default=None,
         metavar="PIXELS",
         help="pixels an object must show in some view to count for recall "
@@ -80,9 +72,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Load the result and the ground truth, print the metrics as one JSON object."""
-    from lfsam.io import read_lightfield
-    from lfsam.metrics import evaluate_result
-    from lfsam.result import load_result
+    from lfsam.metrics import evaluate_result  # loads on use, keeping `lfsam --help` light
 
     result = load_result(args.result)
     gt = read_lightfield(args.gt)

@@ -13,7 +13,8 @@ import ast
 import json
 from typing import Any
 
-from lfsam.cli.common import HelpFormatter, add_device_argument
+from lfsam.cli.common import HelpFormatter, add_device_argument, bounded_int, probability
+from lfsam.devices import resolve_device
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.segmenters.base import Segmenter
@@ -102,35 +103,13 @@ def add_model_arguments(
         "border (a negative click on it undoes that)",
     )
     oracle.add_argument(
-        "--oracle-jitter", type=non_negative_int, default=0, metavar="R",
+        "--oracle-jitter", type=bounded_int(0), default=0, metavar="R",
         help="answers dilated or eroded by a random radius in [-R, R] pixels",
     )
     oracle.add_argument(
-        "--oracle-seed", type=non_negative_int, default=0, metavar="N",
+        "--oracle-seed", type=bounded_int(0), default=0, metavar="N",
         help="seed of the imperfections (each draw depends on the seed, view and prompt)",
     )
-
-
-def probability(text: str) -> float:
-    """A number in [0, 1] (argparse type)."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not 0.0 <= value <= 1.0:
-        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1], got {text!r}")
-    return value
-
-
-def non_negative_int(text: str) -> int:
-    """A whole number >= 0 (argparse type)."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
-    return value
 
 
 def oracle_options_from_args(args: argparse.Namespace) -> dict[str, Any] | None:
@@ -172,7 +151,6 @@ def segmenter_from_args(
 
 def list_models() -> dict[str, Any]:
     """What ``lfsam models`` shows, as a JSON-ready dict (no network, no model built)."""
-    from lfsam.devices import resolve_device
     from lfsam.segmenters.sam2_build import autocast_dtype, cached_checkpoint, hub_cache_dir
 
     device = resolve_device(None)

@@ -15,6 +15,11 @@ from lfsam.cli.common import (
 )
 from lfsam.cli.models import add_model_arguments, model_options_from_args
 from lfsam.cli.prompts import PROMPT_PARSERS, PromptAction, objects_from_items
+from lfsam.errors import LfsamError
+from lfsam.fileutil import check_cache_dir, check_output_path
+from lfsam.io import read_lightfield
+from lfsam.prompts import load_prompts
+from lfsam.result import save_result
 
 DESCRIPTION = """\
 Segment a light field consistently across all views (paper section 3).
@@ -126,7 +131,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--cache", metavar="DIR",
-        help="on-disk cache of view embeddings (keyed by view content and model)",
+        help="on-disk cache of view embeddings (keyed by view content and model); created if "
+        "missing",
     )
     parser.add_argument("--format", dest="input_format", help="input format (default: detect)")
     parser.add_argument("--out", required=True, metavar="RESULT.npz", help="result file")
@@ -137,14 +143,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``lfsam segment``."""
+    # the method's modules load on use, keeping `lfsam --help` light
     from lfsam.api import RunOptions, SegmentOptions, segment
-    from lfsam.errors import LfsamError
-    from lfsam.fileutil import check_output_path
-    from lfsam.io import read_lightfield
     from lfsam.pipeline import PipelineConfig
     from lfsam.pipeline.references import check_references
-    from lfsam.prompts import load_prompts
-    from lfsam.result import save_result
 
     check_references(args.references)
     has_prompts = bool(args.prompt_items or args.prompts)
@@ -161,6 +163,8 @@ def run(args: argparse.Namespace) -> int:
         t_iou=args.t_iou,
     )
     check_output_path(args.out)
+    if args.cache is not None:
+        check_cache_dir(args.cache)
     lightfield = read_lightfield(
         args.path, format=args.input_format, value_range=args.value_range
     )

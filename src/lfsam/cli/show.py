@@ -11,6 +11,10 @@ from pathlib import Path
 import numpy as np
 
 from lfsam.cli.common import HelpFormatter
+from lfsam.errors import LfsamError
+from lfsam.fileutil import check_output_path
+from lfsam.io import read_lightfield
+from lfsam.result import load_result
 
 KINDS = ("grid", "epi", "anim", "all")
 
@@ -172,8 +176,6 @@ def _recorded_source(meta: dict) -> str | None:
 
 def _full_labels(lightfield) -> np.ndarray:
     """Ground-truth labels for every view; center-only labels leave the other views unlabeled."""
-    from lfsam.errors import LfsamError
-
     if lightfield.labels is None:
         raise LfsamError(
             "the light field has no ground-truth labels; drop --gt-labels / --compare gt"
@@ -191,10 +193,6 @@ def _result_name(result, path: Path) -> str:
 
 
 def _load_scene(args: argparse.Namespace) -> _Scene:
-    from lfsam.errors import LfsamError
-    from lfsam.io import read_lightfield
-    from lfsam.result import load_result
-
     source = Path(args.input)
     if args.lightfield is not None or _is_result_file(source):
         result = load_result(source)
@@ -242,8 +240,6 @@ def _load_scene(args: argparse.Namespace) -> _Scene:
 
 
 def _check_options(args: argparse.Namespace, scene: _Scene) -> None:
-    from lfsam.errors import LfsamError
-
     u_count, v_count = scene.views.shape[2:4]
     if args.row is not None and not 0 <= args.row < u_count:
         raise LfsamError(f"--row {args.row} is outside the views (0..{u_count - 1})")
@@ -265,9 +261,7 @@ def _check_options(args: argparse.Namespace, scene: _Scene) -> None:
 
 def _outputs(args: argparse.Namespace) -> tuple[list[tuple[str, Path]], Path | None]:
     """(kind, path) of every file to write, checked before any drawing, and a folder to create."""
-    from lfsam.errors import LfsamError
-    from lfsam.fileutil import check_output_path
-    from lfsam.viz import ANIMATION_SUFFIXES, IMAGE_SUFFIXES
+    from lfsam.viz import ANIMATION_SUFFIXES, IMAGE_SUFFIXES  # loads on use (--help stays light)
 
     out = Path(args.out)
     suffix = out.suffix.lower()
@@ -314,7 +308,6 @@ def _outputs(args: argparse.Namespace) -> tuple[list[tuple[str, Path]], Path | N
 def run(args: argparse.Namespace) -> int:
     """Run ``lfsam show``."""
     from lfsam import viz
-    from lfsam.errors import LfsamError
 
     outputs, new_folder = _outputs(args)
     scene = _load_scene(args)

@@ -56,16 +56,6 @@ def _positive_pair(text: str) -> tuple[int, int]:
     return pair
 
 
-def _count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
-    return value
-
-
 def run(args: argparse.Namespace) -> int:
     """Generate the scene and write it."""
     resolve_output(args.out, args.format)  # fail before the work, not after
@@ -125,7 +115,7 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--hidden-objects",
-        type=_count,
+        type=bounded_int(0),
         default=0,
         metavar="K",
         help="small objects the center view cannot see but corner views can",

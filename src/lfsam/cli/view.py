@@ -9,6 +9,10 @@ from typing import Any
 
 from lfsam.cli.common import HelpFormatter, add_disparity_argument
 from lfsam.cli.models import add_model_arguments, model_options_from_args
+from lfsam.errors import LfsamError
+from lfsam.fileutil import check_cache_dir
+from lfsam.io import read_lightfield
+from lfsam.result import load_result
 
 DESCRIPTION = """\
 Open a light field in napari: the views are one image layer with the view row s and column t on
@@ -69,11 +73,9 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
     from lfsam.viewer.native_libraries import preload_native_libraries
 
     require_napari()
+    if args.cache:
+        check_cache_dir(args.cache)
     preload_native_libraries()  # before napari draws with OpenGL (native_libraries docstring)
-    from lfsam.errors import LfsamError
-    from lfsam.io import read_lightfield
-    from lfsam.result import load_result
-
     lightfield = read_lightfield(args.path, format=args.input_format) if args.path else None
     if args.result and lightfield is None:
         raise LfsamError("--result needs its light field: give the light field's path too")

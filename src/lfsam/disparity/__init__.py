@@ -7,14 +7,16 @@
 - :func:`resolve_disparity`: the one resolver: the disparity of a view from ``"estimate"``,
   ``"gt"``, a ``.npy`` file or an array.
 - :class:`ViewDisparities`: per-view disparities resolved lazily, once each (interactive use).
+- :func:`warp_center_disparity`: the center view's disparity forward-warped into another view.
 """
 
 from lfsam.disparity.baseline import estimate_disparity_baseline
+from lfsam.disparity.center_warp import warp_center_disparity
 from lfsam.disparity.estimate import DisparityEstimate
 from lfsam.disparity.range import estimate_disparity_range
 from lfsam.disparity.source import resolve_disparity
 from lfsam.disparity.structure_tensor import candidate_disparities, estimate_disparity
-from lfsam.disparity.views import ViewDisparities, warp_center_disparity
+from lfsam.disparity.views import ViewDisparities
 
 __all__ = [
     "DisparityEstimate",

@@ -1,13 +1,14 @@
 """Where the pipeline's disparity comes from: estimated, ground truth, a file or an array.
 
 The one resolver of the package (docs/design.md sections 3.2 and 8): every command and entry point
-that consumes disparity (``lfsam segment --disparity``, ``lfsam evaluate``, :func:`lfsam.api.
-run_segmentation`, the interactive predictor through :class:`~lfsam.disparity.views.
-ViewDisparities`) names its source the same way and asks for the view it needs:
+that consumes disparity (``lfsam segment --disparity``, ``lfsam evaluate``, :func:`lfsam.segment`,
+the interactive predictor through :class:`~lfsam.disparity.views.ViewDisparities`) names its
+source the same way and asks for the view it needs:
 
 - ``"estimate"``: the structure-tensor estimator run for that view;
 - ``"gt"``: the light field's ground truth of that view; with a center-only ground truth, the
-  center map forward-warped into the view (:func:`~lfsam.disparity.views.warp_center_disparity`);
+  center map forward-warped into the view
+  (:func:`~lfsam.disparity.center_warp.warp_center_disparity`);
 - a ``.npy`` file or a NumPy array holding a ``(U, V)`` map of the center view (forward-warped
   for another view) or an ``(S, T, U, V)`` map of every view.
 """
@@ -19,7 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
+from lfsam.disparity.center_warp import warp_center_disparity
 from lfsam.disparity.epi import resolve_view
+from lfsam.disparity.structure_tensor import estimate_disparity
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 
@@ -109,8 +112,6 @@ def _from_map(
         return array[view], name, None
     if view == lightfield.center:
         return array, name, None
-    from lfsam.disparity.views import warp_center_disparity
-
     center = lightfield.center
     offset = (view[0] - center[0], view[1] - center[1])
     disparity, holes = warp_center_disparity(array, offset, device=device)
@@ -134,8 +135,6 @@ def resolve_view_disparity(
     if isinstance(spec, np.ndarray):
         return _from_map(spec, lightfield, view, name or "array", device)
     if spec == "estimate":
-        from lfsam.disparity.structure_tensor import estimate_disparity
-
         estimate = estimate_disparity(lightfield, device=device, view=view)
         low, high = estimate.disparity_range
         where = "" if view == lightfield.center else f" view ({view[0]}, {view[1]})"

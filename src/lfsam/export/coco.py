@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 from pycocotools import mask as mask_utils
 
-from lfsam import __version__
 from lfsam.export.common import object_ids, view_names, write_sidecar
 from lfsam.result import SegmentationResult
+from lfsam.version import __version__
 
 __all__ = ["ANNOTATIONS", "coco_dict", "write_coco"]
 

@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from lfsam import __version__
 from lfsam.result import SegmentationResult
+from lfsam.version import __version__
 
 __all__ = [
     "SIDECAR",

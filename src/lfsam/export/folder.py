@@ -8,12 +8,11 @@ from __future__ import annotations
 
 import contextlib
 import os
-import shutil
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
 from lfsam.errors import LfsamError
+from lfsam.fileutil import atomic_folder_output
 
 __all__ = ["atomic_folder", "check_export_target"]
 
@@ -60,7 +59,7 @@ def atomic_folder(path: str | os.PathLike, force: bool = False) -> Iterator[Path
     """Yield a temporary folder next to ``path``; rename it onto ``path`` only on success.
 
     An existing ``path`` (empty, or any folder with ``force``) is moved aside and deleted only
-    once the new folder is in place.
+    once the new folder is in place (:func:`lfsam.fileutil.atomic_folder_output`).
 
     Raises
     ------
@@ -68,31 +67,5 @@ def atomic_folder(path: str | os.PathLike, force: bool = False) -> Iterator[Path
         See :func:`check_export_target`.
     """
     path = check_export_target(path, force)
-    parent = path.parent if str(path.parent) else Path(".")
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".part", dir=parent))
-    try:
+    with atomic_folder_output(path) as tmp:
         yield tmp
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o777 & ~umask)
-        _replace(tmp, path)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-
-
-def _replace(new: Path, target: Path) -> None:
-    """Rename ``new`` onto ``target``, moving an existing ``target`` aside first."""
-    if not target.exists():
-        os.replace(new, target)
-        return
-    old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
-    os.rmdir(old)
-    os.replace(target, old)
-    try:
-        os.replace(new, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.replace(old, target)
-        raise
-    shutil.rmtree(old, ignore_errors=True)

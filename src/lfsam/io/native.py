@@ -16,22 +16,21 @@ Disparity is always in the package's convention (docs/design.md section 1), so a
 from any data set reads back without further checks.
 
 A scene is written into a temporary folder next to the target and renamed onto it only when
-complete, so a failed write leaves no partial scene.
+complete (:func:`lfsam.fileutil.atomic_folder_output`), so a failed write leaves no partial
+scene.
 """
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
-import shutil
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from lfsam.errors import LfsamError
+from lfsam.fileutil import atomic_folder_output
 from lfsam.io.images import read_view_grid, write_view_grid
 from lfsam.lightfield import LightField
 
@@ -147,7 +146,6 @@ def write_native(lf: LightField, path: str | os.PathLike, compress_level: int = 
         If the parent folder is missing or ``path`` is a file or a folder that is not a scene.
     """
     path = check_scene_target(path)
-    parent = path.parent if str(path.parent) else Path(".")
     digits = _view_digits(lf.grid_shape)
     pattern = _view_pattern(digits)
     description = {
@@ -164,8 +162,7 @@ def write_native(lf: LightField, path: str | os.PathLike, compress_level: int = 
         "convention": CONVENTION,
         "meta": json_safe(lf.meta),
     }
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".part", dir=parent))
-    try:
+    with atomic_folder_output(path, mode=0o755) as tmp:
         write_view_grid(lf.views, tmp, pattern, compress_level=compress_level)
         for s, t in zip(*np.nonzero(~lf.present), strict=True):  # absent views: no file
             (tmp / pattern.format(s=s, t=t)).unlink()
@@ -174,29 +171,7 @@ def write_native(lf: LightField, path: str | os.PathLike, compress_level: int = 
         if lf.labels is not None:
             np.save(tmp / "labels.npy", lf.labels.astype(np.int32))
         (tmp / MARKER).write_text(json.dumps(description, indent=2, sort_keys=True) + "\n")
-        os.chmod(tmp, 0o755)
-        _replace_folder(tmp, path)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return path
-
-
-def _replace_folder(new: Path, target: Path) -> None:
-    """Rename ``new`` onto ``target``, moving an existing ``target`` aside first."""
-    if not target.exists():
-        os.replace(new, target)
-        return
-    old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
-    os.rmdir(old)
-    os.replace(target, old)
-    try:
-        os.replace(new, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.replace(old, target)
-        raise
-    shutil.rmtree(old, ignore_errors=True)
 
 
 def is_native(path: Path) -> bool:

@@ -1,5 +1,5 @@
 """The paper's evaluation metrics (section 4.1): SIoU, LPP, AA, UE, coverage C and time T,
-with object recall and SIoU over center-present masks beside them (DESIGN.md section 8).
+with object recall and SIoU over center-present masks beside them (docs/design.md section 8).
 
 :func:`evaluate_labels` scores a predicted label field ``[S, T, U, V]`` (0 = unlabeled) against a
 ground-truth :class:`~lfsam.lightfield.LightField` with per-view disparity and labels;
@@ -84,7 +84,7 @@ METRICS: tuple[Metric, ...] = (
 )
 
 #: Beside the paper's columns: object recall and SIoU over center-present masks
-#: (:mod:`lfsam.metrics.recall`, DESIGN.md section 8).
+#: (:mod:`lfsam.metrics.recall`, docs/design.md section 8).
 OBJECT_METRICS: tuple[Metric, ...] = (
     Metric("recall", "Recall↑", True),
     Metric("siou_center", "SIoU(c)↑", True),

@@ -1,4 +1,4 @@
-"""Object-level scores for objects the center view may not see (DESIGN.md section 8).
+"""Object-level scores for objects the center view may not see (docs/design.md section 8).
 
 The paper's SIoU (section 4.1, :mod:`lfsam.metrics.consistency`) compares each mask's projection
 from every other view with its center-view mask. A mask absent from the center view (an object

@@ -2,7 +2,7 @@
 
 The paper's automatic mode (section 3.1) generates masks in the center view only; an object
 hidden there behind a nearer one gets no label in any view. With ``--references`` (issue 16;
-DESIGN.md section 8) automatic mask generation also runs in other views, but only where the
+docs/design.md section 8) automatic mask generation also runs in other views, but only where the
 masks propagated so far do not already land, and each genuinely new object is propagated from its
 own reference view. This module holds the pure parts of that:
 

@@ -32,6 +32,7 @@ from lfsam.segmenters.sam2_decoder import (
     LOGIT_CLAMP,
     decode_prompts,
     prepare_image,
+    stability_scores,  # re-exported: it lived here before the decoder owned it
 )
 
 __all__ = [
@@ -50,7 +51,6 @@ __all__ = [
 SAM2_CLASS_ATTRIBUTES: dict[str, tuple[str, ...]] = {
     "sam2.sam2_image_predictor.SAM2ImagePredictor": ("_predict", "reset_predictor", "set_image"),
     "sam2.modeling.sam2_base.SAM2Base": ("_prepare_backbone_features", "forward_image"),
-    "sam2.modeling.sam.mask_decoder.MaskDecoder": ("_get_stability_scores",),
 }
 """Methods of ``sam2`` classes this module calls or overrides (class -> attribute names)."""
 
@@ -120,12 +120,6 @@ def backbone_features(
     finest first (``SAM2Base._prepare_backbone_features``), as ``set_image`` uses them."""
     _, vision_feats, _, feat_sizes = model._prepare_backbone_features(backbone_out)
     return vision_feats, feat_sizes
-
-
-def stability_scores(decoder: torch.nn.Module, mask_logits: torch.Tensor) -> torch.Tensor:
-    """``MaskDecoder``'s stability score of each mask (IoU of the masks thresholded at
-    +- its ``dynamic_multimask_stability_delta``)."""
-    return decoder._get_stability_scores(mask_logits)
 
 
 class CachedFeaturePredictor(SAM2ImagePredictor):

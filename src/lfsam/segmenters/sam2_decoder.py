@@ -77,6 +77,7 @@ __all__ = [
     "default_chunk_size",
     "embed_prompts",
     "prepare_image",
+    "stability_scores",
 ]
 
 DEFAULT_CHUNK_SIZE = 2
@@ -490,6 +491,31 @@ def _mask_logits(
     return out
 
 
+def stability_scores(decoder: nn.Module, mask_logits: torch.Tensor) -> torch.Tensor:
+    """The stability score of each mask: the IoU of the mask thresholded at ``+delta`` with the
+    mask thresholded at ``-delta`` (Kirillov et al. 2023, section 3), where ``delta`` is the
+    decoder's ``dynamic_multimask_stability_delta``; 1 where nothing passes ``-delta``.
+
+    What ``MaskDecoder`` scores its single-mask output with before falling back to a multimask
+    token (tests/test_sam2_decoder.py compares the decoder's choice with Meta's).
+
+    Parameters
+    ----------
+    decoder : MaskDecoder
+        Only its ``dynamic_multimask_stability_delta`` is read.
+    mask_logits : (..., H, W) tensor
+
+    Returns
+    -------
+    (...) float32 tensor
+    """
+    delta = decoder.dynamic_multimask_stability_delta
+    flat = mask_logits.flatten(-2)
+    inner = torch.sum(flat > delta, dim=-1).float()
+    outer = torch.sum(flat > -delta, dim=-1).float()
+    return torch.where(outer > 0, inner / outer, 1.0)
+
+
 def _decode_chunk(
     model: nn.Module,
     st: ImageState,
@@ -532,8 +558,6 @@ def _decode_chunk(
         return masks, iou_pred[:, 1:]
     if dynamic:
         single, best_mask = masks[:, 0:1], masks[:, 1:2]
-        from lfsam.segmenters.sam2_adapter import stability_scores  # (it imports this module)
-
         stable = stability_scores(dec, single) >= dec.dynamic_multimask_stability_thresh
         masks = torch.where(stable[..., None, None], single, best_mask)
         iou = torch.where(stable, iou_pred[:, 0:1], iou_pred[rows, best].unsqueeze(1))

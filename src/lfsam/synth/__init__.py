@@ -7,12 +7,13 @@ exact per-view disparity and instance labels in the package convention.
 - :func:`generate_scene` — a random scene, rendered (the usual entry point);
 - :func:`demo_scene` — the default scene used by ``make demo``;
 - :func:`random_scene` / :func:`render_scene` — the two steps separately, for custom scenes built
-  from :class:`PlanarObject` and :class:`SceneSpec`;
+  from :class:`PlanarObject` and :class:`SceneSpec` (the data model, :mod:`lfsam.synth.spec`);
 - :func:`sample_geometry` — exact labels and disparity of any view at sub-pixel positions.
 """
 
 from lfsam.synth.render import demo_scene, generate_scene, render_scene, sample_geometry
-from lfsam.synth.scene import PlanarObject, SceneSpec, random_scene
+from lfsam.synth.scene import random_scene
+from lfsam.synth.spec import PlanarObject, SceneSpec
 from lfsam.synth.textures import TEXTURES, make_texture
 
 __all__ = [

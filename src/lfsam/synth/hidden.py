@@ -3,11 +3,11 @@
 The paper's automatic mode (section 3.1) generates masks in the center view only, so an object
 entirely behind a nearer one there gets no label anywhere, although the outer views, displaced by
 the baseline, see around the occluder. Scenes with such objects test whether a method recovers
-them (DESIGN.md section 6: synthetic scenes; section 8: object recall).
+them (docs/design.md section 6: synthetic scenes; section 8: object recall).
 
 A hidden object is a small fronto-parallel patch placed just in front of the background and
 behind every other object, with its whole center-view outline at least :data:`MARGIN` pixels
-inside the region that nearer objects cover there. By the convention (DESIGN.md section 1) it
+inside the region that nearer objects cover there. By the convention (docs/design.md section 1) it
 moves by ``(d_occluder - d_hidden) (ds, dt)`` pixels relative to its occluder in the view at offset
 ``(ds, dt)``, so placed near the occluder's edge it comes out from behind it in the outer rows
 and columns. Placements are drawn at random and kept only when the exact z-buffer
@@ -24,12 +24,11 @@ from dataclasses import replace
 
 import numpy as np
 import torch
-from scipy.ndimage import distance_transform_edt
 
 from lfsam.errors import LfsamError
 from lfsam.synth.raster import local_coordinates, region, zbuffer
-from lfsam.synth.scene import PlanarObject, SceneSpec, random_outline
-from lfsam.synth.shapes import inside
+from lfsam.synth.shapes import inside, random_outline
+from lfsam.synth.spec import PlanarObject, SceneSpec
 from lfsam.synth.textures import TEXTURES
 
 __all__ = ["MARGIN", "add_hidden_objects", "default_min_area"]
@@ -175,6 +174,10 @@ def add_hidden_objects(
     reach = max(abs(o) for offset in _corner_offsets(spec) for o in offset)
     short = min(height, width)
     first_label = max(obj.label for obj in spec.objects) + 1
+    # scipy loads only when hidden objects are asked for: lfsam.synth (and so `lfsam --help`)
+    # imports this module
+    from scipy.ndimage import distance_transform_edt
+
     rows, cols = _pixel_grid(spec.size)
     labels: list[int] = []
     offsets = _corner_offsets(spec)

@@ -2,7 +2,7 @@
 
 Each sample position ``(u', v')`` of the view at offset ``(ds, dt)`` is mapped to every patch's
 local coordinates and disparity by the patch's affine view maps
-(:meth:`lfsam.synth.scene.PlanarObject.view_maps`); among the patches whose outline contains the
+(:meth:`lfsam.synth.spec.PlanarObject.view_maps`); among the patches whose outline contains the
 sample, the one with the largest disparity (the closest, docs/design.md section 1) wins. Ties keep
 the earlier patch.
 
@@ -14,14 +14,11 @@ evaluated by broadcasting), or as two arrays of arbitrary points of equal shape.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import torch
 
 from lfsam.synth.shapes import inside
-
-if TYPE_CHECKING:
-    from lfsam.synth.scene import PlanarObject
+from lfsam.synth.spec import PlanarObject
 
 __all__ = ["is_grid", "local_coordinates", "region", "zbuffer"]
 

@@ -23,8 +23,9 @@ from tqdm import tqdm
 from lfsam.devices import resolve_device
 from lfsam.lightfield import LightField
 from lfsam.synth.raster import region, zbuffer
-from lfsam.synth.scene import PlanarObject, SceneSpec, random_scene
+from lfsam.synth.scene import random_scene
 from lfsam.synth.shapes import inside
+from lfsam.synth.spec import PlanarObject, SceneSpec
 from lfsam.synth.textures import make_texture
 
 __all__ = ["demo_scene", "generate_scene", "render_scene", "sample_geometry"]

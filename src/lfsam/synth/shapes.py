@@ -4,15 +4,17 @@ Each object has local coordinates ``(y, x)`` (local row, local column) in which 
 the square ``[-1, 1]^2``: an ellipse ``x^2 + y^2 <= 1``, a rounded rectangle (signed-distance
 test of a box with rounded corners, Quilez, "2D distance functions"), or a star-shaped polygon
 (even-odd crossing test, Shimrat 1962). The tests are vectorised over any tensor shape.
+:func:`random_outline` draws one at random (for the random scenes and their hidden objects).
 """
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 from lfsam.errors import LfsamError
 
-__all__ = ["SHAPES", "inside"]
+__all__ = ["SHAPES", "inside", "random_outline"]
 
 #: Bounded outlines (``"plane"`` is the unbounded background).
 SHAPES = ("ellipse", "rounded_rect", "polygon")
@@ -85,3 +87,18 @@ def inside(
     if shape == "polygon":
         return _polygon(x, y, vertices)
     raise LfsamError(f"unknown shape {shape!r}; use plane or one of {', '.join(SHAPES)}")
+
+
+def random_outline(rng: np.random.Generator) -> tuple[str, tuple[tuple[float, float], ...]]:
+    """A random outline name (:data:`lfsam.synth.shapes.SHAPES`) and, for a polygon, its
+    star-shaped vertices (5 to 8, jittered angles, radii 0.55 to 1 in local units)."""
+    shape = str(rng.choice(SHAPES))
+    vertices: tuple[tuple[float, float], ...] = ()
+    if shape == "polygon":
+        count = int(rng.integers(5, 9))
+        angles = np.sort(np.arange(count) * 2 * np.pi / count + rng.uniform(-0.3, 0.3, count))
+        radii = rng.uniform(0.55, 1.0, count)
+        vertices = tuple(
+            (float(r * np.sin(t)), float(r * np.cos(t))) for r, t in zip(radii, angles, strict=True)
+        )
+    return shape, vertices
