@@ -19,11 +19,9 @@ object recomputes that object only; every other object's masks are kept as they 
 between objects keep the pipeline's paint order (larger reference-view masks first, smaller on
 top; docs/design.md section 3.6), and an object's label value is its id.
 
-This class is a facade: the objects and their clicks live in :mod:`lfsam.pipeline.objects`, the
-streaming of views through the four steps in :mod:`lfsam.pipeline.engine`, results in
-:mod:`lfsam.result_objects`; the automatic mode wraps it from outside
-(:class:`lfsam.generator.LightFieldMaskGenerator`), and batch runs go through
-:func:`lfsam.segment`.
+A facade: objects and clicks live in :mod:`lfsam.pipeline.objects`, the streaming of views in
+:mod:`lfsam.pipeline.engine`, results in :mod:`lfsam.result_objects`; the automatic mode wraps
+it from outside (:class:`lfsam.generator.LightFieldMaskGenerator`); batch: :func:`lfsam.segment`.
 """
 
 from __future__ import annotations

@@ -65,6 +65,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from lfsam.devices import CUDA_PROMPT_BATCH_SIZE
 from lfsam.errors import LfsamError
 
 __all__ = [
@@ -84,7 +85,7 @@ DEFAULT_CHUNK_SIZE = 2
 """Prompts decoded together by :func:`decode_prompts` on a CPU (measured best of 1, 2, 4, 8 on a
 2-core CPU with ``sam2.1-hiera-small``, 16 prompts: benchmarks/bench_decoder.py)."""
 
-ACCELERATOR_CHUNK_SIZE = 128
+ACCELERATOR_CHUNK_SIZE = CUDA_PROMPT_BATCH_SIZE
 """Chunk size :func:`default_chunk_size` gives for CUDA and MPS, where launch overhead, not cache
 size, limits small batches (about 14 MB per prompt in float32). On an H100, 100 prompts per view
 in one chunk instead of chunks of 16 took refinement of a 9x9x480x640 light field from 4.8 s to
