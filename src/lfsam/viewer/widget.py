@@ -254,8 +254,7 @@ class LightFieldWidget(QWidget):
         self.weights_box.setEnabled(name != ORACLE)  # the oracle has no weights
         if self.session is not None and self.session.model != name:
             self.session.model = name
-            if self.session.loaded:
-                self.load_model()
+            self._reload()
 
     def _on_weights_activated(self, _index: int) -> None:
         in_use = (self._options.get("checkpoint"), bool(self._options.get("random_weights")))
@@ -272,16 +271,20 @@ class LightFieldWidget(QWidget):
         self._options.update(weights)
         if self.session is not None and changed:
             self.session.segmenter_options = dict(self._options)
-            if self.session.loaded and self.session.model != ORACLE:
-                self.load_model()
+            if self.session.model != ORACLE:  # the oracle has no weights
+                self._reload()
 
     def _on_disparity_activated(self, _index: int) -> None:
         in_use = None if self.session is None else str(self.session.disparity)
         source = self.controls.pick_disparity(self, in_use)
         if source is not None and self.session is not None and source != in_use:
             self.session.disparity = source
-            if self.session.loaded:
-                self.load_model()
+            self._reload()
+
+    def _reload(self) -> None:
+        """Load the model again if it is loaded (its name, weights or disparity changed)."""
+        if self.session.loaded:
+            self.load_model()
 
     def load_model(self) -> None:
         """Load the chosen model and disparity source (worker); objects are recomputed."""
@@ -292,6 +295,11 @@ class LightFieldWidget(QWidget):
         self.work.when_idle(lambda: self.work.start(job, 2, f"loading {self.session.model}"))
 
     # --- prompts ------------------------------------------------------------------------------
+    @property
+    def negative(self) -> bool:
+        """Whether plain clicks add negative points (T toggles)."""
+        return self.prompts.negative
+
     def toggle_polarity(self) -> None:
         """T: plain clicks add negative points instead of positive ones, or back."""
         self.prompts.set_negative(not self.prompts.negative)
@@ -321,12 +329,8 @@ class LightFieldWidget(QWidget):
     # --- actions ------------------------------------------------------------------------------
     def segment(self) -> None:
         """S: segment the current object from its prompts (worker; queued if busy)."""
-        if self.session is None:
-            return
-        if self.busy:
-            self.work.segment_pending = True
-        else:
-            self.work.attempt(self._segment_now)
+        if self.session is not None:
+            self.work.request_segment()
 
     def _segment_now(self) -> None:
         if not self.session.loaded:

@@ -270,6 +270,14 @@ class WorkQueue(QObject):
         except LfsamError as exc:
             self._error(str(exc))
 
+    def request_segment(self) -> None:
+        """Segment the current object now, or once the running job has finished (once, however
+        often it is asked for meanwhile: the latest prompts are segmented)."""
+        if self.busy:
+            self.segment_pending = True
+        else:
+            self.attempt(self._segment)
+
     def cancel(self) -> None:
         """Drop the queued actions and the pending segmentation."""
         self.actions.clear()
