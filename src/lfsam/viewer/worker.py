@@ -174,8 +174,10 @@ def segment_job(session: Any, obj_id: int) -> Iterator[WorkerEvent]:
             )
         elif stage == "coarse":
             yield CoarseMasks(obj_id, value)
-        else:
+        elif stage == "final":
             yield FinalMasks(obj_id, value)
+        else:  # the session's code is at fault
+            raise ValueError(f"unknown segmentation stage {stage!r}")
 
 
 def predict_all_job(session: Any) -> Iterator[WorkerEvent]:
