@@ -36,7 +36,7 @@ class _Click:
 
 def _wait(widget, timeout: float = 300.0) -> None:
     end = time.time() + timeout
-    while (widget.busy or widget._segment_pending or widget._queue) and time.time() < end:
+    while not widget.work.idle and time.time() < end:
         QApplication.processEvents()
         time.sleep(0.02)
     for _ in range(20):

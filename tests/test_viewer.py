@@ -282,6 +282,58 @@ def test_negative_click_fixes_a_merge_and_undo_redo(make_napari_viewer, qtbot, s
         viewer2.close()
 
 
+def test_jobs_yield_typed_events_and_user_errors_become_failed():
+    """The worker's jobs turn the session's stages into typed events; an LfsamError in a job is
+    a Failed event, not a raise (lfsam.viewer.worker)."""
+    from lfsam.viewer import worker as W
+
+    class Session:
+        def segment_current(self):
+            yield "reference", ((1, 2), np.eye(3, dtype=np.uint8), np.float32(0.5))
+            yield "coarse", "coarse prediction"
+            yield "final", "final prediction"
+
+    events = list(W.segment_job(Session(), 7))
+    assert [type(e) for e in events] == [W.ReferenceMask, W.CoarseMasks, W.FinalMasks]
+    assert [e.stage for e in events] == ["reference", "coarse", "final"]
+    reference = events[0]
+    assert reference.obj_id == 7 and reference.view == (1, 2) and reference.score == 0.5
+    assert reference.mask.dtype == bool and events[2].prediction == "final prediction"
+
+    def failing():
+        yield W.AllMasks("first")
+        raise LfsamError("no weights offline")
+
+    first, failed = W.guarded(failing)()
+    assert first.prediction == "first" and failed == W.Failed("no weights offline")
+    with pytest.raises(AttributeError):
+        events[0].obj_id = 1  # events are frozen
+
+
+def test_stale_and_failed_events(make_napari_viewer, qtbot, scene, monkeypatch):
+    """The widget shows a reference mask only for the current object; a Failed event is a
+    notification and drops what was queued behind it."""
+    from lfsam.viewer import worker as W
+
+    shown = []
+    monkeypatch.setattr("lfsam.viewer.widget._notify_error", shown.append)
+    _viewer, widget = _open(make_napari_viewer, qtbot, scene)
+    current = widget.session.current_id
+    mask = scene.labels[VIEW] == OBJ
+    widget._on_event(W.ReferenceMask(current + 1, VIEW, mask, 0.9))  # an object left meanwhile
+    assert not widget.layers[L.CURRENT].data.any() and widget.stages == []
+    widget._on_event(W.ReferenceMask(current, VIEW, mask, 0.9))
+    np.testing.assert_array_equal(widget.layers[L.CURRENT].data[VIEW] == current, mask)
+    assert widget.layers[L.CURRENT].data.sum() == current * mask.sum()
+    assert widget.stages == ["reference"] and "score 0.90" in widget.status.text()
+    ran = []
+    widget.work.actions.append(lambda: ran.append(True))
+    widget.work.segment_pending = True
+    widget.work._on_yielded(W.Failed("the model is gone"))
+    assert shown == ["the model is gone"] and widget.status.text() == "the model is gone"
+    assert widget.work.idle and not ran
+
+
 def test_errors_are_notifications(make_napari_viewer, qtbot, monkeypatch):
     shown = []
     monkeypatch.setattr("lfsam.viewer.widget._notify_error", shown.append)

@@ -11,10 +11,16 @@ Layers (docs/design.md section 8), all with the light field's ``(s, t, u, v)`` d
 An epipolar-plane image (EPI) is a reorder of the same data's axes (``viewer.dims.order``): the
 horizontal EPI through the current pixel row ``u`` of view row ``s`` shows ``(t, v)``; the vertical
 EPI through pixel column ``v`` of view column ``t`` shows ``(u, s)``.
+
+The current object's prompts live in the point and box layers; :class:`PromptLayers` converts
+them to and from :class:`lfsam.prompts.ObjectPrompts` (through :mod:`lfsam.viewer.session`'s
+Qt-free functions) and reports the user's edits. :class:`MaskLayers` paints predictions into the
+three mask layers.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -25,8 +31,11 @@ __all__ = [
     "COMMITTED",
     "CURRENT",
     "LAYER_NAMES",
+    "MASK_NAMES",
     "ORDERS",
     "POINTS",
+    "MaskLayers",
+    "PromptLayers",
     "make_layer",
 ]
 
@@ -38,6 +47,8 @@ AUTO = "automatic segmentation"
 
 #: Bottom to top.
 LAYER_NAMES = (AUTO, COMMITTED, CURRENT, BOXES, POINTS)
+#: The mask layers (label = object id).
+MASK_NAMES = (AUTO, COMMITTED, CURRENT)
 
 #: ``viewer.dims.order`` of each display: the last two axes are shown.
 ORDERS = {
@@ -103,3 +114,189 @@ def make_layer(name: str, shape: tuple[int, int, int, int]) -> Any:
             np.zeros(shape, dtype=np.int32), name=name, opacity=opacity, axis_labels=axis_labels
         )
     raise ValueError(f"unknown layer {name!r}")
+
+
+class PromptLayers:
+    """The point and box layers as the current object's prompts.
+
+    Sets the polarity of clicked points (Ctrl-click: the other one), reads the layers as
+    prompts, writes prompts into them, and reports the user's edits (not its own writes).
+
+    Parameters
+    ----------
+    layers : dict
+        The fixed layers by name (filled in later is fine: :meth:`attach` once they exist).
+    on_edit : callable
+        Called after the user added, removed or changed a point or a box.
+
+    Attributes
+    ----------
+    negative : bool
+        Whether plain clicks add negative points.
+    """
+
+    def __init__(self, layers: dict[str, Any], on_edit: Callable[[], None]) -> None:
+        self.layers = layers
+        self.negative = False
+        self._on_edit = on_edit
+        self._writing = False
+
+    def attach(self) -> None:
+        """Listen to the newly made prompt layers; clicks add points from now on."""
+        points = self.layers[POINTS]
+        points.mouse_drag_callbacks.insert(0, self._on_press)
+        points.events.data.connect(self._on_data)
+        self.layers[BOXES].events.data.connect(self._on_data)
+        points.mode = "add"
+        self.set_negative(self.negative)
+
+    def set_negative(self, negative: bool) -> None:
+        """Plain clicks add negative points (True) or positive ones."""
+        self.negative = negative
+        if POINTS in self.layers:
+            self.layers[POINTS].feature_defaults = {"positive": not negative}
+
+    def _on_press(self, layer: Any, event: Any) -> None:
+        """Before napari adds a clicked point: its polarity."""
+        if layer.mode != "add":
+            return
+        modifiers = getattr(event, "modifiers", ())
+        flip = "Control" in modifiers or "Meta" in modifiers  # vispy keys compare to names
+        layer.feature_defaults = {"positive": self.negative == flip}
+
+    def _on_data(self, event: Any) -> None:
+        action = str(getattr(event, "action", "changed"))
+        if not self._writing and action.endswith(("added", "removed", "changed")):
+            self._on_edit()
+
+    def read(self, obj_id: int, grid_shape: tuple[int, int]) -> Any | None:
+        """Object ``obj_id``'s prompts from the layers (boxes: their rectangles).
+
+        Parameters
+        ----------
+        obj_id : int
+        grid_shape : (S, T)
+
+        Returns
+        -------
+        ObjectPrompts or None
+            None when the layers hold no prompt.
+        """
+        from lfsam.viewer.session import prompts_from_layers
+
+        points = self.layers[POINTS]
+        boxes = self.layers[BOXES]
+        positive = (
+            points.features["positive"].to_numpy(dtype=bool)
+            if len(points.data)
+            else np.zeros(0, dtype=bool)
+        )
+        rects = [
+            d for d, kind in zip(boxes.data, boxes.shape_type, strict=True) if kind == "rectangle"
+        ]
+        return prompts_from_layers(obj_id, points.data, positive, rects, grid_shape)
+
+    def write(self, obj: Any | None, center: tuple[int, int]) -> None:
+        """Show ``obj``'s prompts (None: none) in the layers, replacing theirs.
+
+        Parameters
+        ----------
+        obj : ObjectPrompts or None
+        center : (s, t)
+            The view of prompts without a view tag.
+        """
+        from lfsam.viewer.session import layers_from_prompts
+
+        points, positive, boxes = layers_from_prompts(obj, center)
+        self._writing = True
+        try:
+            layer = self.layers[POINTS]
+            layer.data = points
+            layer.features = {"positive": positive}
+            if hasattr(layer, "refresh_colors"):
+                layer.refresh_colors()
+            shapes = self.layers[BOXES]
+            shapes.data = []
+            if boxes:
+                shapes.add_rectangles(boxes)
+        finally:
+            self._writing = False
+        self.set_negative(self.negative)
+
+
+class MaskLayers:
+    """What the mask layers show: the current object, the committed and the automatic ones.
+
+    Parameters
+    ----------
+    layers : dict
+        The fixed layers by name (filled in later is fine: it is read at each call).
+
+    Attributes
+    ----------
+    prediction : LightFieldPrediction or None
+        The last prediction shown (its masks are unpacked lazily, by :meth:`mask_of`).
+    """
+
+    def __init__(self, layers: dict[str, Any]) -> None:
+        self.layers = layers
+        self.prediction: Any = None
+
+    def show_labels(self, name: str, labels: np.ndarray) -> None:
+        """Replace mask layer ``name``'s labels by ``labels`` ``(S, T, U, V)``."""
+        layer = self.layers[name]
+        layer.data[...] = labels
+        layer.refresh()
+
+    def show_current(
+        self,
+        obj_id: int,
+        *,
+        view: tuple[int, int] | None = None,
+        mask: np.ndarray | None = None,
+        masks: np.ndarray | None = None,
+    ) -> None:
+        """The current object's layer: ``mask`` in ``view`` only, ``masks`` in every view, or
+        nothing (neither given)."""
+        layer = self.layers[CURRENT]
+        layer.data[...] = 0
+        if view is not None and mask is not None:
+            layer.data[view][mask] = obj_id
+        elif masks is not None:
+            layer.data[np.asarray(masks, dtype=bool)] = obj_id
+        layer.refresh()
+
+    def show_prediction(self, prediction: Any, committed: set[int], auto: set[int]) -> None:
+        """Show ``prediction``'s ``committed`` and ``auto`` objects (not the current one)."""
+        from lfsam.viewer.session import select_labels
+
+        self.prediction = prediction
+        labels = np.asarray(prediction.labels)
+        self.show_labels(COMMITTED, select_labels(labels, committed))
+        self.show_labels(AUTO, select_labels(labels, auto))
+
+    def mask_of(self, obj_id: int) -> np.ndarray | None:
+        """Object ``obj_id``'s mask in the last prediction, ``(S, T, U, V)`` bool, or None."""
+        if self.prediction is None or obj_id not in self.prediction.masks:
+            return None
+        return np.asarray(self.prediction.masks[obj_id], dtype=bool)
+
+    def shown(self, obj_id: int) -> np.ndarray:
+        """Where the committed or automatic layer shows object ``obj_id``, ``(S, T, U, V)``."""
+        return (self.layers[COMMITTED].data == obj_id) | (self.layers[AUTO].data == obj_id)
+
+    def erase(self, obj_id: int, names: tuple[str, ...] = MASK_NAMES) -> None:
+        """Remove object ``obj_id`` from the mask layers ``names``."""
+        for name in names:
+            layer = self.layers[name]
+            layer.data[layer.data == obj_id] = 0
+            layer.refresh()
+
+    def recommit(self, obj_id: int) -> None:
+        """Show object ``obj_id``'s last predicted mask in the committed layer again, where the
+        layer shows no other object (it has just stopped being the current object)."""
+        mask = self.mask_of(obj_id)
+        if mask is not None:
+            layer = self.layers[COMMITTED]
+            layer.data[mask & (layer.data == 0)] = obj_id
+            layer.refresh()

@@ -1,10 +1,17 @@
 """The dock widget: click to segment a light field in napari, correct, commit, save.
 
 A thin Qt layer over :class:`lfsam.viewer.session.ViewerSession` (which drives
-:class:`lfsam.predictor.LightFieldPredictor`; docs/design.md section 8). Everything slow (loading
-the model, encoding, prediction, automatic segmentation) runs in a napari worker thread with a
-progress bar; actions asked for meanwhile are queued, so the interface never blocks. A prediction
-shows the prompted view's mask first, then the coarse masks of all views, then the refined ones.
+:class:`lfsam.predictor.LightFieldPredictor`; docs/design.md section 8), in the shape of napari
+plugins such as micro-sam's. It connects three parts and shows what they produce:
+
+- the dock's controls and layout (:mod:`lfsam.viewer.controls`);
+- the light field's layer and the fixed prompt and mask layers (:mod:`lfsam.viewer.adoption`,
+  :mod:`lfsam.viewer.layers`);
+- the worker (:mod:`lfsam.viewer.worker`): everything slow (loading the model, encoding,
+  prediction, automatic segmentation) runs in a napari worker thread with a progress bar and
+  yields typed events, on whose type the widget dispatches; actions asked for meanwhile are
+  queued, so the interface never blocks. A prediction shows the prompted view's mask first, then
+  the coarse masks of all views, then the refined ones.
 
 Keys (as in micro-sam): ``S`` segment, ``C`` commit the current object, ``T`` toggle positive /
 negative clicks (Ctrl-click adds a point of the other polarity), ``Shift-C`` clear the current
@@ -14,73 +21,40 @@ object, ``Ctrl-Z`` / ``Ctrl-Shift-Z`` undo / redo prompt edits.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from qtpy.QtCore import QTimer, Signal
-from qtpy.QtWidgets import (
-    QComboBox,
-    QFileDialog,
-    QFormLayout,
-    QGridLayout,
-    QHBoxLayout,
-    QLabel,
-    QListWidget,
-    QListWidgetItem,
-    QProgressBar,
-    QPushButton,
-    QVBoxLayout,
-    QWidget,
-)
+from qtpy.QtCore import Signal
+from qtpy.QtWidgets import QListWidgetItem, QWidget
 
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.pipeline.references import REFERENCE_MODES
 from lfsam.segmenters.registry import ORACLE
+from lfsam.viewer import controls as C
 from lfsam.viewer import layers as L
+from lfsam.viewer import worker as W
+from lfsam.viewer.adoption import LayerKeeper, lightfield_of, result_to_reopen
 from lfsam.viewer.native_libraries import preload_native_libraries
-from lfsam.viewer.plugin_io import LIGHTFIELD_KEY, RESULT_KEY, SESSION_KEY, lightfield_layers
-from lfsam.viewer.session import (
-    DISPARITY_SOURCES,
-    ViewerSession,
-    layers_from_prompts,
-    prompts_from_layers,
-    select_labels,
-)
+from lfsam.viewer.plugin_io import SESSION_KEY
+from lfsam.viewer.session import DISPARITY_SOURCES, ViewerSession
 
 __all__ = ["LightFieldWidget"]
 
-_FILE_ITEM = "file…"
-#: The weights box: the model hub's trained weights (cached), untrained ones, or a .pt file.
-_HUB_WEIGHTS = "trained (hub cache)"
-_RANDOM_WEIGHTS = "random (tests only)"
-
-
-def _choose_item(box: QComboBox, text: str) -> None:
-    """Select ``text`` in ``box``, inserting it before the last item ("file…") if it is new."""
-    if box.findText(text) < 0:
-        box.insertItem(box.count() - 1, text)
-    box.setCurrentText(text)
+#: Keys (napari's names) and the widget's methods they call.
+_KEYS = {
+    "s": "segment", "c": "commit", "t": "toggle_polarity", "Shift-c": "clear",
+    "Control-z": "undo", "Control-Shift-z": "redo",
+}
 
 
 def _notify_error(message: str) -> None:
     from napari.utils.notifications import show_error
 
     show_error(message)
-
-
-def _guarded(func: Callable[[], Iterator[tuple]]) -> Callable[[], Iterator[tuple]]:
-    """Run ``func`` in the worker; an LfsamError becomes an ("error", ...) item, not a raise."""
-
-    def run() -> Iterator[tuple]:
-        try:
-            yield from func()
-        except LfsamError as exc:
-            yield ("error", None, str(exc))
-
-    return run
 
 
 class LightFieldWidget(QWidget):
@@ -128,253 +102,115 @@ class LightFieldWidget(QWidget):
 
         self.viewer = napari_viewer
         self.session: ViewerSession | None = None
-        self.image_layer: Any = None
-        self.layers: dict[str, Any] = {}
-        self.negative = False  # polarity of plain clicks (T toggles)
-        self.worker: Any = None
-        self._queue: list[Callable[[], None]] = []
-        self._segment_pending = False
-        self._syncing = False
-        self._closing = False
         self.stages: list[str] = []  # stages shown by the last segmentation, in order
-        self._prediction: Any = None  # the last LightFieldPrediction (masks unpacked lazily)
         self._options = dict(segmenter_options or {})
         self._cache_dir = cache_dir
         self._autoload = autoload
 
-        # --- controls ---------------------------------------------------------------------
-        self.model_box = QComboBox()
-        self.model_box.addItems(available_models())
-        self.model_box.setCurrentText(model or DEFAULT_MODEL)
-        self.weights_box = QComboBox()
-        self.weights_box.addItems([_HUB_WEIGHTS, _RANDOM_WEIGHTS, _FILE_ITEM])
-        self.weights_box.setToolTip(
-            "SAM 2 weights: the model hub's (downloaded once into the cache), untrained ones "
-            "of the same architecture, or a checkpoint file (Meta's .pt) of the chosen model"
+        self.controls = c = C.DockControls(
+            models=available_models(),
+            model=model or DEFAULT_MODEL,
+            disparity_sources=DISPARITY_SOURCES,
+            disparity=None if disparity is None else str(disparity),
+            reference_modes=list(REFERENCE_MODES),
+            checkpoint=self._options.get("checkpoint"),
+            random_weights=bool(self._options.get("random_weights")),
         )
-        if self._options.get("checkpoint"):
-            _choose_item(self.weights_box, str(self._options["checkpoint"]))
-        elif self._options.get("random_weights"):
-            self.weights_box.setCurrentText(_RANDOM_WEIGHTS)
-        self.disparity_box = QComboBox()
-        self.disparity_box.addItems([*DISPARITY_SOURCES, _FILE_ITEM])
-        if disparity is not None:
-            _choose_item(self.disparity_box, str(disparity))
-        self.references_box = QComboBox()
-        self.references_box.addItems(list(REFERENCE_MODES))
-        self.references_box.setToolTip(
-            "Segment everything from the center view (the paper's setting), or also from the "
-            "corner views, the outer ring or every view, to find objects the center cannot see"
+        self.setLayout(c.layout)
+        # the controls callers read through the widget
+        self.model_box, self.weights_box = c.model_box, c.weights_box
+        self.disparity_box, self.references_box = c.disparity_box, c.references_box
+        self.objects, self.export_button = c.objects, c.export_button
+        self.progress, self.status = c.progress, c.status
+        self.work = W.WorkQueue(
+            c.progress, deliver=self._on_event, error=self._error, status=self._set_status,
+            finished=self._on_work_finished, segment=self._segment_now, parent=self,
         )
-        self.load_button = QPushButton("Load model")
-        self.polarity_label = QLabel()
-        self.segment_button = QPushButton("Segment [S]")
-        self.commit_button = QPushButton("Commit [C]")
-        self.clear_button = QPushButton("Clear [Shift-C]")
-        self.undo_button = QPushButton("Undo [Ctrl-Z]")
-        self.redo_button = QPushButton("Redo [Ctrl-Shift-Z]")
-        self.toggle_button = QPushButton("Toggle +/- [T]")
-        self.everything_button = QPushButton("Segment everything")
-        self.objects = QListWidget()
-        self.edit_button = QPushButton("Edit selected")
-        self.remove_button = QPushButton("Remove selected")
-        self.open_labels_button = QPushButton("Reopen selected labels layer")
-        self.view_buttons = {
-            "views": QPushButton("Views"),
-            "epi-row": QPushButton("EPI (row)"),
-            "epi-column": QPushButton("EPI (column)"),
-        }
-        self.save_button = QPushButton("Save result…")
-        self.export_button = QPushButton("Export…")
-        self.progress = QProgressBar()
-        self.progress.setRange(0, 1)
-        self.progress.setValue(0)
-        self.status = QLabel("")
-        self.status.setWordWrap(True)
-
-        form = QFormLayout()
-        form.addRow("Model", self.model_box)
-        form.addRow("Weights", self.weights_box)
-        form.addRow("Disparity", self.disparity_box)
-        form.addRow("Everything from", self.references_box)
-        grid = QGridLayout()
-        buttons = [
-            self.segment_button, self.commit_button, self.toggle_button, self.clear_button,
-            self.undo_button, self.redo_button,
-        ]
-        for i, button in enumerate(buttons):
-            grid.addWidget(button, i // 2, i % 2)
-        views = QHBoxLayout()
-        for button in self.view_buttons.values():
-            views.addWidget(button)
-        objects_row = QHBoxLayout()
-        objects_row.addWidget(self.edit_button)
-        objects_row.addWidget(self.remove_button)
-        files_row = QHBoxLayout()
-        files_row.addWidget(self.save_button)
-        files_row.addWidget(self.export_button)
-        layout = QVBoxLayout()
-        layout.addLayout(form)
-        layout.addWidget(self.load_button)
-        layout.addWidget(self.polarity_label)
-        layout.addLayout(grid)
-        layout.addWidget(self.everything_button)
-        layout.addWidget(QLabel("Objects (double-click to edit)"))
-        layout.addWidget(self.objects)
-        layout.addLayout(objects_row)
-        layout.addWidget(self.open_labels_button)
-        layout.addLayout(views)
-        layout.addLayout(files_row)
-        layout.addWidget(self.progress)
-        layout.addWidget(self.status)
-        layout.addStretch(1)
-        self.setLayout(layout)
-
-        self.load_button.clicked.connect(self.load_model)
-        self.model_box.currentTextChanged.connect(self._on_model_changed)
-        self._on_model_changed(self.model_box.currentText())
-        self.weights_box.activated.connect(self._on_weights_activated)
-        self.disparity_box.activated.connect(self._on_disparity_activated)
-        self.segment_button.clicked.connect(self.segment)
-        self.commit_button.clicked.connect(self.commit)
-        self.clear_button.clicked.connect(self.clear)
-        self.undo_button.clicked.connect(self.undo)
-        self.redo_button.clicked.connect(self.redo)
-        self.toggle_button.clicked.connect(self.toggle_polarity)
-        self.everything_button.clicked.connect(self.segment_everything)
-        self.objects.itemDoubleClicked.connect(self._on_object_double_clicked)
-        self.edit_button.clicked.connect(self._edit_selected)
-        self.remove_button.clicked.connect(self._remove_selected)
-        self.open_labels_button.clicked.connect(self._open_selected_labels)
-        for name, button in self.view_buttons.items():
-            button.clicked.connect(lambda _=False, n=name: self.show_display(n))
-        self.save_button.clicked.connect(self._save_dialog)
-        self.export_button.clicked.connect(self._export_dialog)
-        self.export_button.setEnabled(_export_module() is not None)
-        self._update_polarity()
-
-        self.viewer.layers.events.removed.connect(self._on_layer_removed)
-        self.viewer.layers.events.inserted.connect(self._on_layer_inserted)
+        self._connect_controls()
+        self.keeper = LayerKeeper(napari_viewer, adopt=self._adopt)
+        self.layers: dict[str, Any] = self.keeper.layers
+        self.masks = L.MaskLayers(self.layers)
+        self.prompts = L.PromptLayers(self.layers, on_edit=self._on_prompts_edited)
         for key, func in self._keymap().items():
             self.viewer.bind_key(key, lambda _v, f=func: f(), overwrite=True)
-
         if lightfield is not None:
             self.set_lightfield(lightfield)
         else:
-            for layer in list(self.viewer.layers):
-                if self._adopt(layer):
-                    break
+            self.keeper.adopt_existing()
 
     # --- set-up -------------------------------------------------------------------------------
+    def _connect_controls(self) -> None:
+        c = self.controls
+        c.load_button.clicked.connect(self.load_model)
+        c.model_box.currentTextChanged.connect(self._on_model_changed)
+        self._on_model_changed(c.model_box.currentText())
+        c.weights_box.activated.connect(self._on_weights_activated)
+        c.disparity_box.activated.connect(self._on_disparity_activated)
+        for button, action in (
+            (c.segment_button, self.segment), (c.commit_button, self.commit),
+            (c.clear_button, self.clear), (c.undo_button, self.undo), (c.redo_button, self.redo),
+            (c.toggle_button, self.toggle_polarity),
+            (c.everything_button, self.segment_everything),
+            (c.edit_button, lambda: self._on_selected(self.edit_object)),
+            (c.remove_button, lambda: self._on_selected(self.remove_object)),
+            (c.open_labels_button, self._open_selected_labels),
+            (c.save_button, self._save_dialog), (c.export_button, self._export_dialog),
+        ):
+            button.clicked.connect(lambda _=False, a=action: a())
+        c.objects.itemDoubleClicked.connect(self._on_object_double_clicked)
+        for name, button in c.view_buttons.items():
+            button.clicked.connect(lambda _=False, n=name: self.show_display(n))
+        c.export_button.setEnabled(_export_module() is not None)
+
     def _keymap(self) -> dict[str, Callable[[], None]]:
-        return {
-            "s": self.segment,
-            "c": self.commit,
-            "t": self.toggle_polarity,
-            "Shift-c": self.clear,
-            "Control-z": self.undo,
-            "Control-Shift-z": self.redo,
-        }
+        """The dock's keys (bound on the viewer and on each fixed layer)."""
+        return {key: getattr(self, name) for key, name in _KEYS.items()}
 
     def _adopt(self, layer: Any) -> bool:
         """Use ``layer`` as the light field if it is one; returns whether it was adopted."""
-        from napari.layers import Image
-
-        if self.session is not None or not isinstance(layer, Image):
-            return False
-        lightfield = layer.metadata.get(LIGHTFIELD_KEY)
-        if lightfield is None:
-            data = layer.data
-            if not (layer.rgb and getattr(data, "ndim", 0) == 5 and data.shape[-1] == 3):
-                return False
-            try:
-                lightfield = LightField(views=np.asarray(data))
-            except LfsamError:
-                return False
-        self.set_lightfield(lightfield, layer)
-        return True
+        lightfield = None if self.session is not None else lightfield_of(layer)
+        if lightfield is not None:
+            self.set_lightfield(lightfield, layer)
+        return lightfield is not None
 
     def set_lightfield(self, lightfield: LightField, layer: Any = None) -> None:
         """Show ``lightfield`` (one image layer) and create the prompt and mask layers."""
-        self._syncing = True  # the layers added here are not new light fields to adopt
-        try:
-            if layer is None:
-                for data, kwargs, kind in lightfield_layers(lightfield):
-                    added = getattr(self.viewer, f"add_{kind}")(data, **kwargs)
-                    if kind == "image":
-                        layer = added
-        finally:
-            self._syncing = False
-        self.image_layer = layer
         self.session = ViewerSession(
             lightfield,
             model=self.model_box.currentText(),
-            disparity=self._disparity_value(),
+            disparity=self.disparity_box.currentText(),
             cache_dir=self._cache_dir,
             segmenter_options=dict(self._options),
         )
-        shape = lightfield.views.shape[:4]
-        for name in L.LAYER_NAMES:
-            self.layers[name] = self._add_layer(L.make_layer(name, shape))
+        self.keeper.show(lightfield, layer, self._keymap())
         self.layers[L.COMMITTED].metadata[SESSION_KEY] = self.session
-        points = self.layers[L.POINTS]
-        points.mouse_drag_callbacks.insert(0, self._on_points_press)
-        points.events.data.connect(self._on_prompts_edited)
-        self.layers[L.BOXES].events.data.connect(self._on_prompts_edited)
-        center = lightfield.center
-        self.viewer.dims.current_step = (*center, *self.viewer.dims.current_step[2:])
-        self.viewer.layers.selection.active = points
-        points.mode = "add"
-        self._update_polarity()
+        self.viewer.dims.current_step = (*lightfield.center, *self.viewer.dims.current_step[2:])
+        self.viewer.layers.selection.active = self.layers[L.POINTS]
+        self.prompts.attach()
         self._refresh_objects()
         if self._autoload:
             self.load_model()
 
-    def _add_layer(self, layer: Any) -> Any:
-        self.viewer.layers.append(layer)
-        for key, func in self._keymap().items():
-            layer.bind_key(key, lambda _l, f=func: f(), overwrite=True)
-        return layer
-
-    def _on_layer_removed(self, event: Any) -> None:
-        layer = event.value
-        if layer is self.image_layer:
-            self._closing = True  # the light field is gone: stop re-creating layers
-        if self._closing or layer not in self.layers.values():
-            return
-        # a fixed layer was deleted: put it back (after napari has finished removing it)
-        index = getattr(event, "index", None)
-        QTimer.singleShot(0, lambda: self._restore_layer(layer, index))
-
-    def _restore_layer(self, layer: Any, index: int | None = None) -> None:
-        # not while the viewer closes (it removes every layer, the light field's too)
-        layers = self.viewer.layers
-        if self._closing or self.image_layer not in layers or layer in layers:
-            return
-        layers.insert(len(layers) if index is None else min(index, len(layers)), layer)
-
-    def _on_layer_inserted(self, event: Any) -> None:
-        if self.session is None and not self._syncing:
-            self._adopt(event.value)
+    @property
+    def image_layer(self) -> Any:
+        """The light field's image layer (None before there is one)."""
+        return self.keeper.image_layer
 
     # --- running work -------------------------------------------------------------------------
     @property
     def busy(self) -> bool:
         """Whether a worker is running."""
-        return self.worker is not None
+        return self.work.busy
 
-    def _when_idle(self, action: Callable[[], None]) -> None:
-        """Run ``action`` now, or after the running worker (in order)."""
-        if self.busy:
-            self._queue.append(action)
-        else:
-            self._try(action)
+    @property
+    def worker(self) -> Any:
+        """The running napari worker, or None."""
+        return self.work.worker
 
-    def _try(self, action: Callable[[], None]) -> None:
-        try:
-            action()
-        except LfsamError as exc:
-            self._error(str(exc))
+    @property
+    def _segment_pending(self) -> bool:
+        """Whether a segmentation waits for the running worker."""
+        return self.work.segment_pending
 
     def _set_status(self, text: str) -> None:
         self.status.setText(text)
@@ -385,206 +221,106 @@ class LightFieldWidget(QWidget):
         self._set_status(message)
         _notify_error(message)
 
-    def _start(self, func: Callable[[], Iterator[tuple]], total: int, desc: str) -> None:
-        from napari.qt.threading import create_worker
+    def _on_event(self, event: W.WorkerEvent) -> None:
+        """Show what the worker yielded (main thread); partial masks of a left object are not."""
+        match event:
+            case W.ModelLoaded(model=model, device=device):
+                where = f" on {device}" if device is not None else ""
+                self._set_status(f"model {model} loaded{where}")
+            case W.ReferenceMask(obj_id=obj_id) | W.CoarseMasks(obj_id=obj_id) if (
+                obj_id != self.session.current_id
+            ):
+                return  # the object was committed or left meanwhile
+            case W.ReferenceMask(obj_id=obj_id, view=view, mask=mask, score=score):
+                self.stages.append(event.stage)
+                self._show_current(obj_id, view=view, mask=mask)
+                self._set_status(f"object {obj_id}: view {view} (score {score:.2f})")
+            case W.CoarseMasks(obj_id=obj_id, prediction=prediction):
+                self.stages.append(event.stage)
+                self._show_current(obj_id, masks=prediction.masks.get(obj_id))
+            case W.FinalMasks(prediction=prediction):
+                self.stages.append(event.stage)
+                self._show_prediction(prediction)
+            case W.AllMasks(prediction=prediction):
+                self._show_prediction(prediction)
 
-        self.progress.setRange(0, total)
-        self.progress.setValue(0)
-        self._set_status(desc + "…")
-        self.worker = create_worker(
-            _guarded(func),
-            _progress={"total": total, "desc": desc},
-            _connect={
-                "yielded": self._on_yielded,
-                "finished": self._on_finished,
-                "errored": self._on_errored,
-            },
-            _start_thread=True,
-        )
-
-    def _on_yielded(self, item: tuple) -> None:
-        kind, obj_id, value = item
-        if kind in ("reference", "coarse", "final"):
-            self.stages.append(kind)
-        self.progress.setValue(min(self.progress.value() + 1, self.progress.maximum()))
-        if kind == "error":
-            self._error(value)
-            self._queue.clear()
-            self._segment_pending = False
-        elif kind == "loaded":
-            device = getattr(self.session.predictor.segmenter, "device", None)
-            where = f" on {device}" if device is not None else ""
-            self._set_status(f"model {self.session.model} loaded{where}")
-        elif kind == "reference":
-            view, mask, score = value
-            self._show_current(obj_id, view=tuple(view), mask=np.asarray(mask))
-            self._set_status(f"object {obj_id}: view {tuple(view)} (score {score:.2f})")
-        elif kind == "coarse":
-            self._show_current(obj_id, masks=value.masks.get(obj_id))
-        elif kind in ("final", "all"):
-            self._show_prediction(value)
-
-    def _on_errored(self, exc: Exception) -> None:  # a bug, not a user error: keep its traceback
-        self._queue.clear()
-        self._segment_pending = False
-        self._set_status(f"error: {exc}")
-
-    def _on_finished(self) -> None:
-        self.worker = None
-        self.progress.setValue(self.progress.maximum())
+    def _on_work_finished(self) -> None:
         self._refresh_objects()
-        if not self._closing:
-            self._drain()
-
-    def _drain(self) -> None:
-        """Run queued actions in order until one starts a worker; then a pending segmentation."""
-        while self._queue and not self.busy:
-            self._try(self._queue.pop(0))
-        if self._segment_pending and not self.busy:
-            self._segment_pending = False
-            self._try(self._segment_now)
+        if not self.keeper.closing:  # the light field's layer is gone, or the dock
+            self.work.drain()
 
     # --- model --------------------------------------------------------------------------------
-    def _disparity_value(self) -> str:
-        return self.disparity_box.currentText()
-
     def _on_model_changed(self, name: str) -> None:
         self.weights_box.setEnabled(name != ORACLE)  # the oracle has no weights
         if self.session is not None and self.session.model != name:
             self.session.model = name
-            if self.session.loaded:
-                self.load_model()
+            self._reload()
 
     def _on_weights_activated(self, _index: int) -> None:
-        text = self.weights_box.currentText()
-        if text == _FILE_ITEM:
-            text = self._pick_file(self.weights_box, "SAM 2 checkpoint (.pt)", "*.pt *.pth")
-            if text is None:  # cancelled: show the weights in use again
-                self.set_weights(**{k: self._options.get(k) for k in ("checkpoint",
-                                                                      "random_weights")})
-                return
-        self.set_weights(
-            checkpoint=None if text in (_HUB_WEIGHTS, _RANDOM_WEIGHTS) else text,
-            random_weights=text == _RANDOM_WEIGHTS,
-        )
+        in_use = (self._options.get("checkpoint"), bool(self._options.get("random_weights")))
+        chosen = self.controls.pick_weights(self, in_use)
+        if chosen is not None:
+            self.set_weights(*chosen)
 
     def set_weights(self, checkpoint: str | None = None, random_weights: bool = False) -> None:
         """Use a checkpoint file, untrained weights or (neither) the hub's; reloads a loaded
         model (the CLI's ``--checkpoint`` and ``--random-weights``)."""
-        if checkpoint:
-            _choose_item(self.weights_box, str(checkpoint))
-        else:
-            self.weights_box.setCurrentText(_RANDOM_WEIGHTS if random_weights else _HUB_WEIGHTS)
+        self.controls.show_weights(checkpoint, random_weights)
         weights = {"checkpoint": checkpoint or None, "random_weights": bool(random_weights)}
         changed = any(self._options.get(key) != value for key, value in weights.items())
         self._options.update(weights)
         if self.session is not None and changed:
             self.session.segmenter_options = dict(self._options)
-            if self.session.loaded and self.session.model != ORACLE:
-                self.load_model()
-
-    def _pick_file(self, box: QComboBox, title: str, pattern: str) -> str | None:
-        """Ask for a file with a dialog; it becomes the box's chosen item (None: cancelled)."""
-        path, _ = QFileDialog.getOpenFileName(self, title, "", pattern)
-        if path:
-            _choose_item(box, path)
-        return path or None
+            if self.session.model != ORACLE:  # the oracle has no weights
+                self._reload()
 
     def _on_disparity_activated(self, _index: int) -> None:
-        if self.disparity_box.currentText() == _FILE_ITEM:
-            if self._pick_file(self.disparity_box, "Disparity (.npy)", "*.npy") is None:
-                if self.session is not None:  # cancelled: show the source in use again
-                    _choose_item(self.disparity_box, str(self.session.disparity))
-                return
-        if self.session is not None and self.session.disparity != self._disparity_value():
-            self.session.disparity = self._disparity_value()
-            if self.session.loaded:
-                self.load_model()
+        in_use = None if self.session is None else str(self.session.disparity)
+        source = self.controls.pick_disparity(self, in_use)
+        if source is not None and self.session is not None and source != in_use:
+            self.session.disparity = source
+            self._reload()
+
+    def _reload(self) -> None:
+        """Load the model again if it is loaded (its name, weights or disparity changed)."""
+        if self.session.loaded:
+            self.load_model()
 
     def load_model(self) -> None:
         """Load the chosen model and disparity source (worker); objects are recomputed."""
         if self.session is None:
             self._error("no light field: open one first (File > Open, or `lfsam view LF`)")
             return
-
-        def job() -> Iterator[tuple]:
-            self.session.load()
-            yield ("loaded", None, None)
-            if self.session.object_ids:
-                yield ("all", None, self.session.predict_all())
-
-        self._when_idle(lambda: self._start(job, 2, f"loading {self.session.model}"))
+        job = partial(W.load_job, self.session)
+        self.work.when_idle(lambda: self.work.start(job, 2, f"loading {self.session.model}"))
 
     # --- prompts ------------------------------------------------------------------------------
-    def _on_points_press(self, layer: Any, event: Any) -> None:
-        """Before napari adds a clicked point: its polarity (Ctrl-click = the other one)."""
-        if layer.mode != "add":
-            return
-        modifiers = getattr(event, "modifiers", ())
-        flip = "Control" in modifiers or "Meta" in modifiers  # vispy keys compare to names
-        layer.feature_defaults = {"positive": self.negative == flip}
+    @property
+    def negative(self) -> bool:
+        """Whether plain clicks add negative points (T toggles)."""
+        return self.prompts.negative
 
     def toggle_polarity(self) -> None:
         """T: plain clicks add negative points instead of positive ones, or back."""
-        self.negative = not self.negative
-        self._update_polarity()
+        self.prompts.set_negative(not self.prompts.negative)
+        self.controls.show_polarity(self.prompts.negative)
 
-    def _update_polarity(self) -> None:
-        text = "negative" if self.negative else "positive"
-        self.polarity_label.setText(f"Clicks add {text} points (Ctrl-click: the other; T)")
-        if L.POINTS in self.layers:
-            self.layers[L.POINTS].feature_defaults = {"positive": not self.negative}
-
-    def _layer_prompts(self) -> Any:
-        points = self.layers[L.POINTS]
-        boxes = self.layers[L.BOXES]
-        positive = (
-            points.features["positive"].to_numpy(dtype=bool)
-            if len(points.data)
-            else np.zeros(0, dtype=bool)
-        )
-        rects = [
-            d for d, kind in zip(boxes.data, boxes.shape_type, strict=True) if kind == "rectangle"
-        ]
-        return prompts_from_layers(
-            self.session.current_id,
-            points.data,
-            positive,
-            rects,
-            self.session.lightfield.grid_shape,
-        )
-
-    def _on_prompts_edited(self, event: Any) -> None:
-        action = str(getattr(event, "action", "changed"))
-        if self._syncing or self.session is None or not action.endswith(("added", "removed",
-                                                                          "changed")):
-            return
-        if self.session.history.push(self._layer_prompts()):
-            self.segment()
+    def _on_prompts_edited(self) -> None:
+        if self.session is not None:
+            grid = self.session.lightfield.grid_shape
+            if self.session.history.push(self.prompts.read(self.session.current_id, grid)):
+                self.segment()
 
     def _set_layer_prompts(self, obj: Any) -> None:
-        points, positive, boxes = layers_from_prompts(obj, self.session.lightfield.center)
-        self._syncing = True
-        try:
-            layer = self.layers[L.POINTS]
-            layer.data = points
-            layer.features = {"positive": positive}
-            layer.refresh_colors() if hasattr(layer, "refresh_colors") else None
-            shapes = self.layers[L.BOXES]
-            shapes.data = []
-            if boxes:
-                shapes.add_rectangles(boxes)
-        finally:
-            self._syncing = False
-        self._update_polarity()
+        self.prompts.write(obj, self.session.lightfield.center)
 
     def undo(self) -> None:
         """Ctrl-Z: undo the last prompt edit of the current object."""
-        self._when_idle(lambda: self._apply_history(self.session.history.undo()))
+        self.work.when_idle(lambda: self._apply_history(self.session.history.undo()))
 
     def redo(self) -> None:
         """Ctrl-Shift-Z: redo an undone prompt edit."""
-        self._when_idle(lambda: self._apply_history(self.session.history.redo()))
+        self.work.when_idle(lambda: self._apply_history(self.session.history.redo()))
 
     def _apply_history(self, obj: Any) -> None:
         self._set_layer_prompts(obj)
@@ -593,16 +329,12 @@ class LightFieldWidget(QWidget):
     # --- actions ------------------------------------------------------------------------------
     def segment(self) -> None:
         """S: segment the current object from its prompts (worker; queued if busy)."""
-        if self.session is None:
-            return
-        if self.busy:
-            self._segment_pending = True
-        else:
-            self._try(self._segment_now)
+        if self.session is not None:
+            self.work.request_segment()
 
     def _segment_now(self) -> None:
         if not self.session.loaded:
-            self._segment_pending = True
+            self.work.segment_pending = True
             self.load_model()
             return
         obj_id = self.session.current_id
@@ -611,16 +343,15 @@ class LightFieldWidget(QWidget):
             self._show_current(obj_id)
             return
         self.stages = []
+        self.work.start(partial(W.segment_job, self.session, obj_id), 3,
+                        f"segmenting object {obj_id}")
 
-        def job() -> Iterator[tuple]:
-            for stage, value in self.session.segment_current():
-                yield (stage, obj_id, value)
-
-        self._start(job, 3, f"segmenting object {obj_id}")
+    def _predict_all(self, desc: str) -> None:
+        self.work.start(partial(W.predict_all_job, self.session), 1, desc)
 
     def commit(self) -> None:
         """C: commit the current object; the next clicks start a new one."""
-        self._when_idle(self._commit_now)
+        self.work.when_idle(self._commit_now)
 
     def _commit_now(self) -> None:
         if self.session is None or not self.session.loaded:
@@ -629,7 +360,7 @@ class LightFieldWidget(QWidget):
         self.session.commit()
         self._set_layer_prompts(None)
         self._show_current(self.session.current_id)
-        self._start(lambda: iter([("all", None, self.session.predict_all())]), 1, "committing")
+        self._predict_all("committing")
 
     def clear(self) -> None:
         """Shift-C: remove the current object's prompts and mask."""
@@ -645,79 +376,64 @@ class LightFieldWidget(QWidget):
             self._show_current(self.session.current_id)
             self._refresh_objects()
 
-        self._when_idle(run)
+        self.work.when_idle(run)
+
+    def _when_loaded(self, run: Callable[[], None]) -> None:
+        """Run ``run`` once the model is loaded (loading it first if need be)."""
+        if self.session.loaded:
+            run()
+        else:
+            self.load_model()
+            self.work.when_idle(lambda: self._when_loaded(run))
 
     def segment_everything(self) -> None:
         """Automatic mode (``predictor.generate``): every object found, in its own layer."""
 
         def run() -> None:
-            if self.session is None:
-                return
-            if not self.session.loaded:
-                self.load_model()
-                self._when_idle(run)
-                return
             references = self.references_box.currentText()
-            self._start(
-                lambda: iter([("all", None, self.session.generate(references))]), 1,
-                "segmenting everything" + ("" if references == "center" else f" ({references})"),
-            )
+            desc = "segmenting everything" + ("" if references == "center" else f" ({references})")
+            self.work.start(partial(W.generate_job, self.session, references), 1, desc)
 
-        self._when_idle(run)
+        if self.session is not None:
+            self.work.when_idle(lambda: self._when_loaded(run))
 
     def edit_object(self, obj_id: int) -> None:
         """Make object ``obj_id`` the one being edited: its prompts go to the prompt layers."""
 
         def run() -> None:
             previous = self.session.current_id
-            obj = self.session.edit(obj_id)
-            self._set_layer_prompts(obj)
-            mask = self._mask_of(obj_id)
-            if mask is None:
-                mask = (self.layers[L.COMMITTED].data == obj_id) | (
-                    self.layers[L.AUTO].data == obj_id
-                )
-            for name in (L.COMMITTED, L.AUTO):
-                layer = self.layers[name]
-                layer.data[layer.data == obj_id] = 0
-                if previous in self.session.committed and name == L.COMMITTED:
-                    old = self._mask_of(previous)
-                    if old is not None:
-                        layer.data[old & (layer.data == 0)] = previous
-                layer.refresh()
+            self._set_layer_prompts(self.session.edit(obj_id))
+            mask = self.masks.mask_of(obj_id)
+            mask = self.masks.shown(obj_id) if mask is None else mask
+            self.masks.erase(obj_id, (L.COMMITTED, L.AUTO))
+            if previous in self.session.committed:  # the object left was committed
+                self.masks.recommit(previous)
             self._show_current(obj_id, masks=mask)
             self._refresh_objects()
 
-        self._when_idle(run)
+        self.work.when_idle(run)
 
     def remove_object(self, obj_id: int) -> None:
         """Delete object ``obj_id`` (prompts and masks)."""
 
         def run() -> None:
             self.session.remove(obj_id)
-            for name in (L.COMMITTED, L.AUTO, L.CURRENT):
-                layer = self.layers[name]
-                layer.data[layer.data == obj_id] = 0
-                layer.refresh()
+            self.masks.erase(obj_id)
             if obj_id == self.session.current_id:
                 self._set_layer_prompts(None)
             self._refresh_objects()
 
-        self._when_idle(run)
+        self.work.when_idle(run)
 
     def open_result(self, result: Any) -> None:
         """Reopen a result's objects (``LightFieldPredictor.load_objects``) for correction."""
 
         def run() -> None:
-            if not self.session.loaded:
-                self.load_model()
-                self._when_idle(run)
-                return
             self.session.open_result(result)
-            self._show_labels(L.COMMITTED, np.asarray(result.labels))
-            self._start(lambda: iter([("all", None, self.session.predict_all())]), 1, "reopening")
+            self.masks.show_labels(L.COMMITTED, np.asarray(result.labels))
+            self._predict_all("reopening")
 
-        self._when_idle(run)
+        self.work.when_idle(lambda: self._when_loaded(run))
 
     def open_labels(self, labels: np.ndarray) -> None:
         """Reopen a labels array ``(S, T, U, V)`` (label = object id) for correction."""
@@ -746,115 +462,58 @@ class LightFieldWidget(QWidget):
         return path
 
     # --- display ------------------------------------------------------------------------------
-    def _show_labels(self, name: str, labels: np.ndarray) -> None:
-        layer = self.layers[name]
-        layer.data[...] = labels
-        layer.refresh()
+    @property
+    def _prediction(self) -> Any:
+        """The last LightFieldPrediction shown (or None)."""
+        return self.masks.prediction
 
-    def _show_current(
-        self,
-        obj_id: int,
-        *,
-        view: tuple[int, int] | None = None,
-        mask: np.ndarray | None = None,
-        masks: np.ndarray | None = None,
-    ) -> None:
-        """The current object's layer: one view's mask, all views' masks, or nothing."""
-        if obj_id != self.session.current_id:
-            return  # the object was committed or left meanwhile
-        layer = self.layers[L.CURRENT]
-        layer.data[...] = 0
-        if view is not None and mask is not None:
-            layer.data[view][mask] = obj_id
-        elif masks is not None:
-            layer.data[np.asarray(masks, dtype=bool)] = obj_id
-        layer.refresh()
+    def _show_current(self, obj_id: int, **shown: Any) -> None:
+        """The current object's layer (:meth:`MaskLayers.show_current`), if ``obj_id`` still is
+        the current object."""
+        if obj_id == self.session.current_id:  # else it was committed or left meanwhile
+            self.masks.show_current(obj_id, **shown)
 
     def _show_prediction(self, prediction: Any) -> None:
         if prediction is None:
             return
-        self._prediction = prediction
-        labels = np.asarray(prediction.labels)
-        self._show_labels(L.COMMITTED, select_labels(labels, self.session.committed))
-        self._show_labels(L.AUTO, select_labels(labels, self.session.auto))
-        self._show_current(self.session.current_id, masks=self._mask_of(self.session.current_id))
+        session = self.session
+        self.masks.show_prediction(prediction, session.committed, session.auto)
+        self._show_current(session.current_id, masks=self.masks.mask_of(session.current_id))
         self._refresh_objects()
         self._set_status(f"{len(prediction.masks)} object(s) segmented in every view")
 
-    def _mask_of(self, obj_id: int) -> np.ndarray | None:
-        """Object ``obj_id``'s mask in the last prediction, ``(S, T, U, V)`` bool, or None."""
-        if self._prediction is None or obj_id not in self._prediction.masks:
-            return None
-        return np.asarray(self._prediction.masks[obj_id], dtype=bool)
-
     def _refresh_objects(self) -> None:
-        self.objects.clear()
-        if self.session is None:
-            return
-        for obj_id in self.session.object_ids:
-            if obj_id == self.session.current_id:
-                role = "editing"
-            elif obj_id in self.session.auto:
-                role = "automatic"
-            else:
-                role = "committed"
-            item = QListWidgetItem(f"{obj_id}  ({role})")
-            item.setData(256, obj_id)  # Qt.UserRole
-            self.objects.addItem(item)
+        if self.session is not None:
+            session = self.session
+            self.controls.show_objects(session.object_ids, session.current_id, session.auto)
 
-    def _selected_id(self) -> int | None:
-        item = self.objects.currentItem()
-        return None if item is None else int(item.data(256))
-
+    # --- object list and dialogs --------------------------------------------------------------
     def _on_object_double_clicked(self, item: QListWidgetItem) -> None:
-        self.edit_object(int(item.data(256)))
+        self.edit_object(C.item_id(item))
 
-    def _edit_selected(self) -> None:
-        obj_id = self._selected_id()
+    def _on_selected(self, action: Callable[[int], None]) -> None:
+        obj_id = self.controls.selected_id()
         if obj_id is not None:
-            self.edit_object(obj_id)
-
-    def _remove_selected(self) -> None:
-        obj_id = self._selected_id()
-        if obj_id is not None:
-            self.remove_object(obj_id)
+            action(obj_id)
 
     def _open_selected_labels(self) -> None:
-        from napari.layers import Labels
-
-        layer = self.viewer.layers.selection.active
-        if not isinstance(layer, Labels) or layer in self.layers.values():
-            self._error("select a labels layer of this light field (not one of the widget's)")
-            return
-        result = layer.metadata.get(RESULT_KEY)
-        if result is not None:
-            self.open_result(result)
-        else:
-            self.open_labels(layer.data)
+        active = self.viewer.layers.selection.active
+        self.work.attempt(lambda: self.open_result(result_to_reopen(active, self.layers.values())))
 
     def _save_dialog(self) -> None:
-        path, _ = QFileDialog.getSaveFileName(self, "Save lfsam result", "result.npz", "*.npz")
+        path = C.ask_save_file(self, "Save lfsam result", "result.npz", "*.npz")
         if path:
-            self._when_idle(lambda: self.save(path))
+            self.work.when_idle(lambda: self.save(path))
 
     def _export_dialog(self) -> None:
-        from qtpy.QtWidgets import QInputDialog
-
         module = _export_module()
-        if module is None:
-            return
-        to, ok = QInputDialog.getItem(
-            self, "Export", "Format", list(module.EXPORT_FORMATS), 0, False
-        )
-        if not ok:
-            return
-        out, _ = QFileDialog.getSaveFileName(self, "Export to a new folder", "export")
-        if out:
-            self._when_idle(lambda: self.export(out, to))
+        answer = None if module is None else C.ask_export(self, module.EXPORT_FORMATS)
+        if answer is not None:
+            self.work.when_idle(lambda: self.export(*answer))
 
     def closeEvent(self, event: Any) -> None:
         """Stop reacting to the viewer when the dock widget closes."""
-        self._closing = True
+        self.keeper.closing = True
         super().closeEvent(event)
 
 

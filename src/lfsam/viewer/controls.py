@@ -1,0 +1,260 @@
+"""The dock's controls: the boxes, buttons, object list, progress bar and status line, laid out.
+
+Built here and only here; the dock widget (:mod:`lfsam.viewer.widget`) connects them to its
+actions and reads them (docs/design.md section 8). Besides the layout, this module owns what the
+boxes mean: which weights the "Weights" box names (the model hub's, untrained ones or a
+checkpoint file), the "file…" item that asks for a file, the object list's rows, and the dialogs
+that ask for a file or an export format.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Container, Iterable, Sequence
+
+from qtpy.QtWidgets import (
+    QComboBox,
+    QFileDialog,
+    QFormLayout,
+    QGridLayout,
+    QHBoxLayout,
+    QInputDialog,
+    QLabel,
+    QListWidget,
+    QListWidgetItem,
+    QProgressBar,
+    QPushButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+__all__ = [
+    "FILE_ITEM",
+    "HUB_WEIGHTS",
+    "RANDOM_WEIGHTS",
+    "DockControls",
+    "ask_export",
+    "ask_open_file",
+    "ask_save_file",
+    "item_id",
+]
+
+#: The last item of the weights and disparity boxes: asks for a file.
+FILE_ITEM = "file…"
+#: The weights box: the model hub's trained weights (cached), untrained ones, or a .pt file.
+HUB_WEIGHTS = "trained (hub cache)"
+RANDOM_WEIGHTS = "random (tests only)"
+
+_USER_ROLE = 256  # Qt.UserRole: the object id behind a row of the object list
+
+
+def _choose_item(box: QComboBox, text: str) -> None:
+    """Select ``text`` in ``box``, inserting it before the last item ("file…") if it is new."""
+    if box.findText(text) < 0:
+        box.insertItem(box.count() - 1, text)
+    box.setCurrentText(text)
+
+
+class DockControls:
+    """The dock's Qt widgets and their layout (:attr:`layout`); nothing is connected here.
+
+    Parameters
+    ----------
+    models : sequence of str
+        The model box's items.
+    model : str
+        The model chosen.
+    disparity_sources : sequence of str
+        The disparity box's items before "file…".
+    disparity : str, optional
+        The disparity source chosen (a path is added as an item); default the first source.
+    reference_modes : sequence of str
+        The "Everything from" box's items.
+    checkpoint : str, optional
+        A checkpoint file chosen in the weights box.
+    random_weights : bool
+        Untrained weights chosen (when there is no checkpoint).
+    """
+
+    def __init__(
+        self,
+        *,
+        models: Sequence[str],
+        model: str,
+        disparity_sources: Sequence[str],
+        disparity: str | None = None,
+        reference_modes: Sequence[str],
+        checkpoint: str | None = None,
+        random_weights: bool = False,
+    ) -> None:
+        self.model_box = QComboBox()
+        self.model_box.addItems(list(models))
+        self.model_box.setCurrentText(model)
+        self.weights_box = QComboBox()
+        self.weights_box.addItems([HUB_WEIGHTS, RANDOM_WEIGHTS, FILE_ITEM])
+        self.weights_box.setToolTip(
+            "SAM 2 weights: the model hub's (downloaded once into the cache), untrained ones "
+            "of the same architecture, or a checkpoint file (Meta's .pt) of the chosen model"
+        )
+        self.show_weights(checkpoint, random_weights)
+        self.disparity_box = QComboBox()
+        self.disparity_box.addItems([*disparity_sources, FILE_ITEM])
+        if disparity is not None:
+            _choose_item(self.disparity_box, disparity)
+        self.references_box = QComboBox()
+        self.references_box.addItems(list(reference_modes))
+        self.references_box.setToolTip(
+            "Segment everything from the center view (the paper's setting), or also from the "
+            "corner views, the outer ring or every view, to find objects the center cannot see"
+        )
+        self.load_button = QPushButton("Load model")
+        self.polarity_label = QLabel()
+        self.show_polarity(False)
+        self.segment_button = QPushButton("Segment [S]")
+        self.commit_button = QPushButton("Commit [C]")
+        self.clear_button = QPushButton("Clear [Shift-C]")
+        self.undo_button = QPushButton("Undo [Ctrl-Z]")
+        self.redo_button = QPushButton("Redo [Ctrl-Shift-Z]")
+        self.toggle_button = QPushButton("Toggle +/- [T]")
+        self.everything_button = QPushButton("Segment everything")
+        self.objects = QListWidget()
+        self.edit_button = QPushButton("Edit selected")
+        self.remove_button = QPushButton("Remove selected")
+        self.open_labels_button = QPushButton("Reopen selected labels layer")
+        #: One button per display, keyed by :data:`lfsam.viewer.layers.ORDERS`'s names.
+        self.view_buttons = {
+            "views": QPushButton("Views"),
+            "epi-row": QPushButton("EPI (row)"),
+            "epi-column": QPushButton("EPI (column)"),
+        }
+        self.save_button = QPushButton("Save result…")
+        self.export_button = QPushButton("Export…")
+        self.progress = QProgressBar()
+        self.progress.setRange(0, 1)
+        self.progress.setValue(0)
+        self.status = QLabel("")
+        self.status.setWordWrap(True)
+        self.layout = self._lay_out()
+
+    def _lay_out(self) -> QVBoxLayout:
+        form = QFormLayout()
+        form.addRow("Model", self.model_box)
+        form.addRow("Weights", self.weights_box)
+        form.addRow("Disparity", self.disparity_box)
+        form.addRow("Everything from", self.references_box)
+        grid = QGridLayout()
+        prompt_buttons = [
+            self.segment_button, self.commit_button, self.toggle_button, self.clear_button,
+            self.undo_button, self.redo_button,
+        ]
+        for i, button in enumerate(prompt_buttons):
+            grid.addWidget(button, i // 2, i % 2)
+        layout = QVBoxLayout()
+        layout.addLayout(form)
+        layout.addWidget(self.load_button)
+        layout.addWidget(self.polarity_label)
+        layout.addLayout(grid)
+        layout.addWidget(self.everything_button)
+        layout.addWidget(QLabel("Objects (double-click to edit)"))
+        layout.addWidget(self.objects)
+        layout.addLayout(_row([self.edit_button, self.remove_button]))
+        layout.addWidget(self.open_labels_button)
+        layout.addLayout(_row(self.view_buttons.values()))
+        layout.addLayout(_row([self.save_button, self.export_button]))
+        layout.addWidget(self.progress)
+        layout.addWidget(self.status)
+        layout.addStretch(1)
+        return layout
+
+    # --- what the boxes say -------------------------------------------------------------------
+    def show_weights(self, checkpoint: str | None, random_weights: bool) -> None:
+        """Select a checkpoint file (added as an item), the untrained or the hub's weights."""
+        if checkpoint:
+            _choose_item(self.weights_box, str(checkpoint))
+        else:
+            self.weights_box.setCurrentText(RANDOM_WEIGHTS if random_weights else HUB_WEIGHTS)
+
+    def chosen_weights(self) -> tuple[str | None, bool]:
+        """The weights box's choice as ``(checkpoint, random_weights)`` (not on "file…")."""
+        text = self.weights_box.currentText()
+        if text in (HUB_WEIGHTS, RANDOM_WEIGHTS):
+            return None, text == RANDOM_WEIGHTS
+        return text, False
+
+    def pick_weights(
+        self, parent: QWidget, in_use: tuple[str | None, bool]
+    ) -> tuple[str | None, bool] | None:
+        """The weights chosen, ``(checkpoint, random_weights)``; on "file…" a dialog asks for
+        the checkpoint. None when it is cancelled (the weights ``in_use`` are shown again)."""
+        if self.weights_box.currentText() == FILE_ITEM:
+            path = ask_open_file(parent, "SAM 2 checkpoint (.pt)", "*.pt *.pth")
+            self.show_weights(*((path, False) if path else in_use))
+            if path is None:
+                return None
+        return self.chosen_weights()
+
+    def pick_disparity(self, parent: QWidget, in_use: str | None) -> str | None:
+        """The disparity source chosen; on "file…" a dialog asks for a ``.npy`` file. None when
+        it is cancelled (the source ``in_use``, if any, is shown again)."""
+        if self.disparity_box.currentText() == FILE_ITEM:
+            path = ask_open_file(parent, "Disparity (.npy)", "*.npy")
+            if path is None:
+                if in_use is not None:
+                    _choose_item(self.disparity_box, in_use)
+                return None
+            _choose_item(self.disparity_box, path)
+        return self.disparity_box.currentText()
+
+    def show_polarity(self, negative: bool) -> None:
+        """Say which points plain clicks add."""
+        text = "negative" if negative else "positive"
+        self.polarity_label.setText(f"Clicks add {text} points (Ctrl-click: the other; T)")
+
+    def show_objects(self, ids: Iterable[int], current: int, auto: Container[int]) -> None:
+        """List the objects ``ids``: the ``current`` one (being edited), the automatic ones
+        (``auto``) and the committed ones (the others)."""
+        self.objects.clear()
+        for obj_id in ids:
+            role = "editing" if obj_id == current else "automatic" if obj_id in auto else (
+                "committed"
+            )
+            item = QListWidgetItem(f"{obj_id}  ({role})")
+            item.setData(_USER_ROLE, obj_id)
+            self.objects.addItem(item)
+
+    def selected_id(self) -> int | None:
+        """The id of the object selected in the list, or None."""
+        return item_id(self.objects.currentItem())
+
+
+def item_id(item: QListWidgetItem | None) -> int | None:
+    """The object id behind a row of the object list (None for no row)."""
+    return None if item is None else int(item.data(_USER_ROLE))
+
+
+def _row(widgets: Iterable[QWidget]) -> QHBoxLayout:
+    row = QHBoxLayout()
+    for widget in widgets:
+        row.addWidget(widget)
+    return row
+
+
+# --- dialogs ----------------------------------------------------------------------------------
+def ask_open_file(parent: QWidget, title: str, pattern: str) -> str | None:
+    """Ask for an existing file; None when cancelled."""
+    path, _ = QFileDialog.getOpenFileName(parent, title, "", pattern)
+    return path or None
+
+
+def ask_save_file(parent: QWidget, title: str, default: str, pattern: str = "") -> str | None:
+    """Ask for a new file or folder name; None when cancelled."""
+    path, _ = QFileDialog.getSaveFileName(parent, title, default, pattern)
+    return path or None
+
+
+def ask_export(parent: QWidget, formats: Sequence[str]) -> tuple[str, str] | None:
+    """Ask for an export format, then a new folder; ``(folder, format)`` or None (cancelled)."""
+    to, ok = QInputDialog.getItem(parent, "Export", "Format", list(formats), 0, False)
+    if not ok:
+        return None
+    out = ask_save_file(parent, "Export to a new folder", "export")
+    return None if out is None else (out, to)

@@ -1,0 +1,329 @@
+"""The viewer's slow work in a worker thread: typed events, the jobs, and the queue that runs them.
+
+The dock widget (:mod:`lfsam.viewer.widget`) never calls a slow method of its
+:class:`lfsam.viewer.session.ViewerSession` itself (loading the model, the coarse-to-fine
+prediction, automatic segmentation; docs/design.md section 8). It starts a *job*, a generator
+function run by napari's ``create_worker`` (:mod:`napari.qt.threading`), which yields one typed
+event per step; the events arrive in the main thread, where the widget dispatches on their type.
+A job's :class:`lfsam.errors.LfsamError` (a user error: no weights, no ground truth, ...) becomes
+a :class:`Failed` event instead of a raise.
+
+One job runs at a time. Actions asked for meanwhile wait in a :class:`WorkQueue` and run in
+order once the job has finished; a segmentation asked for meanwhile is remembered once (the
+latest prompts are segmented when the worker is free), so the interface never blocks and no
+click is lost.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+from qtpy.QtCore import QObject
+from qtpy.QtWidgets import QProgressBar
+
+from lfsam.errors import LfsamError
+
+__all__ = [
+    "AllMasks",
+    "CoarseMasks",
+    "Failed",
+    "FinalMasks",
+    "ModelLoaded",
+    "ReferenceMask",
+    "WorkQueue",
+    "WorkerEvent",
+    "generate_job",
+    "guarded",
+    "load_job",
+    "predict_all_job",
+    "segment_job",
+]
+
+
+# --- events -----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ModelLoaded:
+    """The model and disparity are loaded (:meth:`ViewerSession.load`).
+
+    Attributes
+    ----------
+    model : str
+        The model's name.
+    device : str or None
+        Where it runs (None for a segmenter without a device, e.g. the oracle).
+    """
+
+    model: str
+    device: str | None
+
+
+@dataclass(frozen=True, eq=False)  # eq=False: the mask is an array (events compare by identity)
+class ReferenceMask:
+    """First stage of a segmentation: the mask in the view the object is prompted in.
+
+    Attributes
+    ----------
+    obj_id : int
+        The object segmented.
+    view : (s, t)
+        Its reference view.
+    mask : (U, V) bool ndarray
+        Its mask there.
+    score : float
+        The segmenter's confidence.
+    """
+
+    stage: ClassVar[str] = "reference"
+    obj_id: int
+    view: tuple[int, int]
+    mask: np.ndarray
+    score: float
+
+
+@dataclass(frozen=True, eq=False)
+class CoarseMasks:
+    """Second stage: the object in every view, propagated and occluded, not refined.
+
+    Attributes
+    ----------
+    obj_id : int
+        The object segmented.
+    prediction : LightFieldPrediction
+        ``predict_coarse([obj_id])``: ``prediction.masks[obj_id]`` is ``(S, T, U, V)``.
+    """
+
+    stage: ClassVar[str] = "coarse"
+    obj_id: int
+    prediction: Any
+
+
+@dataclass(frozen=True, eq=False)
+class FinalMasks:
+    """Last stage: every object, refined (the segmented one among them).
+
+    Attributes
+    ----------
+    obj_id : int
+        The object segmented.
+    prediction : LightFieldPrediction
+        ``predict()``: every object's masks and labels.
+    """
+
+    stage: ClassVar[str] = "final"
+    obj_id: int
+    prediction: Any
+
+
+@dataclass(frozen=True, eq=False)
+class AllMasks:
+    """Every object's masks, after loading, committing, reopening or segmenting everything.
+
+    Attributes
+    ----------
+    prediction : LightFieldPrediction
+    """
+
+    prediction: Any
+
+
+@dataclass(frozen=True)
+class Failed:
+    """A job stopped on a user error (:class:`LfsamError`); what was queued after it is dropped.
+
+    Attributes
+    ----------
+    message : str
+        lfsam's one-line message.
+    """
+
+    message: str
+
+
+#: Everything a job yields.
+WorkerEvent = ModelLoaded | ReferenceMask | CoarseMasks | FinalMasks | AllMasks | Failed
+
+#: A job: a generator function run in the worker thread.
+Job = Callable[[], Iterator[WorkerEvent]]
+
+
+# --- jobs (run in the worker thread) ------------------------------------------------------------
+def load_job(session: Any) -> Iterator[WorkerEvent]:
+    """Load the session's model and disparity; then, if there are objects, predict them all."""
+    session.load()
+    segmenter = getattr(session.predictor, "segmenter", None)
+    device = getattr(segmenter, "device", None)
+    yield ModelLoaded(session.model, None if device is None else str(device))
+    if session.object_ids:
+        yield AllMasks(session.predict_all())
+
+
+def segment_job(session: Any, obj_id: int) -> Iterator[WorkerEvent]:
+    """Segment the current object ``obj_id`` coarse to fine: three events, one per stage.
+
+    :meth:`ViewerSession.segment_current` tags its stages with strings; this is the one place
+    that reads them.
+    """
+    for stage, value in session.segment_current():
+        if stage == "reference":
+            view, mask, score = value
+            yield ReferenceMask(
+                obj_id, (int(view[0]), int(view[1])), np.asarray(mask, dtype=bool), float(score)
+            )
+        elif stage == "coarse":
+            yield CoarseMasks(obj_id, value)
+        elif stage == "final":
+            yield FinalMasks(obj_id, value)
+        else:  # the session's code is at fault
+            raise ValueError(f"unknown segmentation stage {stage!r}")
+
+
+def predict_all_job(session: Any) -> Iterator[WorkerEvent]:
+    """Every object's masks (unchanged objects are reused)."""
+    yield AllMasks(session.predict_all())
+
+
+def generate_job(session: Any, references: str) -> Iterator[WorkerEvent]:
+    """Automatic mode from the ``references`` views; then every object's masks."""
+    yield AllMasks(session.generate(references))
+
+
+def guarded(job: Job) -> Job:
+    """``job``, with an :class:`LfsamError` turned into a :class:`Failed` event, not a raise."""
+
+    def run() -> Iterator[WorkerEvent]:
+        try:
+            yield from job()
+        except LfsamError as exc:
+            yield Failed(str(exc))
+
+    return run
+
+
+# --- the queue ----------------------------------------------------------------------------------
+class WorkQueue(QObject):
+    """Runs one job at a time in a napari worker; queues actions and a pending segmentation.
+
+    Parameters
+    ----------
+    progress : QProgressBar
+        Shows the running job's steps (one per event).
+    deliver : callable
+        Called in the main thread with each event but :class:`Failed`.
+    error : callable
+        Called with the message of a :class:`Failed` event or an action's :class:`LfsamError`.
+    status : callable
+        Called with a status line when a job starts, or crashes.
+    finished : callable
+        Called when a job has finished (before the queue is drained; see :meth:`drain`).
+    segment : callable
+        Segments the current object; runs once when :attr:`segment_pending` is set and the queue
+        is idle.
+    parent : QObject, optional
+    """
+
+    def __init__(
+        self,
+        progress: QProgressBar,
+        *,
+        deliver: Callable[[WorkerEvent], None],
+        error: Callable[[str], None],
+        status: Callable[[str], None],
+        finished: Callable[[], None],
+        segment: Callable[[], None],
+        parent: QObject | None = None,
+    ) -> None:
+        super().__init__(parent)
+        self.progress = progress
+        self.worker: Any = None
+        #: Actions waiting for the running job, in order.
+        self.actions: list[Callable[[], None]] = []
+        #: Whether a segmentation of the current object was asked for while busy.
+        self.segment_pending = False
+        self._deliver = deliver
+        self._error = error
+        self._status = status
+        self._finished = finished
+        self._segment = segment
+
+    @property
+    def busy(self) -> bool:
+        """Whether a worker is running."""
+        return self.worker is not None
+
+    @property
+    def idle(self) -> bool:
+        """No worker running, no action queued and no segmentation pending."""
+        return not (self.busy or self.actions or self.segment_pending)
+
+    def when_idle(self, action: Callable[[], None]) -> None:
+        """Run ``action`` now, or after the running job (in order)."""
+        if self.busy:
+            self.actions.append(action)
+        else:
+            self.attempt(action)
+
+    def attempt(self, action: Callable[[], None]) -> None:
+        """Run ``action``; an :class:`LfsamError` it raises goes to ``error``."""
+        try:
+            action()
+        except LfsamError as exc:
+            self._error(str(exc))
+
+    def request_segment(self) -> None:
+        """Segment the current object now, or once the running job has finished (once, however
+        often it is asked for meanwhile: the latest prompts are segmented)."""
+        if self.busy:
+            self.segment_pending = True
+        else:
+            self.attempt(self._segment)
+
+    def cancel(self) -> None:
+        """Drop the queued actions and the pending segmentation."""
+        self.actions.clear()
+        self.segment_pending = False
+
+    def start(self, job: Job, total: int, desc: str) -> None:
+        """Run ``job`` in a napari worker thread; ``total`` events are expected."""
+        from napari.qt.threading import create_worker
+
+        self.progress.setRange(0, total)
+        self.progress.setValue(0)
+        self._status(desc + "…")
+        self.worker = create_worker(
+            guarded(job),
+            _progress={"total": total, "desc": desc},
+            _connect={
+                "yielded": self._on_yielded,
+                "finished": self._on_finished,
+                "errored": self._on_errored,
+            },
+            _start_thread=True,
+        )
+
+    def drain(self) -> None:
+        """Run queued actions in order until one starts a job; then a pending segmentation."""
+        while self.actions and not self.busy:
+            self.attempt(self.actions.pop(0))
+        if self.segment_pending and not self.busy:
+            self.segment_pending = False
+            self.attempt(self._segment)
+
+    def _on_yielded(self, event: WorkerEvent) -> None:
+        self.progress.setValue(min(self.progress.value() + 1, self.progress.maximum()))
+        if isinstance(event, Failed):
+            self._error(event.message)
+            self.cancel()
+        else:
+            self._deliver(event)
+
+    def _on_errored(self, exc: Exception) -> None:  # a bug, not a user error: keep its traceback
+        self.cancel()
+        self._status(f"error: {exc}")
+
+    def _on_finished(self) -> None:
+        self.worker = None
+        self.progress.setValue(self.progress.maximum())
+        self._finished()
