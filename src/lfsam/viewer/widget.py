@@ -241,8 +241,13 @@ class LightFieldWidget(QWidget):
             case W.FinalMasks(prediction=prediction):
                 self.stages.append(event.stage)
                 self._show_prediction(prediction)
-            case W.AllMasks(prediction=prediction):
+            case W.AllMasks(prediction=prediction, found=found):
                 self._show_prediction(prediction)
+                if found is not None:
+                    self._set_status(
+                        f"segment everything: {found or 'no'} new object(s) found; "
+                        f"{len(prediction.masks)} in every view"
+                    )
 
     def _on_work_finished(self) -> None:
         self._refresh_objects()

@@ -124,9 +124,12 @@ class AllMasks:
     Attributes
     ----------
     prediction : LightFieldPrediction
+    found : int, optional
+        Segmenting everything: how many new objects were found (None otherwise).
     """
 
     prediction: Any
+    found: int | None = None
 
 
 @dataclass(frozen=True)
@@ -187,7 +190,9 @@ def predict_all_job(session: Any) -> Iterator[WorkerEvent]:
 
 def generate_job(session: Any, references: str) -> Iterator[WorkerEvent]:
     """Automatic mode from the ``references`` views; then every object's masks."""
-    yield AllMasks(session.generate(references))
+    before = set(session.object_ids)
+    prediction = session.generate(references)
+    yield AllMasks(prediction, found=len(set(session.object_ids) - before))
 
 
 def guarded(job: Job) -> Job:
