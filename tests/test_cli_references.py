@@ -13,8 +13,8 @@ import pytest
 from lfsam.api import RunOptions, SegmentOptions, segment
 from lfsam.cli.main import main
 from lfsam.errors import LfsamError
+from lfsam.generator import LightFieldMaskGenerator
 from lfsam.io import write_lightfield
-from lfsam.predictor import LightFieldPredictor
 from lfsam.result import load_result
 from lfsam.synth import generate_scene
 
@@ -34,13 +34,13 @@ def scene_path(scene, tmp_path):
 @pytest.fixture
 def spy(monkeypatch):
     calls = []
-    original = LightFieldPredictor.generate
+    original = LightFieldMaskGenerator.generate
 
-    def generate(self, references="center"):
-        calls.append(references)
+    def generate(self, references=None):
+        calls.append(self.references if references is None else references)
         return original(self, references="center")
 
-    monkeypatch.setattr(LightFieldPredictor, "generate", generate)
+    monkeypatch.setattr(LightFieldMaskGenerator, "generate", generate)
     return calls
 
 

@@ -80,12 +80,12 @@ def test_missing_out_folder(scene_dir, tmp_path, capsys):
 
 
 def test_interrupted_run_leaves_no_file(scene_dir, tmp_path, monkeypatch, capsys):
-    import lfsam.predictor as predictor_module
+    import lfsam.pipeline.engine as engine_module
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(predictor_module, "fuse_labels", interrupted)
+    monkeypatch.setattr(engine_module, "fuse_labels", interrupted)
     out = tmp_path / "r.npz"
     code = main(["segment", str(scene_dir), "--auto", "--model", "oracle", "--disparity", "gt",
                  "--out", str(out), "--quiet"])

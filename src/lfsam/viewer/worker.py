@@ -168,6 +168,11 @@ def segment_job(session: Any, obj_id: int) -> Iterator[WorkerEvent]:
 
     :meth:`ViewerSession.segment_current` tags its stages with strings; this is the one place
     that reads them.
+
+    Raises
+    ------
+    ValueError
+        For a stage name the session should not give (the session's code is at fault).
     """
     for stage, value in session.segment_current():
         if stage == "reference":
