@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from lfsam.baseline import video_baseline
 from lfsam.errors import LfsamError
 from lfsam.generator import LightFieldMaskGenerator
 from lfsam.lightfield import LightField
@@ -27,6 +28,7 @@ from lfsam.pipeline.references import check_references
 from lfsam.predictor import LightFieldPredictor
 from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt, load_prompts, validate_objects
 from lfsam.result import SegmentationResult
+from lfsam.segmenters import load_segmenter
 from lfsam.segmenters.base import Prompts, Segmenter
 from lfsam.segmenters.registry import DEFAULT_MODEL
 
@@ -156,7 +158,6 @@ class ModelOptions:
     ) -> Segmenter:
         """The segmenter these options describe (``keep_decoder_state``: see
         :func:`lfsam.segmenters.load_segmenter`; batch runs turn it off)."""
-        from lfsam.segmenters import load_segmenter
 
         return load_segmenter(
             self.name, lightfield=lightfield, keep_decoder_state=keep_decoder_state,
@@ -301,7 +302,6 @@ def segment(
         "view_size": list(lightfield.view_shape),
     }
     if run.method == "video-baseline":
-        from lfsam.baseline import video_baseline
 
         result = video_baseline(
             lightfield,

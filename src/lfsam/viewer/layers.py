@@ -25,6 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from lfsam.viewer.session import layers_from_prompts, prompts_from_layers, select_labels
+
 __all__ = [
     "AUTO",
     "BOXES",
@@ -182,7 +184,6 @@ class PromptLayers:
         ObjectPrompts or None
             None when the layers hold no prompt.
         """
-        from lfsam.viewer.session import prompts_from_layers
 
         points = self.layers[POINTS]
         boxes = self.layers[BOXES]
@@ -205,7 +206,6 @@ class PromptLayers:
         center : (s, t)
             The view of prompts without a view tag.
         """
-        from lfsam.viewer.session import layers_from_prompts
 
         points, positive, boxes = layers_from_prompts(obj, center)
         self._writing = True
@@ -268,7 +268,6 @@ class MaskLayers:
 
     def show_prediction(self, prediction: Any, committed: set[int], auto: set[int]) -> None:
         """Show ``prediction``'s ``committed`` and ``auto`` objects (not the current one)."""
-        from lfsam.viewer.session import select_labels
 
         self.prediction = prediction
         labels = np.asarray(prediction.labels)

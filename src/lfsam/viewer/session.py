@@ -20,8 +20,13 @@ from typing import Any
 import numpy as np
 
 from lfsam.errors import LfsamError
+from lfsam.fileutil import check_output_path
 from lfsam.generator import LightFieldMaskGenerator
 from lfsam.lightfield import LightField
+from lfsam.predictor import LightFieldPredictor
+from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
+from lfsam.result import SegmentationResult, save_result
+from lfsam.segmenters import load_segmenter
 from lfsam.segmenters.registry import ORACLE
 from lfsam.viewer.native_libraries import preload_native_libraries
 
@@ -70,7 +75,6 @@ def prompts_from_layers(
     ObjectPrompts or None
         None when there is no prompt at all.
     """
-    from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
 
     points = np.asarray(points, dtype=float).reshape(-1, 4)
     positive = np.asarray(positive, dtype=bool).reshape(-1)
@@ -240,8 +244,6 @@ class ViewerSession:
         LfsamError
             Unknown model, weights missing offline, oracle without labels, bad disparity.
         """
-        from lfsam.predictor import LightFieldPredictor
-        from lfsam.segmenters import load_segmenter
 
         preload_native_libraries()  # a no-op when the widget did it in the main thread
         options = dict(self.segmenter_options)
@@ -423,7 +425,6 @@ class ViewerSession:
 
         Each label becomes an object given by its mask in the view where it is largest.
         """
-        from lfsam.result import SegmentationResult
 
         labels = np.asarray(labels)
         if labels.shape != self.lightfield.views.shape[:4]:
@@ -456,8 +457,6 @@ class ViewerSession:
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the result to ``path`` (``.npz``, atomic)."""
-        from lfsam.fileutil import check_output_path
-        from lfsam.result import save_result
 
         check_output_path(path)
         return save_result(self.to_result(), path)
