@@ -5,7 +5,8 @@ that consumes disparity (``lfsam segment --disparity``, ``lfsam evaluate``, :fun
 run_segmentation`, the interactive predictor through :class:`~lfsam.disparity.views.
 ViewDisparities`) names its source the same way and asks for the view it needs:
 
-- ``"estimate"``: the structure-tensor estimator run for that view;
+- ``"estimate"``: the default estimator (:data:`lfsam.disparity.methods.DEFAULT_METHOD`, the
+  occlusion-aware cost volume) run for that view;
 - ``"gt"``: the light field's ground truth of that view; with a center-only ground truth, the
   center map forward-warped into the view (:func:`~lfsam.disparity.views.warp_center_disparity`);
 - a ``.npy`` file or a NumPy array holding a ``(U, V)`` map of the center view (forward-warped
@@ -134,7 +135,7 @@ def resolve_view_disparity(
     if isinstance(spec, np.ndarray):
         return _from_map(spec, lightfield, view, name or "array", device)
     if spec == "estimate":
-        from lfsam.disparity.structure_tensor import estimate_disparity
+        from lfsam.disparity.methods import estimate_disparity
 
         estimate = estimate_disparity(lightfield, device=device, view=view)
         low, high = estimate.disparity_range
@@ -171,7 +172,8 @@ def resolve_disparity(
     Parameters
     ----------
     spec : {"estimate", "gt"}, path to a .npy, or ndarray
-        ``"estimate"``: the structure-tensor estimator (:func:`estimate_disparity`) for the view;
+        ``"estimate"``: the default estimator (:func:`lfsam.disparity.estimate_disparity`, the
+        occlusion-aware cost volume) for the view;
         ``"gt"``: the light field's ground truth of the view (a center-only ground truth is
         forward-warped into another view with a z-buffer, holes filled from the farther side);
         otherwise a ``.npy`` file or an array holding a ``(U, V)`` map of the center view
