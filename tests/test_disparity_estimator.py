@@ -102,7 +102,16 @@ def test_cli_writes_npy_and_preview(tmp_path, capsys):
     disp = np.load(out)
     assert disp.shape == (48, 64) and np.median(np.abs(disp[10:-10, 10:-10] - 1.0)) < 0.05
     assert preview.is_file()
-    assert json.loads(capsys.readouterr().out)["edge_refinement"] is True
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["method"] == "occlusion-aware" and printed["edge_refinement"] is False
+    tensor = tmp_path / "st.npy"
+    assert main(["disparity", str(tmp_path / "plane.npz"), "--out", str(tensor),
+                 "--method", "structure-tensor"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["method"] == "structure-tensor" and printed["edge_refinement"] is True
+    np.testing.assert_array_equal(
+        np.load(tensor), estimate_disparity(lf, method="structure-tensor").disparity
+    )
     raw = tmp_path / "raw.npy"
     assert main(["disparity", str(tmp_path / "plane.npz"), "--out", str(raw), "--range=0,2",
                  "--no-edge-refinement"]) == 0
