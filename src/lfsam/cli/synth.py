@@ -39,6 +39,7 @@ examples:
   lfsam synth small.npz --grid 5x5 --size 64x96 --seed 3 --objects 4
   lfsam synth wide --disparity-range=-4,4              # note the '=' for negative numbers
   lfsam synth hidden.npz --hidden-objects 3            # 3 objects only the outer views see
+  lfsam synth glossy --specular 0.6                    # highlights that move across views
 """
 
 
@@ -54,6 +55,16 @@ def _positive_pair(text: str) -> tuple[int, int]:
     if min(pair) < 1:
         raise argparse.ArgumentTypeError(f"expected two positive numbers AxB, got {text!r}")
     return pair
+
+
+def _strength(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"expected a number from 0 to 1, got {text!r}")
+    return value
 
 
 def _count(text: str) -> int:
@@ -84,9 +95,11 @@ def run(args: argparse.Namespace) -> int:
         disparity_range=args.disparity_range,
         supersample=args.supersample,
         hidden_objects=args.hidden_objects,
+        specular=args.specular,
     )
     out = write_lightfield(lf, args.out, format=args.format)
     hidden = f" + {args.hidden_objects} hidden" if args.hidden_objects else ""
+    hidden += f", specular {args.specular:g}" if args.specular else ""
     print(
         f"wrote {out}: {args.grid[0]}x{args.grid[1]} views of {args.size[0]}x{args.size[1]}, "
         f"seed {args.seed}, {args.objects} objects{hidden}, disparity "
@@ -136,6 +149,13 @@ def register(subparsers) -> None:
         default="-2,2",
         metavar="LO,HI",
         help="disparity range in pixels per view step",
+    )
+    parser.add_argument(
+        "--specular",
+        type=_strength,
+        default=0.0,
+        metavar="STRENGTH",
+        help="peak brightness (0-1) of a highlight on each object that moves across views",
     )
     parser.add_argument(
         "--supersample",
