@@ -191,21 +191,25 @@ def _halves_of(ds: int, dt: int) -> list[int]:
     return halves
 
 
-def _resample(padded: torch.Tensor, pad: int, shift_u: float, shift_v: float, size) -> torch.Tensor:
-    """``image(u + shift_u, v + shift_v)`` by bilinear interpolation of a replicate-padded
-    ``(U + 2 pad, V + 2 pad)`` image (``|shift| <= pad - 1``)."""
-    rows, cols = size
+def _visible(shift: float, length: int) -> tuple[int, int]:
+    """The pixels ``[first, stop)`` along an axis of ``length`` whose position ``x + shift``
+    lies inside the frame ``[0, length - 1]``."""
+    first = max(0, math.ceil(-shift))
+    stop = min(length, math.floor(length - 1 - shift) + 1)
+    return first, stop
+
+
+def _resample(
+    padded: torch.Tensor, pad: int, shift_u: float, shift_v: float, rows: slice, cols: slice
+) -> torch.Tensor:
+    """``image(u + shift_u, v + shift_v)`` for ``u`` in ``rows``, ``v`` in ``cols``, by bilinear
+    interpolation of the image replicate-padded by ``pad`` (``|shift| <= pad - 1``)."""
     iu, iv = math.floor(shift_u), math.floor(shift_v)
     fu, fv = shift_u - iu, shift_v - iv
-    r0, c0 = pad + iu, pad + iv
-    block = padded[r0 : r0 + rows + 1, c0 : c0 + cols + 1]
-    if fv > 1e-6:
-        block = torch.lerp(block[:, :-1], block[:, 1:], fv)
-    else:
-        block = block[:, :-1]
-    if fu > 1e-6:
-        return torch.lerp(block[:-1], block[1:], fu)
-    return block[:-1]
+    r0, c0 = pad + iu + rows.start, pad + iv + cols.start
+    block = padded[r0 : r0 + rows.stop - rows.start + 1, c0 : c0 + cols.stop - cols.start + 1]
+    block = torch.lerp(block[:, :-1], block[:, 1:], fv) if fv > 1e-6 else block[:, :-1]
+    return torch.lerp(block[:-1], block[1:], fu) if fu > 1e-6 else block[:-1]
 
 
 def build_cost_volume(
@@ -244,8 +248,6 @@ def build_cost_volume(
     reach = int(np.abs(offsets).max()) if len(offsets) else 0
     pad = math.ceil(float(np.abs(hypotheses).max()) * reach) + 2
     padded = F.pad(views.features[:, None], (pad, pad, pad, pad), mode="replicate")[:, 0]
-    row_index = torch.arange(rows, device=device, dtype=torch.float32)
-    col_index = torch.arange(cols, device=device, dtype=torch.float32)
     count = 4 if occlusion_aware else 1
     volume = torch.empty((len(hypotheses), rows, cols), device=device, dtype=torch.float32)
     for index, d in enumerate(np.asarray(hypotheses, dtype=np.float64)):
@@ -253,15 +255,15 @@ def build_cost_volume(
         seen = torch.zeros((count, rows, cols), device=device)
         for k, (ds, dt) in enumerate(offsets.tolist()):
             shift_u, shift_v = -d * ds, -d * dt
-            warped = _resample(padded[k], pad, shift_u, shift_v, (rows, cols))
-            cost = (warped - views.reference_features).abs_().clamp_(max=truncation)
-            in_u = ((row_index + shift_u >= 0) & (row_index + shift_u <= rows - 1)).float()
-            in_v = ((col_index + shift_v >= 0) & (col_index + shift_v <= cols - 1)).float()
-            valid = in_u[:, None] * in_v[None, :]
-            cost.mul_(valid)
+            # only the pixels this view sees at this hypothesis (a rectangle) are compared
+            in_u, in_v = slice(*_visible(shift_u, rows)), slice(*_visible(shift_v, cols))
+            if in_u.start >= in_u.stop or in_v.start >= in_v.stop:
+                continue
+            warped = _resample(padded[k], pad, shift_u, shift_v, in_u, in_v)
+            cost = (warped - views.reference_features[in_u, in_v]).abs_().clamp_(max=truncation)
             for half in _halves_of(ds, dt) if occlusion_aware else [0]:
-                sums[half] += cost
-                seen[half] += valid
+                sums[half, in_u, in_v] += cost
+                seen[half, in_u, in_v] += 1.0
         means = torch.where(seen > 0.5, sums / seen.clamp(min=1.0), truncation)
         if count == 1:
             volume[index] = means[0]
