@@ -1,4 +1,6 @@
-"""The structure-tensor disparity estimator (issue 3): exact planes, sign, confidence, grids."""
+"""The disparity estimator (issue 3; since issue 27 the default is the occlusion-aware cost
+volume, the structure tensor is ``method="structure-tensor"``): exact planes, sign, confidence,
+grids, CLI."""
 
 from __future__ import annotations
 
@@ -56,6 +58,15 @@ def _plane(d, grid=(5, 5), size=(48, 64), flat_right=False):
 def test_fronto_parallel_plane_is_recovered_within_005(d):
     lf = _plane(d)
     est = estimate_disparity(lf)
+    inner = est.disparity[10:-10, 10:-10]
+    assert np.median(np.abs(inner - d)) < 0.05
+    assert np.mean(np.abs(inner - d) < 0.05) > 0.8
+
+
+@pytest.mark.parametrize("d", [-2.3, 4.0])
+def test_structure_tensor_method_still_recovers_planes(d):
+    est = estimate_disparity(_plane(d), method="structure-tensor")
+    assert est.meta["method"] == "sheared structure tensor"
     inner = est.disparity[10:-10, 10:-10]
     assert np.median(np.abs(inner - d)) < 0.05
     assert np.mean(np.abs(inner - d) < 0.05) > 0.8
