@@ -107,9 +107,9 @@ def test_any_view_and_partial_grids():
 
 
 def test_occlusion_aware_halves_beat_all_views_at_occlusion_edges():
-    # measured (9x9 views of 120x160, seed 11, +-3): BadPix(0.07) in the band within 2 px of a
-    # depth edge 14.0 % with the best half-grid, 18.2 % with all views; MSE 0.186 / 0.270
-    lf = generate_scene(grid=(9, 9), size=(120, 160), seed=11, disparity_range=(-3.0, 3.0))
+    # measured (7x7 views of 96x128, seed 11, +-3): BadPix(0.07) in the band within 2 px of a
+    # depth edge 17.8 % with the best half-grid, 22.2 % with all views; MSE 0.247 / 0.375
+    lf = generate_scene(grid=(7, 7), size=(96, 128), seed=11, disparity_range=(-3.0, 3.0))
     truth = lf.center_disparity
     edges = (ndimage.maximum_filter(truth, 5) - ndimage.minimum_filter(truth, 5)) > 0.5
     bad, mse = {}, {}
@@ -118,7 +118,7 @@ def test_occlusion_aware_halves_beat_all_views_at_occlusion_edges():
         error = np.abs(estimate.disparity - truth)
         bad[aware] = float(np.mean(error[edges] > 0.07))
         mse[aware] = float(np.mean(error[8:-8, 8:-8] ** 2))
-    assert bad[True] < 0.85 * bad[False] and mse[True] < mse[False]
+    assert bad[True] < 0.9 * bad[False] and mse[True] < 0.8 * mse[False]
 
 
 def test_confidence_is_low_at_occlusion_edges_and_without_texture():
