@@ -20,8 +20,8 @@ Steps, all whole-image torch operations (any device, CUDA when present):
    consistency with the outermost views of the reference's row and column.
 
 Measured (``benchmarks/bench_disparity.py``; docs/performance.md): on HCI antinous BadPix(0.07)
-about 7 % against 22 % for the sheared structure tensor; a 9x9x512x512 light field in about
-10 s on two CPU cores.
+about 7 % against 22 % for the sheared structure tensor; a 9x9x512x512 light field in 4-5 s
+on two CPU cores.
 """
 
 from __future__ import annotations
