@@ -36,7 +36,7 @@ CASES = {
         "max |low-res logits - Meta batched|",
     ),
     "bench_disparity.py": (
-        ["--size", "48x64", "--timing-size", "48x64", "--no-real"], "ratio ours/plain"
+        ["--size", "48x64", "--timing-size", "48x64", "--no-real"], "occlusion-aware on 9x9"
     ),
     "bench_metrics.py": (["--grid", "3x3", "--size", "64x96", "--masks", "5"], "bench_metrics:"),
     "bench_interactive.py": (

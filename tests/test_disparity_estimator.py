@@ -1,4 +1,6 @@
-"""The structure-tensor disparity estimator (issue 3): exact planes, sign, confidence, grids."""
+"""The disparity estimator (issue 3; since issue 27 the default is the occlusion-aware cost
+volume, the structure tensor is ``method="structure-tensor"``): exact planes, sign, confidence,
+grids, CLI."""
 
 from __future__ import annotations
 
@@ -61,6 +63,15 @@ def test_fronto_parallel_plane_is_recovered_within_005(d):
     assert np.mean(np.abs(inner - d) < 0.05) > 0.8
 
 
+@pytest.mark.parametrize("d", [-2.3, 4.0])
+def test_structure_tensor_method_still_recovers_planes(d):
+    est = estimate_disparity(_plane(d), method="structure-tensor")
+    assert est.meta["method"] == "sheared structure tensor"
+    inner = est.disparity[10:-10, 10:-10]
+    assert np.median(np.abs(inner - d)) < 0.05
+    assert np.mean(np.abs(inner - d) < 0.05) > 0.8
+
+
 def test_sign_convention_matches_generated_ground_truth():
     lf = generate_scene(grid=(7, 7), size=(96, 128), seed=4, disparity_range=(-2.0, 2.0))
     est = estimate_disparity(lf).disparity
@@ -102,7 +113,16 @@ def test_cli_writes_npy_and_preview(tmp_path, capsys):
     disp = np.load(out)
     assert disp.shape == (48, 64) and np.median(np.abs(disp[10:-10, 10:-10] - 1.0)) < 0.05
     assert preview.is_file()
-    assert json.loads(capsys.readouterr().out)["edge_refinement"] is True
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["method"] == "occlusion-aware" and printed["edge_refinement"] is False
+    tensor = tmp_path / "st.npy"
+    assert main(["disparity", str(tmp_path / "plane.npz"), "--out", str(tensor),
+                 "--method", "structure-tensor"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["method"] == "structure-tensor" and printed["edge_refinement"] is True
+    np.testing.assert_array_equal(
+        np.load(tensor), estimate_disparity(lf, method="structure-tensor").disparity
+    )
     raw = tmp_path / "raw.npy"
     assert main(["disparity", str(tmp_path / "plane.npz"), "--out", str(raw), "--range=0,2",
                  "--no-edge-refinement"]) == 0

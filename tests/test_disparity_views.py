@@ -44,13 +44,15 @@ def spec_scene():
 
 
 def test_any_view_is_estimated_as_accurately_as_the_center(scene):
-    # measured (5x5 views of 64x96, seed 3; BadPix % / MSE): center 10.16 / 0.102,
-    # corner (0, 0) 12.86 / 0.197, corner (4, 4) 11.61 / 0.198, edge (0, 2) 11.93 / 0.128,
-    # inner (1, 2) 10.39 / 0.088
+    # measured with the default (occlusion-aware) estimator (5x5 views of 64x96, seed 3;
+    # BadPix % / MSE): center 13.93 / 0.287, corner (0, 0) 9.84 / 0.344, corner (4, 4)
+    # 10.91 / 0.495, edge (0, 2) 9.58 / 0.318, inner (1, 2) 14.79 / 0.330 (the structure tensor:
+    # center 10.16 / 0.102; on so small a 5x5 scene the cost volume's few gross errors at
+    # occlusion edges weigh more, on 9x9 scenes it is the better one, docs/performance.md)
     center_bad, center_mse = _errors(
         estimate_disparity(scene, device="cpu").disparity, scene.disparity[2, 2]
     )
-    assert center_bad < 15 and center_mse < 0.15
+    assert center_bad < 18 and center_mse < 0.35
     for view in [(0, 0), (4, 4), (0, 2), (1, 2)]:
         estimate = estimate_disparity(scene, device="cpu", view=view)
         assert estimate.disparity.shape == (64, 96) and estimate.meta["view"] == list(view)

@@ -119,7 +119,8 @@ def add_disparity_argument(
     if files:
         parser.add_argument(
             "--disparity", default="estimate", metavar="estimate|gt|FILE.npy",
-            help="disparity: estimated from the views (structure tensor), the scene's ground "
+            help="disparity: estimated from the views (occlusion-aware cost volume, as "
+            "`lfsam disparity`), the scene's ground "
             "truth, or a center-view (U, V) or every-view (S, T, U, V) .npy in lfsam's "
             "convention; the disparity of a view other than the center is derived from it",
         )

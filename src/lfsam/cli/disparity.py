@@ -13,18 +13,33 @@ from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_output, check_output_path
 from lfsam.io import read_lightfield
 
+# The names of lfsam.disparity.methods.METHODS, default first (kept here so that building the
+# parser does not import torch; a test checks that they agree).
+METHOD_NAMES = ("occlusion-aware", "structure-tensor")
+
 DESCRIPTION = """\
-Estimate the disparity of one view (the center view unless --view is given) with the structure
-tensor on epipolar-plane images (Wanner & Goldluecke), sheared to several candidate disparities
-so large baselines work too. The view's row of views gives the horizontal EPIs and its column the
-vertical ones; absent views of a partial grid are left out.
+Estimate the disparity of one view (the center view unless --view is given). Absent views of a
+partial grid are left out.
+
+Methods (--method):
+  occlusion-aware   (default) a cost volume over disparity hypotheses: every view is matched
+                    against the chosen view at each hypothesis, and each pixel keeps the best of
+                    the four half-grids of views (left, right, top, bottom), so a pixel next to
+                    an occluder is judged by the views that see it; the costs are smoothed by a
+                    guided filter that stops at the view's edges, and the best hypothesis is
+                    refined to sub-pixel precision. On HCI antinous about 7 % of the pixels are
+                    off by more than 0.07 px (structure tensor: 22 %).
+  structure-tensor  the paper's estimator: the structure tensor on epipolar-plane images
+                    (Wanner & Goldluecke), sheared to candidate disparities so large baselines
+                    work too, finished by an edge-aware smoothing (--no-edge-refinement skips it).
 
 The result is a (U, V) float32 .npy in lfsam's convention: a pixel (u, v) of view (s_r, t_r) with
 disparity d is seen in view (s, t) at (u - d (s - s_r), v - d (t - t_r)); larger is closer. Give
 a center map to `lfsam segment --disparity FILE.npy`. The disparity range is found from the views
-unless given. The local estimate is finished by an edge-aware, confidence-weighted smoothing
-guided by the view (it lowers both error measures on our benchmark); --no-edge-refinement skips
-it.
+unless given. --confidence writes a (U, V) map in [0, 1] of how much to trust each value: low at
+occlusion edges, in textureless regions and on shiny surfaces (occlusion-aware: the margin of the
+best cost over the second-best, times the agreement with the outermost views; structure tensor:
+its coherence).
 """
 
 EPILOG = """\
@@ -32,6 +47,8 @@ examples:
   lfsam disparity ../shared/data/hci_antinous --out antinous_disp.npy --preview antinous_disp.png
   lfsam disparity scene --out disp.npy --range=-3,3      # negative numbers need the = form
   lfsam disparity scene --view 0,8 --out disp_0_8.npy    # view row 0, column 8 (0-based)
+  lfsam disparity scene --out disp.npy --confidence conf.npy   # with a confidence map
+  lfsam disparity scene --out st.npy --method structure-tensor  # the paper's estimator
 """
 
 
@@ -39,7 +56,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``disparity`` subcommand."""
     parser = subparsers.add_parser(
         "disparity",
-        help="estimate a view's disparity (structure tensor on EPIs)",
+        help="estimate a view's disparity (occlusion-aware cost volume or structure tensor)",
         description=DESCRIPTION,
         epilog=EPILOG,
         formatter_class=HelpFormatter,
@@ -52,8 +69,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="disparity range in pixels per view step (default: found from the views)",
     )
     parser.add_argument(
+        "--method", choices=METHOD_NAMES, default=METHOD_NAMES[0],
+        help="the estimator (see above)",
+    )
+    parser.add_argument(
+        "--confidence", metavar="CONF.npy",
+        help="also write the per-pixel confidence in [0, 1] (float32 .npy)",
+    )
+    parser.add_argument(
+        "--edge-refinement", dest="edge_refinement", action="store_true", default=None,
+        help="finish with the confidence-weighted joint bilateral smoothing (default: on for "
+        "structure-tensor, off for occlusion-aware, where it blurs more than it repairs)",
+    )
+    parser.add_argument(
         "--no-edge-refinement", dest="edge_refinement", action="store_false",
-        help="keep the local structure-tensor estimate (skip the edge-aware smoothing)",
+        help="skip that smoothing",
     )
     parser.add_argument(
         "--view", metavar="S,T", type=lambda s: parse_pair(s, sep=",", kind=int),
@@ -72,17 +102,25 @@ def run(args: argparse.Namespace) -> int:
     if not str(args.out).endswith(".npy"):
         raise LfsamError(f"--out must end in .npy, got {args.out!r}")
     check_output_path(args.out)
+    if args.confidence is not None:
+        if not str(args.confidence).endswith(".npy"):
+            raise LfsamError(f"--confidence must end in .npy, got {args.confidence!r}")
+        check_output_path(args.confidence)
     if args.preview:
         check_output_path(args.preview)
     lightfield = read_lightfield(args.path, format=args.input_format)
     start = time.perf_counter()
+    options = {} if args.edge_refinement is None else {"edge_refinement": args.edge_refinement}
     estimate = estimate_disparity(
-        lightfield, args.disparity_range, device=args.device,
-        edge_refinement=args.edge_refinement, view=args.view,
+        lightfield, args.disparity_range, method=args.method, device=args.device,
+        view=args.view, **options,
     )
     seconds = time.perf_counter() - start
     with atomic_output(args.out) as tmp:
         np.save(tmp, estimate.disparity.astype(np.float32))
+    if args.confidence is not None:
+        with atomic_output(args.confidence) as tmp:
+            np.save(tmp, estimate.confidence.astype(np.float32))
     if args.preview:
         from matplotlib import colormaps
 
@@ -94,10 +132,12 @@ def run(args: argparse.Namespace) -> int:
         save_image(args.preview, (rgb * 255).round().astype(np.uint8))
     print(json.dumps({
         "out": args.out,
+        "method": args.method,
         "view": estimate.meta["view"],
         "range": [round(float(x), 3) for x in estimate.disparity_range],
         "seconds": round(seconds, 3),
         "mean_confidence": round(float(estimate.confidence.mean()), 3),
-        "edge_refinement": args.edge_refinement,
+        "edge_refinement": bool(estimate.meta["edge_refinement"]),
+        **({"confidence": args.confidence} if args.confidence is not None else {}),
     }))
     return 0

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from lfsam.cli.common import HelpFormatter, bounded_int, parse_pair
+from lfsam.cli.common import HelpFormatter, bounded_int, parse_pair, unit_interval
 from lfsam.errors import LfsamError
 from lfsam.io import WRITE_FORMATS, resolve_output, write_lightfield
 from lfsam.synth import generate_scene
@@ -39,6 +39,7 @@ examples:
   lfsam synth small.npz --grid 5x5 --size 64x96 --seed 3 --objects 4
   lfsam synth wide --disparity-range=-4,4              # note the '=' for negative numbers
   lfsam synth hidden.npz --hidden-objects 3            # 3 objects only the outer views see
+  lfsam synth glossy --specular 0.6                    # highlights that move across views
 """
 
 
@@ -74,9 +75,11 @@ def run(args: argparse.Namespace) -> int:
         disparity_range=args.disparity_range,
         supersample=args.supersample,
         hidden_objects=args.hidden_objects,
+        specular=args.specular,
     )
     out = write_lightfield(lf, args.out, format=args.format)
     hidden = f" + {args.hidden_objects} hidden" if args.hidden_objects else ""
+    hidden += f", specular {args.specular:g}" if args.specular else ""
     print(
         f"wrote {out}: {args.grid[0]}x{args.grid[1]} views of {args.size[0]}x{args.size[1]}, "
         f"seed {args.seed}, {args.objects} objects{hidden}, disparity "
@@ -126,6 +129,13 @@ def register(subparsers) -> None:
         default="-2,2",
         metavar="LO,HI",
         help="disparity range in pixels per view step",
+    )
+    parser.add_argument(
+        "--specular",
+        type=unit_interval,
+        default=0.0,
+        metavar="STRENGTH",
+        help="peak brightness (0-1) of a highlight on each object that moves across views",
     )
     parser.add_argument(
         "--supersample",

@@ -12,7 +12,8 @@ __all__ = ["DisparityEstimate"]
 
 @dataclass
 class DisparityEstimate:
-    """Disparity of the center view, with a per-pixel confidence.
+    """Disparity of one view (the center view unless ``meta["view"]`` says otherwise), with a
+    per-pixel confidence.
 
     Attributes
     ----------
@@ -21,7 +22,10 @@ class DisparityEstimate:
         :mod:`lfsam.geometry`: center pixel ``(u, v)`` with disparity ``d`` is seen in the view at
         offset ``(ds, dt)`` at ``(u - d ds, v - d dt)``.
     confidence : ndarray, shape (U, V), float32 in [0, 1]
-        How much to trust each value (structure-tensor coherence; 0 in textureless regions).
+        How much to trust each value: for the occlusion-aware estimator the cost-curve margin
+        times the left-right consistency (:mod:`lfsam.disparity.confidence`), for the structure
+        tensor its coherence; low in textureless regions and (occlusion-aware) at occlusion
+        edges and on non-Lambertian surfaces (docs/design.md section 3.2).
     disparity_range : (float, float)
         The disparity range the estimator searched (given by the user or estimated from the data).
     meta : dict

@@ -1,4 +1,4 @@
-"""Small torch filters shared by the disparity estimators: Gaussian and box smoothing.
+"""Small torch filters shared by the disparity estimators: Gaussian, box and guided smoothing.
 
 All filters work on tensors of shape ``(..., rows, cols)`` on any device, are separable and use
 reflected borders (replicated where an image is too small to reflect), so that a constant image
@@ -12,7 +12,7 @@ import math
 import torch
 import torch.nn.functional as F
 
-__all__ = ["box_blur", "gaussian_blur", "gaussian_kernel1d", "smooth_axis"]
+__all__ = ["box_blur", "gaussian_blur", "gaussian_kernel1d", "guided_filter", "smooth_axis"]
 
 
 def gaussian_kernel1d(sigma: float, device: torch.device | None = None) -> torch.Tensor:
@@ -88,3 +88,42 @@ def box_blur(image: torch.Tensor, radius: int) -> torch.Tensor:
     x = F.pad(x, (radius, radius), mode="replicate")
     x = F.avg_pool1d(x, size, stride=1).transpose(1, 2)
     return x.reshape(shape)
+
+
+def guided_filter(
+    guide: torch.Tensor, image: torch.Tensor, radius: int, eps: float
+) -> torch.Tensor:
+    """Edge-preserving smoothing of ``image`` steered by a gray ``guide`` (guided filter).
+
+    In every ``(2 radius + 1)^2`` window the output is the least-squares affine function of the
+    guide, ``q = a I + b`` with ``a = cov(I, p) / (var(I) + eps)``, ``b = mean(p) - a mean(I)``;
+    the coefficients of all windows covering a pixel are averaged (He, Sun & Tang, "Guided image
+    filtering", ECCV 2010 / TPAMI 2013, eqs. 7-8). Where the guide has an edge (``var(I) >> eps``)
+    the output follows it; in flat regions it is the box mean. Its cost does not depend on the
+    radius (box filters, :func:`box_blur`). As the cost-volume aggregation of local stereo
+    (Hosni et al., "Fast cost-volume filtering for visual correspondence and beyond", TPAMI 2013;
+    docs/design.md section 3.2) every slice ``image[k]`` is filtered with the same guide.
+
+    Parameters
+    ----------
+    guide : torch.Tensor, shape (rows, cols)
+        Gray guide image (intensities in [0, 1]).
+    image : torch.Tensor, shape (..., rows, cols)
+        What to smooth (e.g. a cost volume ``(D, rows, cols)``).
+    radius : int
+        Window radius in pixels (0 returns ``image``).
+    eps : float
+        Regulariser: guide variances well below it count as flat.
+
+    Returns
+    -------
+    torch.Tensor, shape of ``image``
+    """
+    if radius <= 0:
+        return image
+    mean_i = box_blur(guide, radius)
+    var_i = box_blur(guide * guide, radius) - mean_i * mean_i
+    mean_p = box_blur(image, radius)
+    a = (box_blur(image * guide, radius) - mean_i * mean_p) / (var_i + eps)
+    b = mean_p - a * mean_i
+    return box_blur(a, radius) * guide + box_blur(b, radius)

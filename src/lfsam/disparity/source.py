@@ -5,7 +5,8 @@ that consumes disparity (``lfsam segment --disparity``, ``lfsam evaluate``, :fun
 the interactive predictor through :class:`~lfsam.disparity.views.ViewDisparities`) names its
 source the same way and asks for the view it needs:
 
-- ``"estimate"``: the structure-tensor estimator run for that view;
+- ``"estimate"``: the default estimator (:data:`lfsam.disparity.methods.DEFAULT_METHOD`, the
+  occlusion-aware cost volume) run for that view;
 - ``"gt"``: the light field's ground truth of that view; with a center-only ground truth, the
   center map forward-warped into the view
   (:func:`~lfsam.disparity.center_warp.warp_center_disparity`);
@@ -22,7 +23,7 @@ import numpy as np
 
 from lfsam.disparity.center_warp import warp_center_disparity
 from lfsam.disparity.epi import resolve_view
-from lfsam.disparity.structure_tensor import estimate_disparity
+from lfsam.disparity.methods import estimate_disparity
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 
@@ -170,7 +171,8 @@ def resolve_disparity(
     Parameters
     ----------
     spec : {"estimate", "gt"}, path to a .npy, or ndarray
-        ``"estimate"``: the structure-tensor estimator (:func:`estimate_disparity`) for the view;
+        ``"estimate"``: the default estimator (:func:`lfsam.disparity.estimate_disparity`, the
+        occlusion-aware cost volume) for the view;
         ``"gt"``: the light field's ground truth of the view (a center-only ground truth is
         forward-warped into another view with a z-buffer, holes filled from the farther side);
         otherwise a ``.npy`` file or an array holding a ``(U, V)`` map of the center view

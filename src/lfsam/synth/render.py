@@ -26,6 +26,7 @@ from lfsam.synth.raster import region, zbuffer
 from lfsam.synth.scene import random_scene
 from lfsam.synth.shapes import inside
 from lfsam.synth.spec import PlanarObject, SceneSpec
+from lfsam.synth.specular import add_highlight
 from lfsam.synth.textures import make_texture
 
 __all__ = ["demo_scene", "generate_scene", "render_scene", "sample_geometry"]
@@ -48,7 +49,14 @@ def _sample_grid(size: tuple[int, int], step: int, dtype, device):
 
 
 def _render_rgb(
-    objects, textures, ds: float, dt: float, us: torch.Tensor, vs: torch.Tensor
+    objects,
+    textures,
+    ds: float,
+    dt: float,
+    us: torch.Tensor,
+    vs: torch.Tensor,
+    specular: float = 0.0,
+    reach: float = 1.0,
 ) -> torch.Tensor:
     """Z-buffer and colour every sample in one pass; returns ``[3, rows, cols]``.
 
@@ -78,6 +86,8 @@ def _render_rgb(
             padding_mode="reflection" if obj.shape == "plane" else "border",
             align_corners=False,
         )[0]
+        if specular > 0 and obj.shape != "plane":
+            sampled = add_highlight(sampled, obj, x, y, ds, dt, reach, specular)
         if first and obj.shape == "plane":
             best, rgb = d.expand(shape).clone(), sampled  # the first, unbounded patch
             first = False
@@ -104,6 +114,7 @@ def render_scene(
     spec: SceneSpec,
     supersample: int = 2,
     device: str | torch.device | None = None,
+    specular: float = 0.0,
 ) -> LightField:
     """Render every view of a scene with its exact disparity and labels.
 
@@ -115,6 +126,9 @@ def render_scene(
         Samples per pixel along each axis for the RGB (1 = no anti-aliasing).
     device : str or torch.device, optional
         Where to compute (default CPU; any spelling of :func:`lfsam.devices.resolve_device`).
+    specular : float
+        Brightness of a specular highlight on every object that moves across views
+        (:mod:`lfsam.synth.specular`; 0 = Lambertian surfaces, the default).
 
     Returns
     -------
@@ -136,9 +150,10 @@ def render_scene(
     disparity = np.empty((s_count, t_count, height, width), dtype=np.float32)
     labels = np.empty((s_count, t_count, height, width), dtype=np.int32)
     order = [(s, t) for s in range(s_count) for t in range(t_count)]
+    reach = float(max(center[0], s_count - 1 - center[0], center[1], t_count - 1 - center[1], 1))
     for s, t in tqdm(order, desc="rendering views", unit="view", disable=None, leave=False):
         ds, dt = float(s - center[0]), float(t - center[1])
-        rgb = _render_rgb(objects, textures, ds, dt, us, vs)
+        rgb = _render_rgb(objects, textures, ds, dt, us, vs, specular, reach)
         if supersample > 1:
             rgb = _box_average(rgb, supersample)
         rgb = (rgb * 255.0).round().clamp(0, 255).to(torch.uint8)
@@ -155,6 +170,7 @@ def render_scene(
         "generator": {
             **spec.meta,
             "supersample": supersample,
+            **({"specular": float(specular)} if specular > 0 else {}),
             "objects": [obj.describe() for obj in objects],
         },
     }
@@ -206,6 +222,7 @@ def generate_scene(
     supersample: int = 2,
     device: str | torch.device | None = None,
     hidden_objects: int = 0,
+    specular: float = 0.0,
 ) -> LightField:
     """A random synthetic light field with exact per-view disparity and instance labels.
 
@@ -246,6 +263,10 @@ def generate_scene(
         :func:`lfsam.synth.hidden.default_min_area` pixels (issue 16). Their labels follow the
         other objects' and are listed in ``meta["generator"]["hidden_labels"]``; the rest of the
         scene is the one generated with ``hidden_objects=0``.
+    specular : float
+        Brightness (0 to 1) of a specular highlight on every object that slides over it from
+        view to view (non-Lambertian surfaces, :mod:`lfsam.synth.specular`); 0 (default): none.
+        The geometry and labels are those of ``specular=0``.
 
     Returns
     -------
@@ -268,7 +289,7 @@ def generate_scene(
         label_background=label_background,
         hidden_objects=hidden_objects,
     )
-    return render_scene(spec, supersample=supersample, device=device)
+    return render_scene(spec, supersample=supersample, device=device, specular=specular)
 
 
 def demo_scene() -> LightField:

@@ -1,0 +1,274 @@
+"""An occlusion-aware matching cost volume over disparity hypotheses (plane sweep over all views).
+
+This is the data term of the default disparity estimator (docs/design.md section 3.2;
+:mod:`lfsam.disparity.occlusion_aware`). For a reference view ``r`` and a disparity hypothesis
+``d``, every other present view ``k`` at view offset ``(ds, dt)`` from ``r`` is resampled at
+``(u - d ds, v - d dt)``, where it sees the scene point that ``r`` sees at ``(u, v)`` if that point
+has disparity ``d`` (docs/design.md section 1; a plane sweep, Collins, "A space-sweep approach to
+true multi-image matching", CVPR 1996). Its photo-consistency with the reference is the
+truncated absolute difference of *locally normalised* intensities:
+
+    c_k(u, v, d) = min(|f_k(u - d ds, v - d dt) - f_r(u, v)|, tau),
+    f = (g - mean_w(g)) / (std_w(g) + eps_n)
+
+with ``g`` the gray view and ``mean_w``, ``std_w`` over a small window: normalising the contrast
+makes the cost as discriminative in the shadows and on the dark floor of HCI scenes as on bright
+texture and tolerates smooth brightness changes between views (as zero-mean normalised
+cross-correlation does). On HCI antinous it lowered BadPix(0.07) from 23 % (colour differences) to
+11 % before any other change.
+
+Occlusion-aware view selection. A pixel next to an occluding edge is hidden from some of the views;
+their costs are high even at the true disparity. As the occluder covers the views on one side of
+the reference first, the views are split into four half-grids, left (``dt < 0``), right
+(``dt > 0``), top (``ds < 0``) and bottom (``ds > 0``), whose mean costs are kept separately; for
+each hypothesis every pixel uses the half whose mean cost, box-averaged over a small window to
+make the choice robust, is lowest (Wang, Efros & Ramamoorthi, "Occlusion-aware depth estimation
+using light-field cameras", ICCV 2015, section 4, split the angular patch along the occlusion
+edge; Zhang et al., "Robust depth estimation for light field via spinning parallelogram
+operator", CVIU 2016, compare the two halves of a parallelogram window). The four fixed halves
+need no edge detection and contain every orientation of an occluder within 45 degrees of an axis
+(a diagonal occluder leaves at least one half mostly unoccluded). A reference view at a corner or
+edge of the grid simply has fewer non-empty halves.
+
+Views that do not see a pixel at a hypothesis (the resampling position falls outside the frame)
+are left out of that pixel's half means; a half without any valid view costs ``tau``.
+
+Cost. One hypothesis at a time, one view at a time: each resampling is a bilinear combination of
+(up to) four shifted slices of the padded feature image, so the memory is that of the ``(D, U, V)``
+result plus one ``(4, U, V)`` accumulator, never ``views x D x U x V``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from lfsam.devices import resolve_device
+from lfsam.disparity.epi import as_views, grid_present, resolve_view, usable_directions
+from lfsam.disparity.filters import box_blur
+from lfsam.errors import LfsamError
+from lfsam.lightfield import LightField
+
+__all__ = ["HALVES", "ViewSet", "build_cost_volume", "matching_features", "view_set"]
+
+#: The four half-grids, in the order of the accumulator's first axis.
+HALVES = ("left", "right", "top", "bottom")
+
+# ITU-R BT.601 luma weights (as lfsam.disparity.epi).
+_LUMA = (0.299, 0.587, 0.114)
+
+
+def matching_features(gray: torch.Tensor, radius: int = 1, eps: float = 0.002) -> torch.Tensor:
+    """Locally normalised intensities ``(g - mean) / (std + eps)`` over ``(2 radius + 1)^2``.
+
+    Parameters
+    ----------
+    gray : torch.Tensor, shape (..., U, V)
+        Gray views, intensities in [0, 1].
+    radius : int
+        Radius of the normalisation window (pixels).
+    eps : float
+        Added to the local standard deviation: contrast below it is treated as noise, so a flat
+        region stays near 0 instead of amplifying quantisation noise.
+
+    Returns
+    -------
+    torch.Tensor, shape of ``gray``
+    """
+    mean = box_blur(gray, radius)
+    var = (box_blur(gray * gray, radius) - mean * mean).clamp(min=0.0)
+    return (gray - mean) / (var.sqrt() + eps)
+
+
+class ViewSet:
+    """The present views of a light field, as seen from a reference view.
+
+    Attributes
+    ----------
+    reference : (int, int)
+        The reference view ``(s, t)`` (0-based).
+    gray : torch.Tensor, shape (U, V)
+        The reference view in gray levels, [0, 1] (the guide of the aggregation).
+    features : torch.Tensor, shape (N, U, V)
+        Matching features (:func:`matching_features`) of the present views other than the
+        reference.
+    reference_features : torch.Tensor, shape (U, V)
+        Matching features of the reference view.
+    offsets : ndarray, shape (N, 2), int
+        View offsets ``(ds, dt)`` of those views from the reference.
+    """
+
+    def __init__(
+        self,
+        reference: tuple[int, int],
+        gray: torch.Tensor,
+        features: torch.Tensor,
+        reference_features: torch.Tensor,
+        offsets: np.ndarray,
+    ) -> None:
+        self.reference = reference
+        self.gray = gray
+        self.features = features
+        self.reference_features = reference_features
+        self.offsets = offsets
+
+    @property
+    def device(self) -> torch.device:
+        """Where the views are."""
+        return self.gray.device
+
+
+def view_set(
+    views: LightField | np.ndarray,
+    view: tuple[int, int] | None = None,
+    *,
+    device: str | torch.device | None = None,
+    feature_radius: int = 1,
+    feature_eps: float = 0.002,
+) -> ViewSet:
+    """Gather the present views around the reference ``view`` (default: the center view).
+
+    Every present view of the grid takes part (not only the reference's row and column); absent
+    views of a partial grid (``LightField.present``) are skipped. The same requirement as the
+    EPI-based estimators applies, so that every method accepts the same light fields: at least
+    three present views in the reference's row or column.
+
+    Raises
+    ------
+    LfsamError
+        If the view is outside the grid or absent, or neither its row nor its column has three
+        present views.
+    """
+    array = as_views(views)
+    s_count, t_count = array.shape[:2]
+    present = grid_present(views)
+    s_r, t_r = resolve_view((s_count, t_count), view)
+    if not present[s_r, t_r]:
+        raise LfsamError(
+            f"view ({s_r}, {t_r}) is absent from this partial grid; choose a view that exists"
+        )
+    if not usable_directions((s_count, t_count), (s_r, t_r), present):
+        where = "" if view is None else f" through view ({s_r}, {t_r})"
+        raise LfsamError(
+            f"grid {s_count}x{t_count}: need at least 3 views in a row or column{where} "
+            "to estimate disparity; give a disparity map instead (--disparity gt or a .npy file)"
+        )
+    dev = resolve_device(device)
+    luma = torch.tensor(_LUMA, device=dev, dtype=torch.float32)
+    others = [
+        (s, t)
+        for s in range(s_count)
+        for t in range(t_count)
+        if present[s, t] and (s, t) != (s_r, t_r)
+    ]
+
+    def gray_of(index: tuple[int, int]) -> torch.Tensor:
+        rgb = torch.from_numpy(np.ascontiguousarray(array[index])).to(dev).float()
+        return (rgb @ luma) / 255.0
+
+    reference_gray = gray_of((s_r, t_r))
+    stack = torch.stack([gray_of(index) for index in others])
+    features = matching_features(stack, feature_radius, feature_eps)
+    reference_features = matching_features(reference_gray, feature_radius, feature_eps)
+    offsets = np.array([(s - s_r, t - t_r) for s, t in others], dtype=np.int64).reshape(-1, 2)
+    return ViewSet((s_r, t_r), reference_gray, features, reference_features, offsets)
+
+
+def _halves_of(ds: int, dt: int) -> list[int]:
+    """Indices into :data:`HALVES` of the half-grids a view offset belongs to."""
+    halves = []
+    if dt < 0:
+        halves.append(0)
+    if dt > 0:
+        halves.append(1)
+    if ds < 0:
+        halves.append(2)
+    if ds > 0:
+        halves.append(3)
+    return halves
+
+
+def _visible(shift: float, length: int) -> tuple[int, int]:
+    """The pixels ``[first, stop)`` along an axis of ``length`` whose position ``x + shift``
+    lies inside the frame ``[0, length - 1]``."""
+    first = max(0, math.ceil(-shift))
+    stop = min(length, math.floor(length - 1 - shift) + 1)
+    return first, stop
+
+
+def _resample(
+    padded: torch.Tensor, pad: int, shift_u: float, shift_v: float, rows: slice, cols: slice
+) -> torch.Tensor:
+    """``image(u + shift_u, v + shift_v)`` for ``u`` in ``rows``, ``v`` in ``cols``, by bilinear
+    interpolation of the image replicate-padded by ``pad`` (``|shift| <= pad - 1``)."""
+    iu, iv = math.floor(shift_u), math.floor(shift_v)
+    fu, fv = shift_u - iu, shift_v - iv
+    r0, c0 = pad + iu + rows.start, pad + iv + cols.start
+    block = padded[r0 : r0 + rows.stop - rows.start + 1, c0 : c0 + cols.stop - cols.start + 1]
+    block = torch.lerp(block[:, :-1], block[:, 1:], fv) if fv > 1e-6 else block[:, :-1]
+    return torch.lerp(block[:-1], block[1:], fu) if fu > 1e-6 else block[:-1]
+
+
+def build_cost_volume(
+    views: ViewSet,
+    hypotheses: np.ndarray,
+    *,
+    truncation: float = 1.0,
+    selection_radius: int = 2,
+    occlusion_aware: bool = True,
+) -> torch.Tensor:
+    """The occlusion-aware matching cost of every pixel of the reference at every hypothesis.
+
+    Parameters
+    ----------
+    views : ViewSet
+        The views around the reference (:func:`view_set`).
+    hypotheses : ndarray, shape (D,)
+        Disparity hypotheses, pixels per view step.
+    truncation : float
+        ``tau``: largest cost of one view at one pixel (robustness to occlusion and specular
+        highlights; in units of the normalised features).
+    selection_radius : int
+        Radius of the box window over which the half-grids' costs are compared (0: per pixel).
+    occlusion_aware : bool
+        Keep the best half-grid per pixel and hypothesis (module docstring); False averages all
+        views.
+
+    Returns
+    -------
+    cost : torch.Tensor, shape (D, U, V), float32
+        Mean truncated feature difference of the chosen half-grid (lower = more consistent).
+    """
+    rows, cols = views.gray.shape
+    device = views.device
+    offsets = views.offsets
+    reach = int(np.abs(offsets).max()) if len(offsets) else 0
+    pad = math.ceil(float(np.abs(hypotheses).max()) * reach) + 2
+    padded = F.pad(views.features[:, None], (pad, pad, pad, pad), mode="replicate")[:, 0]
+    count = 4 if occlusion_aware else 1
+    volume = torch.empty((len(hypotheses), rows, cols), device=device, dtype=torch.float32)
+    for index, d in enumerate(np.asarray(hypotheses, dtype=np.float64)):
+        sums = torch.zeros((count, rows, cols), device=device)
+        seen = torch.zeros((count, rows, cols), device=device)
+        for k, (ds, dt) in enumerate(offsets.tolist()):
+            shift_u, shift_v = -d * ds, -d * dt
+            # only the pixels this view sees at this hypothesis (a rectangle) are compared
+            in_u, in_v = slice(*_visible(shift_u, rows)), slice(*_visible(shift_v, cols))
+            if in_u.start >= in_u.stop or in_v.start >= in_v.stop:
+                continue
+            warped = _resample(padded[k], pad, shift_u, shift_v, in_u, in_v)
+            cost = (warped - views.reference_features[in_u, in_v]).abs_().clamp_(max=truncation)
+            for half in _halves_of(ds, dt) if occlusion_aware else [0]:
+                sums[half, in_u, in_v] += cost
+                seen[half, in_u, in_v] += 1.0
+        means = torch.where(seen > 0.5, sums / seen.clamp(min=1.0), truncation)
+        if count == 1:
+            volume[index] = means[0]
+            continue
+        judged = box_blur(means, selection_radius) if selection_radius > 0 else means
+        choice = judged.argmin(0, keepdim=True)
+        volume[index] = means.gather(0, choice)[0]
+    return volume
