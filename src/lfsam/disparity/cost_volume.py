@@ -47,9 +47,8 @@ import torch
 import torch.nn.functional as F
 
 from lfsam.devices import resolve_device
-from lfsam.disparity.epi import as_views, grid_present, resolve_view, usable_directions
+from lfsam.disparity.epi import checked_reference
 from lfsam.disparity.filters import box_blur
-from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 
 __all__ = ["HALVES", "ViewSet", "build_cost_volume", "matching_features", "view_set"]
@@ -142,20 +141,8 @@ def view_set(
         If the view is outside the grid or absent, or neither its row nor its column has three
         present views.
     """
-    array = as_views(views)
+    array, present, (s_r, t_r), _ = checked_reference(views, view)
     s_count, t_count = array.shape[:2]
-    present = grid_present(views)
-    s_r, t_r = resolve_view((s_count, t_count), view)
-    if not present[s_r, t_r]:
-        raise LfsamError(
-            f"view ({s_r}, {t_r}) is absent from this partial grid; choose a view that exists"
-        )
-    if not usable_directions((s_count, t_count), (s_r, t_r), present):
-        where = "" if view is None else f" through view ({s_r}, {t_r})"
-        raise LfsamError(
-            f"grid {s_count}x{t_count}: need at least 3 views in a row or column{where} "
-            "to estimate disparity; give a disparity map instead (--disparity gt or a .npy file)"
-        )
     dev = resolve_device(device)
     luma = torch.tensor(_LUMA, device=dev, dtype=torch.float32)
     others = [

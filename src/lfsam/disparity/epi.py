@@ -33,6 +33,7 @@ __all__ = [
     "MIN_VIEWS",
     "EpiStack",
     "as_views",
+    "checked_reference",
     "epi_stacks",
     "grid_present",
     "resolve_device",
@@ -114,6 +115,36 @@ def grid_present(views: LightField | np.ndarray) -> np.ndarray:
     return np.ones(np.shape(views)[:2], dtype=bool)
 
 
+def checked_reference(
+    views: LightField | np.ndarray, view: tuple[int, int] | None
+) -> tuple[np.ndarray, np.ndarray, tuple[int, int], list[str]]:
+    """The views, their ``present`` mask, the reference view and its usable EPI directions,
+    checked the same way for every estimator (docs/design.md section 3.2).
+
+    Raises
+    ------
+    LfsamError
+        If the view lies outside the grid, is absent, or neither its row nor its column has
+        :data:`MIN_VIEWS` present views.
+    """
+    array = as_views(views)
+    s_count, t_count = array.shape[:2]
+    present = grid_present(views)
+    s_r, t_r = resolve_view((s_count, t_count), view)
+    if not present[s_r, t_r]:
+        raise LfsamError(
+            f"view ({s_r}, {t_r}) is absent from this partial grid; choose a view that exists"
+        )
+    directions = usable_directions((s_count, t_count), (s_r, t_r), present)
+    if not directions:
+        where = "" if view is None else f" through view ({s_r}, {t_r})"
+        raise LfsamError(
+            f"grid {s_count}x{t_count}: need at least {MIN_VIEWS} views in a row or column{where} "
+            "to estimate disparity; give a disparity map instead (--disparity gt or a .npy file)"
+        )
+    return array, present, (s_r, t_r), directions
+
+
 def resolve_view(
     grid_shape: tuple[int, int], view: tuple[int, int] | None
 ) -> tuple[int, int]:
@@ -190,21 +221,7 @@ def epi_stacks(
         If the view lies outside the grid, is absent, or neither direction has three present
         views.
     """
-    array = as_views(views)
-    s_count, t_count = array.shape[:2]
-    present = grid_present(views)
-    s_c, t_c = resolve_view((s_count, t_count), view)
-    if not present[s_c, t_c]:
-        raise LfsamError(
-            f"view ({s_c}, {t_c}) is absent from this partial grid; choose a view that exists"
-        )
-    directions = usable_directions((s_count, t_count), (s_c, t_c), present)
-    if not directions:
-        where = "" if view is None else f" through view ({s_c}, {t_c})"
-        raise LfsamError(
-            f"grid {s_count}x{t_count}: need at least {MIN_VIEWS} views in a row or column{where} "
-            "to estimate disparity; give a disparity map instead (--disparity gt or a .npy file)"
-        )
+    array, present, (s_c, t_c), directions = checked_reference(views, view)
     dev = resolve_device(device)
     stacks = []
     for direction in directions:
