@@ -284,6 +284,11 @@ def segment(
         raise LfsamError(f"unknown method {run.method!r}; use one of {', '.join(METHODS)}")
     objects = as_objects(prompts, lightfield)
     _check_references(run.references, run.method, objects)
+    if options.pipeline.refine_views != "all" and run.method != "lfsam":
+        raise LfsamError(
+            f"--refine-views {options.pipeline.refine_views} needs --method lfsam (the video "
+            "baseline tracks every view)"
+        )
     start = time.perf_counter()
     if isinstance(model, Segmenter):
         segmenter, model_name = model, model.name

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -120,6 +121,32 @@ class LightFieldPredictor:
         )
         self._table = ObjectTable()
         self._labels_cache = {}
+
+    def set_refine_views(self, setting: str | int) -> None:
+        """Refine ``"all"`` views, ``"sparse"`` or N of them from now on (docs/design.md
+        section 3.7); objects refined under another setting are refined again at the next
+        :meth:`predict` (their step-1 masks, coarse masks and the embeddings stay), e.g. to
+        finish the views a sparse pass filled."""
+        config = replace(self.config, refine_views=setting)
+        if config == self.config:
+            return
+        self.config = config
+        if self._engine is not None:
+            self._engine.config = config
+            for obj in self._table.objects.values():
+                obj.refined = None
+            self._labels_cache.pop("refined", None)
+
+    @property
+    def refined_views(self) -> np.ndarray | None:
+        """``(S, T)`` bool: the views refined with SAM 2 for at least one object (all present
+        views with ``refine_views="all"``); None before a light field is set."""
+        if self._engine is None:
+            return None
+        references = [
+            self._table[i].reference_view(self.lightfield.center) for i in self._table.ids
+        ]
+        return self._engine.refined_flags(references)
 
     def require_lightfield(self) -> LightField:
         """The light field set; an :class:`LfsamError` when none is."""
@@ -374,6 +401,7 @@ class LightFieldPredictor:
             "segmenter": self.segmenter.describe(),
             "config": self.config.to_dict(),
             "views_encoded": self.views_encoded,
+            "refined_views": self.refined_views.tolist(),
             "views_present": int(lf.present.sum()),
             "disparity_source": engine.disparities.source(
                 lf.center if lf.center in resolved or not resolved else resolved[0]

@@ -16,11 +16,13 @@ from lfsam.devices import DEVICE_HELP
 __all__ = [
     "HelpFormatter",
     "add_device_argument",
+    "add_refine_views_argument",
     "add_value_range",
     "bounded_int",
     "parse_floats",
     "parse_pair",
     "probability",
+    "refine_views",
     "unit_interval",
 ]
 
@@ -139,3 +141,26 @@ def add_device_argument(parser: argparse.ArgumentParser | argparse._ArgumentGrou
     device).
     """
     parser.add_argument("--device", default="auto", metavar="DEVICE", help=DEVICE_HELP)
+
+
+def refine_views(text: str) -> str | int:
+    """Parse ``--refine-views``: ``all``, ``sparse`` or a number of views N >= 1."""
+    from lfsam.errors import LfsamError
+    from lfsam.pipeline.sparse import check_refine_views
+
+    try:
+        return check_refine_views(text)
+    except LfsamError:
+        raise argparse.ArgumentTypeError(
+            f"expected all, sparse or a number of views N >= 1, got {text!r}"
+        ) from None
+
+
+def add_refine_views_argument(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """``--refine-views all|sparse|N`` (docs/design.md section 3.7)."""
+    parser.add_argument(
+        "--refine-views", type=refine_views, default="all", metavar="all|sparse|N",
+        help="views encoded and refined with SAM 2: all (the paper), sparse (about one in five: "
+        "17 of 9x9, 9 of 5x5, spread over the grid; about 4.5x faster) or N views; the other "
+        "views take the masks of the refined views nearest to them, moved by disparity",
+    )

@@ -6,7 +6,7 @@ import argparse
 import functools
 import sys
 
-from lfsam.cli.common import HelpFormatter, add_disparity_argument
+from lfsam.cli.common import HelpFormatter, add_disparity_argument, add_refine_views_argument
 from lfsam.cli.models import add_model_arguments, model_options_from_args
 from lfsam.errors import LfsamError
 
@@ -70,6 +70,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--ablation", choices=["none", "ref", "ref+occ"], default="ref+occ",
         help="row of paper Table 2: no refinement or occluding, refinement only, or both",
     )
+    add_refine_views_argument(parser)
     parser.add_argument(
         "--references",
         default="center",
@@ -111,6 +112,8 @@ def method_label(args: argparse.Namespace) -> str:
         details.append("random weights")
     if getattr(args, "references", "center") != "center":
         details.append(f"references {args.references}")
+    if getattr(args, "refine_views", "all") != "all":
+        details.append(f"refine views {args.refine_views}")
     return f"{head} ({', '.join(details)})"
 
 
@@ -139,8 +142,10 @@ def run(args: argparse.Namespace) -> int:
     except ImportError as exc:
         raise LfsamError(f"segmentation is unavailable in this installation ({exc})") from exc
 
+    if args.refine_views != "all" and args.method != "lfsam":
+        raise LfsamError(f"--refine-views {args.refine_views} needs --method lfsam")
     options = SegmentOptions(
-        pipeline=PipelineConfig.from_ablation(args.ablation)
+        pipeline=PipelineConfig.from_ablation(args.ablation, refine_views=args.refine_views)
         if args.method == "lfsam"
         else PipelineConfig(),
         model=model_options_from_args(args),

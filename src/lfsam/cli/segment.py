@@ -9,6 +9,7 @@ import sys
 from lfsam.cli.common import (
     HelpFormatter,
     add_disparity_argument,
+    add_refine_views_argument,
     add_value_range,
     bounded_int,
     unit_interval,
@@ -40,6 +41,11 @@ of points and a box each (format: README, "Prompt files"). The prompts are saved
 so it can be reopened and edited (lfsam view --result). --cache DIR keeps the image encoder's
 output on disk: a second run on the same views encodes nothing (the result's views_encoded).
 
+--refine-views sparse encodes and refines about one view in five (17 of 9x9, spread over the
+grid) instead of every view, several times faster; every other view takes the refined masks of
+the views nearest to it, moved by disparity (docs/design.md section 3.7). --refine-views N picks
+N views. The result records which views were refined (meta refined_views; lfsam show marks them).
+
 --references (with --auto) sets where masks are generated: center (the paper's setting), or also
 the corner views (corners), the outer ring's corners and edge midpoints (ring), or every view
 (all), there only where no mask lands yet, to find objects the center view cannot see (an object
@@ -59,6 +65,7 @@ examples:
   lfsam segment scene --auto --no-refine --occlusion none --out ablation_none.npz
   lfsam segment scene --auto --amg points_per_side=32 --out coarser_auto.npz
   lfsam segment hidden.npz --auto --references corners --out all_objects.npz
+  lfsam segment scene --auto --refine-views sparse --out fast.npz   # 17 of 9x9 views encoded
 """
 
 
@@ -104,6 +111,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     method.add_argument(
         "--no-refine", action="store_true", help="skip refinement (keep the propagated masks)"
     )
+    add_refine_views_argument(method)
     method.add_argument(
         "--occlusion", choices=["semantic", "geometric", "both", "none"], default="semantic",
         help="occluding: SAM 2 feature similarity (paper), z-buffer of the center disparity, "
@@ -161,6 +169,7 @@ def run(args: argparse.Namespace) -> int:
         propagation=args.propagation,
         t_sim=args.t_sim,
         t_iou=args.t_iou,
+        refine_views=args.refine_views,
     )
     check_output_path(args.out)
     if args.cache is not None:

@@ -10,6 +10,7 @@ import torch
 from lfsam.devices import default_encode_batch_size, default_prompt_batch_size
 from lfsam.errors import LfsamError
 from lfsam.pipeline.propagation import PROPAGATION_MODES
+from lfsam.pipeline.sparse import check_refine_views
 
 __all__ = ["ABLATIONS", "OCCLUSION_MODES", "PipelineConfig"]
 
@@ -50,11 +51,17 @@ class PipelineConfig:
     encode_batch_size : int, optional
         Views encoded per encoder call; None (default) decides from the segmenter's device
         (:func:`lfsam.devices.default_encode_batch_size`: batched on CUDA, 1 on a CPU).
+    refine_views : {"all", "sparse"} or int
+        Which views are encoded and refined (docs/design.md section 3.7): ``"all"`` (the
+        paper), ``"sparse"`` (about one in five, :func:`lfsam.pipeline.sparse.sparse_view_count`)
+        or that many views spread over the grid; every other view is filled from the refined
+        views nearest to it (:mod:`lfsam.pipeline.fill`). A string of digits is read as N.
 
     Raises
     ------
     LfsamError
-        An unknown occluding or propagation mode, or an encode batch size below 1.
+        An unknown occluding or propagation mode, an encode batch size below 1, or a
+        ``refine_views`` that is none of the three forms.
     """
 
     refine: bool = True
@@ -65,8 +72,10 @@ class PipelineConfig:
     zbuffer_tolerance: float = 0.2
     fill_holes: bool = True
     encode_batch_size: int | None = None
+    refine_views: str | int = "all"
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "refine_views", check_refine_views(self.refine_views))
         if self.occlusion not in OCCLUSION_MODES:
             raise LfsamError(
                 f"unknown occlusion {self.occlusion!r}; use one of {', '.join(OCCLUSION_MODES)}"

@@ -12,8 +12,9 @@ their stages are up to date, is the caller's (:class:`lfsam.predictor.LightField
 
 from __future__ import annotations
 
+import math
 from collections import Counter, OrderedDict, defaultdict
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -24,6 +25,7 @@ from lfsam.disparity.views import ViewDisparities
 from lfsam.embeddings import EmbeddingStore
 from lfsam.lightfield import LightField
 from lfsam.pipeline.config import PipelineConfig
+from lfsam.pipeline.fill import fill_from_sources
 from lfsam.pipeline.fusion import fuse_labels
 from lfsam.pipeline.initial import initial_segmentation
 from lfsam.pipeline.objects import (
@@ -38,6 +40,7 @@ from lfsam.pipeline.objects import (
 from lfsam.pipeline.occlusion import semantic_occlusion, source_features, uniform_weights
 from lfsam.pipeline.propagation import ForwardWarp, forward_warp, propagate_masks
 from lfsam.pipeline.refinement import refine_masks
+from lfsam.pipeline.sparse import nearest_sources, refined_views
 from lfsam.result import pack_masks
 from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
 from lfsam.timing import StageTimer
@@ -96,8 +99,10 @@ class StreamingEngine:
         self.store = EmbeddingStore(
             segmenter, lightfield.views, cache_dir=cache_dir, memory_budget_mb=memory_budget_mb
         )
-        self._disp_tensors: dict[View, torch.Tensor] = {}
-        self._warps: OrderedDict[tuple[View, View], ForwardWarp] = OrderedDict()
+        self._disp_tensors: dict[tuple[View, bool], torch.Tensor] = {}
+        self._warps: OrderedDict[tuple[View, View, bool], ForwardWarp] = OrderedDict()
+        self._base: frozenset[View] | None = None
+        self._base_key: tuple[bool, str | int] | None = None
         self._warp_bytes = 0
 
     # --- shared per-view data ----------------------------------------------------------------
@@ -106,24 +111,30 @@ class StreamingEngine:
         with self.timer("encode"):
             return self.store.get(view)
 
-    def disparity(self, view: View) -> torch.Tensor:
-        """Disparity of ``view`` on the segmenter's device (resolved once)."""
+    def disparity(self, view: View, carried: bool = False) -> torch.Tensor:
+        """Disparity of ``view`` on the segmenter's device (resolved once); with ``carried``,
+        the one for carrying refined masks out of it
+        (:meth:`lfsam.disparity.views.ViewDisparities.carried`)."""
         view = (int(view[0]), int(view[1]))
-        if view not in self._disp_tensors:
+        carried = carried and self.disparities.warps_center(view)
+        key = (view, carried)
+        if key not in self._disp_tensors:
             with self.timer("disparity"):
-                disp = self.disparities.get(view)
-            self._disp_tensors[view] = torch.tensor(disp, dtype=torch.float32, device=self.device)
-        return self._disp_tensors[view]
+                disp = self.disparities.carried(view) if carried else self.disparities.get(view)
+            self._disp_tensors[key] = torch.tensor(disp, dtype=torch.float32, device=self.device)
+        return self._disp_tensors[key]
 
-    def warp(self, source: View, target: View) -> ForwardWarp:
-        """The forward warp of ``source``'s disparity into ``target`` (cached, LRU)."""
-        key = (source, target)
+    def warp(self, source: View, target: View, carried: bool = False) -> ForwardWarp:
+        """The forward warp of ``source``'s disparity into ``target`` (cached, LRU); with
+        ``carried``, of its disparity for carrying masks (:meth:`disparity`)."""
+        carried = carried and self.disparities.warps_center(source)
+        key = (source, target, carried)
         if key in self._warps:
             self._warps.move_to_end(key)
             return self._warps[key]
         with self.timer("propagate"):
             warp = forward_warp(
-                self.disparity(source), target[0] - source[0], target[1] - source[1]
+                self.disparity(source, carried), target[0] - source[0], target[1] - source[1]
             )
         self._warps[key] = warp
         self._warp_bytes += _warp_nbytes(warp)
@@ -223,6 +234,48 @@ class StreamingEngine:
                 scores[i] = float(source.scores[k])
                 self.decode_counts[i] += 1
 
+    # --- which views are refined (docs/design.md section 3.7) -------------------------------
+    @property
+    def base_refined(self) -> frozenset[View] | None:
+        """The views refined for every object, None for all of them (the paper):
+        :func:`lfsam.pipeline.sparse.refined_views` of the configuration's ``refine_views``
+        (None too without refinement)."""
+        key = (self.config.refine, self.config.refine_views)
+        if self._base_key != key:
+            lf = self.lightfield
+            self._base = (
+                refined_views(self.config.refine_views, lf.present, lf.center)
+                if self.config.refine
+                else None
+            )
+            self._base_key = key
+        return self._base
+
+    def refines(self, view: View, reference: View) -> bool:
+        """Whether steps 3-4 run in ``view`` for the objects whose reference view is
+        ``reference``: every view with ``refine_views="all"``, else the base set
+        (:attr:`base_refined`) and the reference view itself."""
+        base = self.base_refined
+        return base is None or view in base or view == reference
+
+    def fill_sources(self, view: View, reference: View) -> list[View]:
+        """The refined views a view not refined takes its masks from, nearest first
+        (:func:`lfsam.pipeline.sparse.nearest_sources`)."""
+        base = self.base_refined
+        return nearest_sources(view, (base or frozenset()) | {reference})
+
+    def refined_flags(self, references: Iterable[View]) -> np.ndarray:
+        """``(S, T)`` bool: the views refined for at least one object whose reference view is
+        among ``references`` (result metadata ``refined_views``)."""
+        lf = self.lightfield
+        base = self.base_refined
+        if base is None:
+            return np.asarray(lf.present, dtype=bool).copy()
+        flags = np.zeros(lf.grid_shape, dtype=bool)
+        for view in (*base, *references):
+            flags[view] = True
+        return flags
+
     # --- steps 2-4, streamed -----------------------------------------------------------------
     def run(
         self,
@@ -236,8 +289,13 @@ class StreamingEngine:
         view). Sets each object's ``coarse`` masks, and ``refined`` with ``refine`` (or, when the
         configuration does not refine, the coarse ones).
 
+        With ``refine_views`` other than ``"all"`` the views an object is refined in come
+        first; every other view is then filled from them (:mod:`lfsam.pipeline.fill`) and is
+        neither encoded nor semantically occluded (its coarse masks are propagated, with the
+        z-buffer when geometric occluding is on).
+
         With ``paint_order`` (``ids`` in paint order: every object of the session is in this
-        pass) each view's labels are fused on the device as it is done, and returned.
+        pass) each view's labels are fused on the device as soon as it is done, and returned.
         """
         lf = self.lightfield
         config = self.config
@@ -246,41 +304,62 @@ class StreamingEngine:
         coarse_out = {i: out[i].copy() for i in ids}
         views = list(lf.view_indices(present_only=True))
         batch_size = config.batch_size_for(self.device)
+        references = {objects[i].reference.view for i in ids}
+        refined_here = [v for v in views if any(self.refines(v, r) for r in references)]
+        filled_here = [v for v in views if not all(self.refines(v, r) for r in references)]
         bar = tqdm(
             total=len(views), desc="views", unit="view", disable=not self.progress or None,
             leave=False,
         )
         labels = None
+        pending: dict[View, dict[int, torch.Tensor]] = defaultdict(dict)
         if paint_order is not None:
             labels = np.zeros((*lf.grid_shape, *lf.view_shape), dtype=np.int32)
             rank = {i: k for k, i in enumerate(ids)}
             paint = torch.as_tensor([rank[i] for i in paint_order], device=self.device)
             lookup = torch.as_tensor([0, *ids], dtype=torch.int32, device=self.device)
+
+        def done(view: View, final: dict[int, torch.Tensor]) -> None:
+            """Keep a view's final masks until every object has one there; then fuse."""
+            pending[view].update(final)
+            if len(pending[view]) < len(ids):
+                return
+            masks = pending.pop(view)
+            if labels is not None:
+                with self.timer("fuse"):
+                    fused = fuse_labels(torch.stack([masks[i] for i in ids]), paint)
+                    labels[view] = lookup[fused.long()].cpu().numpy()
+            bar.update(1)
+
         # The reference views are encoded already (step 1): they go first, on their own, so
         # that every later batch encodes a full ``batch_size`` of new views. Views whose
         # embedding is in memory (e.g. the extra reference views of the automatic mode) come
         # next, before new encodes could push them out of the memory budget.
-        references = {objects[i].reference.view for i in ids}
-        pending = [v for v in views if v not in references]
-        pending.sort(key=lambda v: not self.store.in_memory(v))
-        batches = [[v for v in views if v in references]]
-        batches += [pending[k : k + batch_size] for k in range(0, len(pending), batch_size)]
+        pending_views = [v for v in refined_here if v not in references]
+        pending_views.sort(key=lambda v: not self.store.in_memory(v))
+        batches = [[v for v in refined_here if v in references]]
+        batches += [
+            pending_views[k : k + batch_size] for k in range(0, len(pending_views), batch_size)
+        ]
         for batch in batches:
-            # A view needs its embedding unless it is the reference of every object here.
-            others = [v for v in batch if any(v != r for r in references)]
+            # A view needs its embedding where some object is propagated into it and
+            # refined or semantically occluded there.
+            others = [
+                v for v in batch if any(v != r and self.refines(v, r) for r in references)
+            ]
             embeddings = {}
             if (refine or config.semantic) and others:
                 with self.timer("encode"):
                     embeddings = dict(zip(others, self.store.get_many(others), strict=True))
             for view in batch:
-                final = self.view_step(
-                    objects, view, ids, embeddings.get(view), refine, out, coarse_out
-                )
-                if labels is not None:
-                    with self.timer("fuse"):
-                        fused = fuse_labels(torch.stack([final[i] for i in ids]), paint)
-                        labels[view] = lookup[fused.long()].cpu().numpy()
-                bar.update(1)
+                done(view, self.view_step(
+                    objects, view, ids, embeddings.get(view), refine, out, coarse_out,
+                    stage="refine",
+                ))
+        for view in filled_here:
+            done(view, self.view_step(
+                objects, view, ids, None, refine, out, coarse_out, stage="fill"
+            ))
         bar.close()
         for i in ids:
             obj = objects[i]
@@ -300,10 +379,16 @@ class StreamingEngine:
         refine: bool,
         out: dict[int, ObjectViews],
         coarse_out: dict[int, ObjectViews],
+        stage: str = "refine",
     ) -> dict[int, torch.Tensor]:
         """Steps 2-4 of the objects ``ids`` in one view; writes their packed masks into
         ``out`` (final) and ``coarse_out`` and returns each object's final mask there (refined,
-        or coarse without refinement) on the device."""
+        or coarse without refinement) on the device.
+
+        ``stage`` ``"refine"`` handles the objects refined in this view (:meth:`refines`; every
+        object with ``refine_views="all"``) and ``"fill"`` the others, whose sources
+        (:meth:`fill_sources`) must be in ``out`` already.
+        """
         final: dict[int, torch.Tensor] = {}
         config = self.config
         height, width = self.lightfield.view_shape
@@ -311,6 +396,8 @@ class StreamingEngine:
         for i in ids:
             groups[objects[i].reference.view].append(i)
         for ref_view, members in groups.items():
+            if self.refines(view, ref_view) != (stage == "refine"):
+                continue
             refs = [objects[i].reference for i in members]
             if ref_view == view:  # the reference view keeps its step-1 mask
                 stacked = torch.stack([r.mask for r in refs])
@@ -328,6 +415,20 @@ class StreamingEngine:
                     config.propagation, warp=warp, fill_holes=config.fill_holes,
                     occlusion_tolerance=config.zbuffer_tolerance if config.geometric else None,
                 )
+            if stage == "fill":
+                with self.timer("fuse"):
+                    coarse_bits = pack_masks(coarse)
+                for k, i in enumerate(members):
+                    coarse_out[i].bits[view] = coarse_bits[k]
+                masks = self._fill(view, ref_view, members, coarse, out) if refine else coarse
+                if refine:
+                    with self.timer("fuse"):
+                        bits = pack_masks(masks)
+                    for k, i in enumerate(members):
+                        out[i].bits[view] = bits[k]
+                for k, i in enumerate(members):
+                    final[i] = masks[k]
+                continue
             with self.timer("occlude"):
                 weights = None
                 if config.semantic:
@@ -371,11 +472,38 @@ class StreamingEngine:
                 final[i] = outcome.masks[k]
         return final
 
+    def _fill(
+        self,
+        view: View,
+        ref_view: View,
+        members: list[int],
+        coarse: torch.Tensor,
+        out: dict[int, ObjectViews],
+    ) -> torch.Tensor:
+        """The final masks in ``view`` of objects with reference view ``ref_view`` that are
+        not refined there: carried from their refined sources (:mod:`lfsam.pipeline.fill`),
+        whose masks ``out`` holds; ``coarse`` where no source sees a pixel."""
+        height, width = self.lightfield.view_shape
+        sources = self.fill_sources(view, ref_view)
+        with self.timer("fill"):
+            masks = []
+            for source in sources:
+                packed = np.stack([out[i].bits[source] for i in members])
+                bits = np.unpackbits(packed, axis=1, count=height * width).astype(bool)
+                masks.append(torch.from_numpy(bits.reshape(-1, height, width)).to(self.device))
+            disparities = [self.disparity(source, carried=True) for source in sources]
+            warps = [self.warp(source, view, carried=True) for source in sources]
+            distances = [math.hypot(s - view[0], t - view[1]) for s, t in sources]
+            return fill_from_sources(
+                masks, disparities, warps, distances, coarse, self.config.zbuffer_tolerance
+            ).masks
+
     def masks_in_view(
         self, objects: Mapping[int, TrackedObject], ids: list[int], view: View
     ) -> np.ndarray:
         """The objects ``ids``' final masks in one view (steps 1-4, or 1-3 without
-        refinement), ``(N, U, V)`` bool; computed for this view only and not stored."""
+        refinement), ``(N, U, V)`` bool; computed for this view only (and, for objects not
+        refined here, in their fill sources) and not stored."""
         lf = self.lightfield
         height, width = lf.view_shape
         if not ids:
@@ -384,8 +512,25 @@ class StreamingEngine:
         out = {i: ObjectViews.empty(lf.grid_shape, lf.view_shape, iou=0.0) for i in ids}
         coarse = {i: out[i].copy() for i in ids}
         refine = self.config.refine
-        embedding = self.embedding(view) if self.config.needs_view_encoding else None
-        self.view_step(objects, view, ids, embedding, refine, out, coarse)
+        references = {objects[i].reference.view for i in ids}
+        if refine and not all(self.refines(view, r) for r in references):
+            for ref_view in references:
+                if self.refines(view, ref_view):
+                    continue
+                members = [i for i in ids if objects[i].reference.view == ref_view]
+                for source in self.fill_sources(view, ref_view):
+                    embedding = self.embedding(source) if source != ref_view else None
+                    self.view_step(objects, source, members, embedding, True, out, coarse)
+            self.view_step(objects, view, ids, None, refine, out, coarse, stage="fill")
+        if any(self.refines(view, r) for r in references):
+            embedding = (
+                self.embedding(view)
+                if self.config.needs_view_encoding and any(
+                    view != r and self.refines(view, r) for r in references
+                )
+                else None
+            )
+            self.view_step(objects, view, ids, embedding, refine, out, coarse)
         final = out if refine else coarse
         packed = np.stack([final[i].bits[view] for i in ids])
         bits = np.unpackbits(packed, axis=1, count=height * width)
