@@ -133,6 +133,9 @@ def model_options_from_args(args: argparse.Namespace) -> Any:
         amg=dict(getattr(args, "amg", None) or []) or None,
         oracle=oracle_options_from_args(args),
         seed=int(getattr(args, "oracle_seed", 0) or getattr(args, "seed", 0) or 0),
+        text_model=getattr(args, "text_model", None),
+        text_checkpoint=getattr(args, "text_checkpoint", None),
+        text_threshold=getattr(args, "text_threshold", None),
     )
 
 

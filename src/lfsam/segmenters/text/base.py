@@ -49,7 +49,7 @@ class Detections:
         """Empty masks dropped, the rest sorted by score (best first; ties keep their order)."""
         masks = np.asarray(masks, dtype=bool).reshape(-1, *view_shape)
         scores = np.asarray(scores, dtype=np.float32).reshape(-1)
-        keep = masks.reshape(len(masks), -1).any(axis=1)
+        keep = masks.reshape(len(masks), view_shape[0] * view_shape[1]).any(axis=1)
         masks, scores = masks[keep], scores[keep]
         order = np.argsort(-scores, kind="stable")
         return cls(phrase, masks[order], scores[order])
