@@ -102,7 +102,7 @@ def test_sam3_weights_offline_and_bad_folders(tmp_path, monkeypatch):
         load_text_detector("sam3")
     message = str(info.value)
     assert "\n" not in message and "hf auth login" in message and "--text-checkpoint" in message
-    with pytest.raises(LfsamError, match="is not a folder with config.json"):
+    with pytest.raises(LfsamError, match=r"is not a folder with config\.json"):
         resolve_text_weights("sam3", tmp_path)
     with pytest.raises(LfsamError, match="--random-weights"):
         resolve_text_weights("sam3-tiny-test")
