@@ -87,7 +87,7 @@ TEXT_MODELS: dict[str, TextModelSpec] = {
     spec.name: spec
     for spec in (
         TextModelSpec(
-            DEFAULT_TEXT_MODEL, "facebook/sam3", 840_379_575, gated=True,
+            DEFAULT_TEXT_MODEL, "facebook/sam3", 840_376_374, gated=True,
             description="SAM 3 concept detector (text prompts; gated weights)",
         ),
         TextModelSpec(
