@@ -44,6 +44,10 @@ CASES = {
          "--repeats", "1"],
         "edit / single-object run",
     ),
+    "bench_text.py": (
+        ["--model", "sam3-tiny-test", "--size", "32x48", "--repeats", "1"],
+        "seconds_per_reference_view",
+    ),
     "bench_references.py": (
         ["--model", "sam2-tiny-test", "--grid", "3x3", "--size", "48x64", "--modes", "corners",
          "--rounds", "1", "--quality-size", "64x96", "--quality-seeds", "0", "--hidden", "1"],

@@ -21,13 +21,14 @@ def scene() -> LightField:
 def test_npz_roundtrip_with_ground_truth_and_meta(tmp_path, scene):
     path = write_lightfield(scene, tmp_path / "lf.npz")
     with np.load(path) as archive:  # a plain NumPy archive, no pickles
-        assert sorted(archive.files) == ["disparity", "labels", "meta", "views"]
+        assert sorted(archive.files) == ["categories", "disparity", "labels", "meta", "views"]
         assert archive["views"].dtype == np.uint8 and archive["views"].shape == (3, 3, 32, 48, 3)
     back = read_lightfield(path)
     assert back.meta["format"] == "npz" and back.meta["source"] == str(path)
     np.testing.assert_array_equal(back.views, scene.views)
     np.testing.assert_array_equal(back.disparity, scene.disparity)
     np.testing.assert_array_equal(back.labels, scene.labels)
+    assert back.categories == scene.categories  # a JSON string, label id -> name (issue 26)
     assert back.meta["generator"]["seed"] == 2
 
 

@@ -11,6 +11,7 @@ interactive use: :class:`lfsam.LightFieldPredictor`, wrapped by
 
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField, snake_order
+from lfsam.prompts import TextPrompt
 from lfsam.result import SegmentationResult, load_result, save_result
 from lfsam.version import __version__
 
@@ -41,6 +42,7 @@ __all__ = [
     "RunOptions",
     "SegmentOptions",
     "SegmentationResult",
+    "TextPrompt",
     "__version__",
     "load_result",
     "save_result",

@@ -26,11 +26,27 @@ from lfsam.lightfield import LightField
 from lfsam.pipeline import PipelineConfig
 from lfsam.pipeline.references import check_references
 from lfsam.predictor import LightFieldPredictor
-from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt, load_prompts, validate_objects
+from lfsam.prompts import (
+    BoxPrompt,
+    ObjectPrompts,
+    PointPrompt,
+    Prompt,
+    TextPrompt,
+    load_prompts,
+    split_prompts,
+    validate_objects,
+)
 from lfsam.result import SegmentationResult
 from lfsam.segmenters import load_segmenter
 from lfsam.segmenters.base import Prompts, Segmenter
-from lfsam.segmenters.registry import DEFAULT_MODEL
+from lfsam.segmenters.registry import DEFAULT_MODEL, ORACLE
+from lfsam.segmenters.text import (
+    DEFAULT_TEXT_MODEL,
+    TEXT_ORACLE,
+    TextDetector,
+    load_text_detector,
+)
+from lfsam.text_search import find_text
 
 __all__ = [
     "METHODS",
@@ -102,11 +118,18 @@ def objects_from_prompts(prompts: Prompts, first_id: int = 1) -> list[ObjectProm
     return objects
 
 
-def _check_references(references: str, method: str, prompts) -> None:
+def _check_references(
+    references: str, method: str, prompts, texts: Sequence[TextPrompt] = ()
+) -> None:
     """Reject ``references`` other than ``center`` where they mean nothing (one-line errors)."""
     check_references(references)
-    if references != "center" and prompts is not None:
-        raise LfsamError(f"--references {references} needs --auto; prompts set their own views")
+    if references != "center" and prompts is not None and not texts:
+        raise LfsamError(
+            f"--references {references} needs --auto or --text; clicks and boxes set their "
+            "own views"
+        )
+    if texts and method != "lfsam":
+        raise LfsamError("text prompts need --method lfsam (the video baseline takes clicks)")
     if references != "center" and method != "lfsam":
         raise LfsamError(f"--references {references} needs --method lfsam")
 
@@ -131,6 +154,14 @@ class ModelOptions:
         The oracle's imperfections: ``merge_prob``, ``boundary_jitter``, ``min_area``.
     seed : int
         Seed of random weights or of the oracle's imperfections.
+    text_model : str, optional
+        The text detector of text prompts (docs/design.md section 9): ``sam3``,
+        ``sam3-tiny-test`` or ``oracle``; default ``oracle`` with the oracle segmenter, else
+        ``sam3``.
+    text_checkpoint : str, optional
+        A local copy of SAM 3's hub repository (a folder); default: the hub cache.
+    text_threshold : float, optional
+        The score a detected instance needs; default: the detector's (SAM 3's processor: 0.3).
     """
 
     name: str = DEFAULT_MODEL
@@ -140,6 +171,25 @@ class ModelOptions:
     amg: dict[str, Any] | None = None
     oracle: dict[str, Any] | None = None
     seed: int = 0
+    text_model: str | None = None
+    text_checkpoint: str | None = None
+    text_threshold: float | None = None
+
+    @property
+    def text_model_name(self) -> str:
+        """The text detector used: :attr:`text_model`, else the oracle's or SAM 3."""
+        if self.text_model is not None:
+            return self.text_model
+        return TEXT_ORACLE if self.name == ORACLE else DEFAULT_TEXT_MODEL
+
+    def build_text_detector(self, lightfield: LightField | None = None) -> TextDetector:
+        """The text detector these options describe (SAM 3 with ``random_weights`` when the
+        segmenter has them)."""
+        return load_text_detector(
+            self.text_model_name, checkpoint=self.text_checkpoint,
+            random_weights=self.random_weights, device=self.device, lightfield=lightfield,
+            seed=self.seed,
+        )
 
     def segmenter_keywords(self) -> dict[str, Any]:
         """The keywords of :func:`lfsam.segmenters.load_segmenter` besides the model's name
@@ -204,14 +254,16 @@ class SegmentOptions:
     run: RunOptions = field(default_factory=RunOptions)
 
 
-PromptsLike = None | str | os.PathLike | Sequence[ObjectPrompts] | Sequence[Prompts]
+PromptsLike = None | str | os.PathLike | Sequence[Prompt] | Sequence[Prompts]
 
 
-def as_objects(prompts: PromptsLike, lightfield: LightField) -> list[ObjectPrompts] | None:
-    """Objects from any prompt form :func:`segment` accepts (None stays None: automatic).
+def as_objects(prompts: PromptsLike, lightfield: LightField) -> list[Prompt] | None:
+    """Objects and text prompts from any prompt form :func:`segment` accepts (None stays None:
+    automatic).
 
     A path is a prompt file (:func:`lfsam.prompts.load_prompts`); :class:`Prompts` groups are
-    center-view prompts, each row one object, ids in order.
+    center-view prompts, each row one object, ids in order; :class:`TextPrompt` items are
+    concepts (docs/design.md section 9).
 
     Raises
     ------
@@ -225,15 +277,18 @@ def as_objects(prompts: PromptsLike, lightfield: LightField) -> list[ObjectPromp
         return None
     if isinstance(prompts, (str, os.PathLike)):
         return load_prompts(prompts, lightfield.grid_shape, lightfield.view_shape)
-    objects: list[ObjectPrompts] = []
+    objects: list[Prompt] = []
     for item in prompts:
-        if isinstance(item, ObjectPrompts):
+        if isinstance(item, (ObjectPrompts, TextPrompt)):
             objects.append(item)
         elif isinstance(item, Prompts):
-            first = max((o.obj_id for o in objects), default=0) + 1
-            objects.extend(objects_from_prompts(item, first_id=first))
+            first = max((o.obj_id for o in objects if isinstance(o, ObjectPrompts)), default=0)
+            objects.extend(objects_from_prompts(item, first_id=first + 1))
         else:
-            raise TypeError(f"prompts must be ObjectPrompts or Prompts, got {type(item).__name__}")
+            raise TypeError(
+                "prompts must be ObjectPrompts, TextPrompt or Prompts, got "
+                f"{type(item).__name__}"
+            )
     validate_objects(objects, lightfield.grid_shape, lightfield.view_shape)
     return objects
 
@@ -251,9 +306,12 @@ def segment(
     Parameters
     ----------
     lightfield : LightField
-    prompts : None, prompt file, sequence of ObjectPrompts or of Prompts
-        Objects to segment, each prompted in any view (docs/design.md section 8); None runs
-        automatic mask generation (the paper's setting).
+    prompts : None, prompt file, sequence of ObjectPrompts, TextPrompt or Prompts
+        Objects to segment, each prompted in any view (docs/design.md section 8), and text
+        prompts, each phrase's instances found by the text detector (``options.model``'s
+        ``text_model``) and segmented as objects with the phrase as category (section 9;
+        ``meta["text"]`` says what each phrase found where); None runs automatic mask
+        generation (the paper's setting).
     model : str or Segmenter, optional
         A model name (overrides ``options.model.name``) or a ready segmenter.
     disparity : {"estimate", "gt"}, path to a .npy, or ndarray
@@ -282,18 +340,22 @@ def segment(
     run = options.run
     if run.method not in METHODS:
         raise LfsamError(f"unknown method {run.method!r}; use one of {', '.join(METHODS)}")
-    objects = as_objects(prompts, lightfield)
-    _check_references(run.references, run.method, objects)
+    mixed = as_objects(prompts, lightfield)
+    objects, texts = (None, []) if mixed is None else split_prompts(mixed)
+    _check_references(run.references, run.method, objects, texts)
     if options.pipeline.refine_views != "all" and run.method != "lfsam":
         raise LfsamError(
             f"--refine-views {options.pipeline.refine_views} needs --method lfsam (the video "
             "baseline tracks every view)"
         )
     start = time.perf_counter()
+    # the text detector first: missing SAM 3 weights fail before SAM 2 is loaded
+    name = model.name if isinstance(model, Segmenter) else (model or options.model.name)
+    model_options = replace(options.model, name=name)
+    detector = model_options.build_text_detector(lightfield) if texts else None
     if isinstance(model, Segmenter):
         segmenter, model_name = model, model.name
     else:
-        model_options = options.model if model is None else replace(options.model, name=model)
         # a batch run decodes each view once: no decoder state kept with the embeddings
         segmenter = model_options.build(lightfield, keep_decoder_state=False)
         model_name = model_options.name
@@ -332,13 +394,26 @@ def segment(
     else:
         for obj in objects:
             predictor.set_object(obj)
+    finds = (
+        find_text(predictor, detector, texts, run.references, options.model.text_threshold)
+        if detector is not None
+        else []
+    )
     result = predictor.to_result()
     result.timings["total"] = time.perf_counter() - start
     result.meta.update(run_meta)
     result.meta["prompt_mode"] = "auto" if objects is None else "prompts"
     result.meta["ablation"] = options.pipeline.ablation
-    if objects is None:
+    if objects is None or texts:
         result.meta["references"] = run.references
+    if detector is not None:
+        result.meta["text"] = [find.to_dict() for find in finds]
+        result.meta["text_model"] = detector.describe()
+        result.meta["text_threshold"] = (
+            detector.default_threshold
+            if options.model.text_threshold is None
+            else options.model.text_threshold
+        )
     return result
 
 

@@ -4,7 +4,8 @@ A light field is ``L[s, t, u, v, c]`` (docs/design.md section 1): ``s`` the view
 column, ``u`` the pixel row, ``v`` the pixel column, ``c`` RGB, stored as uint8. Ground truth, when
 present, is a disparity ``D[s, t, u, v]`` (float32, in the convention of :mod:`lfsam.geometry`) and
 labels ``G[s, t, u, v]`` (int32, 0 = no label); either may be given for the center view only, as
-``[U, V]``.
+``[U, V]``. Labels may carry category names (``categories``, label id -> name, e.g. ``{2: "brick
+disc"}``), which the oracle's text answer uses (docs/design.md section 9).
 
 Floating-point views are converted to uint8 by one documented rule (:func:`float_scale`): values
 must be finite and within [0, 255] (round-off down to -0.5/255 reads as 0); they are read as
@@ -25,7 +26,14 @@ import numpy as np
 
 from lfsam.errors import LfsamError
 
-__all__ = ["LightField", "check_result_shape", "float_scale", "snake_order"]
+__all__ = [
+    "LightField",
+    "categories_from_json",
+    "categories_to_json",
+    "check_result_shape",
+    "float_scale",
+    "snake_order",
+]
 
 #: Floats are read as [0, 1] when their 99.9th percentile is at most this (see float_scale).
 UNIT_RANGE_LIMIT = 2.0
@@ -87,6 +95,9 @@ class LightField:
         For floating-point views: whether they are [0, 1] or [0, 255] intensities. None decides
         by the rule of :func:`float_scale` (99.9th percentile <= 2 means [0, 1]). Values must be
         finite and in [0, 255] (in [0, 1] mode, values above 1 are clipped to 1).
+    categories : dict of int to str, optional
+        The category name of each ground-truth label id (docs/design.md section 9); labels
+        without an entry have no category.
 
     Raises
     ------
@@ -109,6 +120,7 @@ class LightField:
     meta: dict[str, Any] = field(default_factory=dict)
     present: np.ndarray | None = None
     value_range: float | None = None
+    categories: dict[int, str] | None = None
 
     def __post_init__(self) -> None:
         views = np.asarray(self.views)
@@ -154,6 +166,10 @@ class LightField:
             if labels.size and labels.max() > np.iinfo(np.int32).max:
                 raise LfsamError(f"labels must be < 2**31, got {labels.max()}")
             self.labels = labels.astype(np.int32)
+        if self.categories is not None:
+            if self.labels is None:
+                raise LfsamError("categories name ground-truth labels, but there are no labels")
+            self.categories = categories_from_json(self.categories, "categories")
 
     def _check_gt(self, array: np.ndarray, name: str) -> np.ndarray:
         array = np.asarray(array)
@@ -265,8 +281,44 @@ class LightField:
             "num_labels": None
             if self.labels is None
             else int(np.count_nonzero(np.unique(self.labels))),
+            "categories": None
+            if self.categories is None
+            else sorted(set(self.categories.values())),
             **{k: v for k, v in self.meta.items() if isinstance(v, (str, int, float, list))},
         }
+
+
+def categories_from_json(value: Any, where: str) -> dict[int, str]:
+    """Category names by label id from JSON (``{"2": "brick disc"}``: keys are label ids >= 1
+    as integers or decimal strings, values non-empty names).
+
+    Raises
+    ------
+    LfsamError
+        One line naming ``where`` and the entry at fault.
+    """
+    if not isinstance(value, dict):
+        raise LfsamError(
+            f"{where} must map label ids to names, e.g. {{\"2\": \"disc\"}}, got "
+            f"{type(value).__name__}"
+        )
+    out: dict[int, str] = {}
+    for key, name in value.items():
+        try:
+            label = int(key)
+        except (TypeError, ValueError):
+            label = 0
+        if isinstance(key, bool) or label < 1:
+            raise LfsamError(f"{where}: key {key!r} is not a label id >= 1")
+        if not isinstance(name, str) or not name.split():
+            raise LfsamError(f"{where}: label {label} needs a non-empty name, got {name!r}")
+        out[label] = " ".join(name.split())
+    return dict(sorted(out.items()))
+
+
+def categories_to_json(categories: dict[int, str]) -> dict[str, str]:
+    """Category names with string keys (JSON objects have string keys)."""
+    return {str(label): name for label, name in sorted(categories.items())}
 
 
 def check_result_shape(labels_shape: tuple[int, ...], lf: LightField, where: str) -> None:

@@ -27,7 +27,7 @@ it from outside (:class:`lfsam.generator.LightFieldMaskGenerator`); batch: :func
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -39,10 +39,18 @@ from lfsam.pipeline.config import PipelineConfig
 from lfsam.pipeline.engine import StreamingEngine
 from lfsam.pipeline.objects import ObjectTable, TrackedObject, View
 from lfsam.prediction import LightFieldPrediction, PackedMaskMap
-from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt, validate_objects
+from lfsam.prompts import (
+    BoxPrompt,
+    ObjectPrompts,
+    PointPrompt,
+    TextPrompt,
+    check_phrase,
+    validate_objects,
+)
 from lfsam.result import SegmentationResult
 from lfsam.result_objects import GivenMask, build_result, result_objects, stored_prompts
 from lfsam.segmenters.base import Segmenter, ViewEmbedding
+from lfsam.segmenters.text import TextDetector
 from lfsam.timing import StageTimer
 from lfsam.version import __version__
 
@@ -260,8 +268,10 @@ class LightFieldPredictor:
         score: float = 1.0,
         *,
         automatic: bool = False,
+        category: str | None = None,
     ) -> None:
-        """Add an object given by its mask in one view (automatic masks, imported labels)."""
+        """Add an object given by its mask in one view (automatic masks, imported labels, text
+        detections: ``category`` is the phrase, kept in results; docs/design.md section 9)."""
         lf = self.require_lightfield()
         view = lf.center if view is None else (int(view[0]), int(view[1]))
         mask = np.asarray(mask, dtype=bool)
@@ -273,9 +283,54 @@ class LightFieldPredictor:
             raise LfsamError(f"object {obj_id}: id must be an integer >= 1")
         self._table.put(obj_id, TrackedObject(
             prompts=None, given_mask=mask, given_view=view, given_score=float(score),
-            automatic=automatic,
+            automatic=automatic, category=category,
         ))
         self._labels_cache.clear()
+
+    def add_text(
+        self,
+        phrase: str,
+        detector: TextDetector,
+        view: View | None = None,
+        threshold: float | None = None,
+        keep: Callable[[np.ndarray], bool] | None = None,
+    ) -> list[int]:
+        """Find every instance of ``phrase`` in ``view`` (None = center) with ``detector`` and
+        add each as an object given by its mask there, with the phrase as its category and the
+        detector's score (docs/design.md section 9); ids follow :meth:`next_id`, best score
+        first. ``keep(mask)`` may refuse an instance (e.g. one already found from another
+        view).
+
+        Returns
+        -------
+        list of int
+            The ids of the objects added (empty when nothing was found).
+        """
+        lf = self.require_lightfield()
+        phrase = check_phrase(phrase)
+        view = lf.center if view is None else (int(view[0]), int(view[1]))
+        validate_objects([TextPrompt(phrase, view)], lf.grid_shape, lf.view_shape)
+        if not lf.present[view]:
+            raise LfsamError(
+                f"text {phrase!r}: view {view[0]},{view[1]} is absent from this light field; "
+                "find text in a view that exists"
+            )
+        start = time.perf_counter()
+        with self.engine.timer("text"):
+            found = detector.detect(lf.views[view], phrase, view=view, threshold=threshold)
+        self.seconds += time.perf_counter() - start
+        ids = []
+        for mask, score in zip(found.masks, found.scores, strict=True):
+            if keep is not None and not keep(mask):
+                continue
+            obj_id = self.next_id()
+            self.add_mask(obj_id, mask, view=view, score=float(score), category=phrase)
+            ids.append(obj_id)
+        return ids
+
+    def category(self, obj_id: int) -> str | None:
+        """The phrase a text prompt found object ``obj_id`` by (None for other objects)."""
+        return self._table[self._table.check([obj_id])[0]].category
 
     def given_mask(self, obj_id: int) -> tuple[View, np.ndarray] | None:
         """The view and mask an object was given by (:meth:`add_mask`); None for a prompted
@@ -422,6 +477,8 @@ class LightFieldPredictor:
         imported) by their reference-view masks; then :meth:`predict` reproduces it."""
         for obj in result_objects(result, self.require_lightfield()):
             if isinstance(obj, GivenMask):
-                self.add_mask(obj.obj_id, obj.mask, view=obj.view, score=obj.score)
+                self.add_mask(
+                    obj.obj_id, obj.mask, view=obj.view, score=obj.score, category=obj.category
+                )
             else:
                 self.set_object(obj)

@@ -22,6 +22,12 @@ A prompt file is JSON: a list of objects (or ``{"objects": [...]}``), for exampl
 default all positive) or objects ``{"xy": [x, y], "label": 1, "view": [s, t]}``; ``view`` on
 the object is the default view of its points and box; ``box`` is ``[x0, y0, x1, y1]`` or
 ``{"xyxy": [...], "view": [s, t]}``. ``id`` is optional (default: position + 1).
+
+A *text prompt* (docs/design.md section 9) is an entry ``{"text": "red cup"}``, optionally with
+``"view": [s, t]`` (default: the reference view): a concept, not an object. The text detector
+finds every instance of it in that view, and each instance becomes an object with the phrase as
+its category (ids after every prompted object's). ``[{"text": "disc"}, {"id": 1, "points":
+[[40, 60]]}]`` mixes both.
 """
 
 from __future__ import annotations
@@ -42,10 +48,14 @@ __all__ = [
     "BoxPrompt",
     "ObjectPrompts",
     "PointPrompt",
+    "Prompt",
+    "TextPrompt",
+    "check_phrase",
     "load_prompts",
     "prompts_from_json",
     "prompts_to_json",
     "save_prompts",
+    "split_prompts",
     "validate_objects",
 ]
 
@@ -136,16 +146,59 @@ class ObjectPrompts:
         return ObjectPrompts(self.obj_id, points, box)
 
 
+@dataclass(frozen=True)
+class TextPrompt:
+    """A concept to find: every instance of ``phrase`` in view ``view`` (None = the reference
+    view) becomes an object whose category is the phrase (docs/design.md section 9)."""
+
+    phrase: str
+    view: View | None = None
+
+    def resolved_view(self, center: View) -> View:
+        """The view the detector runs in (``center`` when untagged)."""
+        return _view_or(self.view, center)
+
+
+Prompt = ObjectPrompts | TextPrompt
+"""Anything a prompt file or :func:`lfsam.segment` takes: an object or a concept."""
+
+
+def check_phrase(phrase: object) -> str:
+    """A text prompt's phrase with runs of white space made single spaces.
+
+    Raises
+    ------
+    LfsamError
+        If it is not a string or holds no word.
+    """
+    if not isinstance(phrase, str) or not phrase.split():
+        raise LfsamError(
+            f"a text prompt needs a phrase with at least one word (e.g. \"red cup\"), "
+            f"got {phrase!r}"
+        )
+    return " ".join(phrase.split())
+
+
+def split_prompts(prompts: Iterable[Prompt]) -> tuple[list[ObjectPrompts], list[TextPrompt]]:
+    """The objects and the text prompts of a mixed list, each in its order."""
+    objects: list[ObjectPrompts] = []
+    texts: list[TextPrompt] = []
+    for item in prompts:
+        (texts if isinstance(item, TextPrompt) else objects).append(item)
+    return objects, texts
+
+
 def _view_or(view: View | None, default: View) -> View:
     return default if view is None else (int(view[0]), int(view[1]))
 
 
 # --- validation ----------------------------------------------------------------------------------
 def validate_objects(
-    objects: Sequence[ObjectPrompts], grid_shape: View, view_shape: View
+    objects: Sequence[Prompt], grid_shape: View, view_shape: View
 ) -> None:
     """Check prompts against a light field: ids, views inside the grid, points inside the view,
-    boxes non-empty, and at least one positive point or a box per object.
+    boxes non-empty, and at least one positive point or a box per object; text prompts: a
+    phrase and a view inside the grid.
 
     Raises
     ------
@@ -156,6 +209,16 @@ def validate_objects(
     height, width = view_shape
     seen: set[int] = set()
     for obj in objects:
+        if isinstance(obj, TextPrompt):
+            check_phrase(obj.phrase)
+            view = obj.view
+            if view is not None and not (0 <= view[0] < s_count and 0 <= view[1] < t_count):
+                raise LfsamError(
+                    f"text {obj.phrase!r} is tagged with view {view[0]},{view[1]} outside the "
+                    f"{s_count}x{t_count} grid (views are S,T = 0..{s_count - 1},"
+                    f"0..{t_count - 1})"
+                )
+            continue
         name = f"object {obj.obj_id}"
         if not isinstance(obj.obj_id, (int, np.integer)) or obj.obj_id < 1:
             raise LfsamError(f"{name}: id must be an integer >= 1")
@@ -204,10 +267,16 @@ def validate_objects(
 _OBJECT_KEYS = {"id", "points", "labels", "box", "view"}
 
 
-def prompts_to_json(objects: Sequence[ObjectPrompts]) -> list[dict[str, Any]]:
-    """JSON-ready list of objects (every point and box with its view), the prompt-file format."""
-    out = []
+def prompts_to_json(objects: Sequence[Prompt]) -> list[dict[str, Any]]:
+    """JSON-ready list of objects (every point and box with its view) and text prompts, the
+    prompt-file format."""
+    out: list[dict[str, Any]] = []
     for obj in objects:
+        if isinstance(obj, TextPrompt):
+            out.append(
+                {"text": obj.phrase, **({"view": list(obj.view)} if obj.view is not None else {})}
+            )
+            continue
         entry: dict[str, Any] = {
             "id": int(obj.obj_id),
             "points": [
@@ -228,8 +297,8 @@ def prompts_to_json(objects: Sequence[ObjectPrompts]) -> list[dict[str, Any]]:
     return out
 
 
-def prompts_from_json(data: Any) -> list[ObjectPrompts]:
-    """Parse the prompt-file format (see the module docstring).
+def prompts_from_json(data: Any) -> list[Prompt]:
+    """Parse the prompt-file format (see the module docstring): objects and text prompts.
 
     Raises
     ------
@@ -250,6 +319,9 @@ def prompts_from_json(data: Any) -> list[ObjectPrompts]:
             raise LfsamError(f"{name}: must be a JSON object, got {type(entry).__name__}")
         if isinstance(entry.get("id"), int) and not isinstance(entry.get("id"), bool):
             name = f"object {entry['id']}"
+        if "text" in entry:
+            objects.append(_parse_text(entry, index))
+            continue
         unknown = sorted(set(entry) - _OBJECT_KEYS)
         if unknown:
             raise LfsamError(
@@ -265,6 +337,17 @@ def prompts_from_json(data: Any) -> list[ObjectPrompts]:
         box = _parse_box(entry.get("box"), default_view, name)
         objects.append(ObjectPrompts(obj_id, tuple(points), box))
     return objects
+
+
+def _parse_text(entry: dict[str, Any], index: int) -> TextPrompt:
+    unknown = sorted(set(entry) - {"text", "view"})
+    if unknown:
+        raise LfsamError(
+            f"entry {index + 1}: a text prompt takes the keys text and view only, got "
+            f"{', '.join(unknown)} (its instances get ids after the prompted objects')"
+        )
+    phrase = check_phrase(entry["text"])
+    return TextPrompt(phrase, _parse_view(entry.get("view"), f"text {phrase!r}: view"))
 
 
 def _parse_view(value: Any, what: str) -> View | None:
@@ -338,9 +421,9 @@ def load_prompts(
     path: str | os.PathLike,
     grid_shape: View | None = None,
     view_shape: View | None = None,
-) -> list[ObjectPrompts]:
-    """Read a prompt file (JSON, format in the module docstring), validated against a light
-    field's grid and view size when given.
+) -> list[Prompt]:
+    """Read a prompt file (JSON, format in the module docstring): objects and text prompts,
+    validated against a light field's grid and view size when given.
 
     Raises
     ------
@@ -365,7 +448,7 @@ def load_prompts(
     return objects
 
 
-def save_prompts(objects: Sequence[ObjectPrompts], path: str | os.PathLike) -> Path:
+def save_prompts(objects: Sequence[Prompt], path: str | os.PathLike) -> Path:
     """Write a prompt file atomically (temp file + rename)."""
     with atomic_output(path) as tmp:
         tmp.write_text(json.dumps(prompts_to_json(objects), indent=1), encoding="utf-8")

@@ -2,9 +2,10 @@
 
 A result keeps its objects (docs/design.md section 8): masks in id order
 (``meta["object_ids"]``), and per object its reference view and either its prompts (JSON) or
-``"mask": "automatic" | "given"``, so :meth:`lfsam.predictor.LightFieldPredictor.open_result`
-reopens it editable and ``predict`` reproduces it. Saving and loading the file itself is
-:mod:`lfsam.result`.
+``"mask": "automatic" | "given" | "text"`` (with ``"category"``, the phrase of a text prompt;
+docs/design.md section 9; ``meta["categories"]`` maps ids to phrases), so
+:meth:`lfsam.predictor.LightFieldPredictor.open_result` reopens it editable and ``predict``
+reproduces it. Saving and loading the file itself is :mod:`lfsam.result`.
 """
 
 from __future__ import annotations
@@ -42,7 +43,11 @@ def build_result(
         if obj.prompts is not None:
             entry.update(prompts_to_json([obj.prompts])[0])
         else:
-            entry["mask"] = "automatic" if obj.automatic else "given"
+            entry["mask"] = (
+                "automatic" if obj.automatic else ("text" if obj.category else "given")
+            )
+        if obj.category is not None:
+            entry["category"] = obj.category
         entries.append(entry)
     meta = {
         **meta,
@@ -52,6 +57,7 @@ def build_result(
         "center": list(lightfield.center),
         "object_ids": ids,
         "objects": entries,
+        "categories": {str(i): objects[i].category for i in ids if objects[i].category},
     }
 
     def stacked(attr: str, empty: np.ndarray | None) -> np.ndarray | None:
@@ -76,7 +82,7 @@ def stored_prompts(result: SegmentationResult) -> list[ObjectPrompts]:
         for e in result.meta.get("objects", [])
         if "mask" not in e
     ]
-    return prompts_from_json(entries)
+    return [p for p in prompts_from_json(entries) if isinstance(p, ObjectPrompts)]
 
 
 @dataclass(frozen=True)
@@ -87,6 +93,7 @@ class GivenMask:
     view: View
     mask: np.ndarray
     score: float
+    category: str | None = None
 
 
 def result_objects(
@@ -120,5 +127,6 @@ def result_objects(
         else:
             mask = result.labels[view] == obj_id
         score = 1.0 if result.scores is None else float(result.scores[n])
-        objects.append(GivenMask(obj_id, view, mask, score))
+        category = entries.get(obj_id, {}).get("category")
+        objects.append(GivenMask(obj_id, view, mask, score, category))
     return objects

@@ -8,6 +8,7 @@ import sys
 
 from lfsam.cli.common import HelpFormatter, add_disparity_argument, add_refine_views_argument
 from lfsam.cli.models import add_model_arguments, model_options_from_args
+from lfsam.cli.text import add_text_arguments, check_text_weights
 from lfsam.errors import LfsamError
 
 DESCRIPTION = """\
@@ -20,7 +21,8 @@ scene, OUT gets <scene>.npz (the result) and <scene>.metrics.json; then metrics.
 scene and a `mean` row) and table.md (the layout of the paper's Table 1: SIoU, LPP, AA, UE, C, T,
 then object recall and SIoU over center-present masks; see `lfsam metrics --help` for their
 definitions). --references corners|ring|all also generates masks in those views (`lfsam segment
---help`), to find objects the center view cannot see.
+--help`), to find objects the center view cannot see. --text PHRASE segments, in every scene,
+the instances of each phrase instead of every object (the automatic mode).
 
 Runs resume: scenes whose result and metrics are in OUT are not run again (use --force). A scene
 that fails gets a row with its error; the others still run.
@@ -46,6 +48,7 @@ examples:
   lfsam evaluate hidden_scenes --model oracle --disparity gt --references corners --out runs/c
   lfsam evaluate UrbanLF_Syn/val --out runs/ours --ray                    # local Ray cluster
   lfsam evaluate UrbanLF_Syn/val --out runs/ours --ray auto --gpus-per-task 0.5
+  lfsam evaluate scenes --model oracle --disparity gt --text disc --out runs/discs
 """
 
 
@@ -65,6 +68,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="our method or the SAM 2 video baseline",
     )
     add_model_arguments(parser)
+    add_text_arguments(parser)
     add_disparity_argument(parser, files=False)
     parser.add_argument(
         "--ablation", choices=["none", "ref", "ref+occ"], default="ref+occ",
@@ -114,6 +118,8 @@ def method_label(args: argparse.Namespace) -> str:
         details.append(f"references {args.references}")
     if getattr(args, "refine_views", "all") != "all":
         details.append(f"refine views {args.refine_views}")
+    if getattr(args, "text", None):
+        details.append("text " + ", ".join(repr(t.phrase) for t in args.text))
     return f"{head} ({', '.join(details)})"
 
 
@@ -136,6 +142,9 @@ def run(args: argparse.Namespace) -> int:
     check_references(args.references)
     if args.references != "center" and args.method != "lfsam":
         raise LfsamError(f"--references {args.references} needs --method lfsam")
+    if args.text and args.method != "lfsam":
+        raise LfsamError("text prompts need --method lfsam (the video baseline takes clicks)")
+    check_text_weights(args)
     try:
         from lfsam.api import RunOptions, SegmentOptions, segment
         from lfsam.pipeline import PipelineConfig
@@ -151,7 +160,9 @@ def run(args: argparse.Namespace) -> int:
         model=model_options_from_args(args),
         run=RunOptions(method=args.method, references=args.references, progress=False),
     )
-    segment_fn = functools.partial(segment, disparity=args.disparity, options=options)
+    segment_fn = functools.partial(
+        segment, prompts=args.text or None, disparity=args.disparity, options=options
+    )
     mapper = None
     if args.gpus_per_task is not None and not args.ray:
         raise LfsamError("--gpus-per-task applies to Ray runs only; add --ray [ADDRESS]")

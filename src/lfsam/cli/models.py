@@ -20,6 +20,7 @@ from lfsam.lightfield import LightField
 from lfsam.segmenters.base import Segmenter
 from lfsam.segmenters.factory import available_models
 from lfsam.segmenters.registry import DEFAULT_MODEL, MODELS, ORACLE
+from lfsam.segmenters.text.registry import TEXT_MODELS, TINY_SAM3_SIZES
 
 __all__ = [
     "add_model_arguments",
@@ -33,10 +34,11 @@ __all__ = [
 DESCRIPTION = """\
 List the segmenters lfsam can use with --model: the SAM 2 image models (SAM 2.1 and 2.0 in four
 sizes; the paper uses sam2.1-hiera-small, the default), the tiny random-weight model for tests,
-and the ground-truth oracle. For each SAM 2 model: its parameter count, the size of its float32
-weights, and whether the weights are already in the Hugging Face cache (looked up on disk, no
-network). Weights not cached are downloaded on first use; without network, download the .pt file
-from the model hub by hand and pass it with --checkpoint FILE.
+and the ground-truth oracle; and the text detectors of --text-model: SAM 3 (facebook/sam3, gated
+weights) and its tiny random-weight test model. For each model: its parameter count, the size
+of its float32 weights, and whether the weights are already in the Hugging Face cache (looked
+up on disk, no network). Weights not cached are downloaded on first use; without network,
+download the .pt file from the model hub by hand and pass it with --checkpoint FILE.
 """
 
 EPILOG = """\
@@ -133,6 +135,9 @@ def model_options_from_args(args: argparse.Namespace) -> Any:
         amg=dict(getattr(args, "amg", None) or []) or None,
         oracle=oracle_options_from_args(args),
         seed=int(getattr(args, "oracle_seed", 0) or getattr(args, "seed", 0) or 0),
+        text_model=getattr(args, "text_model", None),
+        text_checkpoint=getattr(args, "text_checkpoint", None),
+        text_threshold=getattr(args, "text_threshold", None),
     )
 
 
@@ -152,6 +157,7 @@ def segmenter_from_args(
 def list_models() -> dict[str, Any]:
     """What ``lfsam models`` shows, as a JSON-ready dict (no network, no model built)."""
     from lfsam.segmenters.sam2_build import autocast_dtype, cached_checkpoint, hub_cache_dir
+    from lfsam.segmenters.text.weights import cached_text_weights
 
     device = resolve_device(None)
     rows = []
@@ -171,6 +177,26 @@ def list_models() -> dict[str, Any]:
                 "weights": "random only"
                 if spec.random_only
                 else ("cached" if cached else "not cached"),
+                "kind": "sam2",
+            }
+        )
+    for text_spec in TEXT_MODELS.values():  # --text-model (docs/design.md section 9)
+        folder = cached_text_weights(text_spec.name)
+        rows.append(
+            {
+                "name": text_spec.name,
+                "default": False,
+                "description": text_spec.description,
+                "params": text_spec.params,
+                "size_mb": round(text_spec.params * 4 / 1e6, 1),
+                "image_size": 1008 if text_spec.hub_id else TINY_SAM3_SIZES["image_size"],
+                "hub_id": text_spec.hub_id,
+                "checkpoint_file": None,
+                "cached": None if folder is None else str(folder),
+                "weights": "random only"
+                if text_spec.random_only
+                else ("cached" if folder else "not cached"),
+                "kind": "text",
             }
         )
     rows.append(
@@ -185,6 +211,7 @@ def list_models() -> dict[str, Any]:
             "checkpoint_file": None,
             "cached": None,
             "weights": "needs labels",
+            "kind": "oracle",
         }
     )
     dtype = autocast_dtype(device)
@@ -211,6 +238,8 @@ def _table(info: dict[str, Any]) -> str:
         "Weights not cached download on first use or with `lfsam models --download NAME`;",
         "offline, fetch the .pt file from https://huggingface.co/facebook/NAME and pass "
         "--checkpoint FILE.",
+        "sam3 (--text-model) is gated: request access on https://huggingface.co/facebook/sam3",
+        "and `hf auth login`, or pass a local copy with --text-checkpoint DIR.",
     ]
     return "\n".join(lines)
 
@@ -222,6 +251,11 @@ def run(args: argparse.Namespace) -> int:
 
         if args.download == ORACLE:
             raise LfsamError("the oracle has no weights; choose a SAM 2 model to download")
+        if args.download in TEXT_MODELS:
+            from lfsam.segmenters.text.weights import resolve_text_weights
+
+            print(f"{args.download}: {resolve_text_weights(args.download)}")
+            return 0
         path = resolve_checkpoint(args.download)
         print(f"{args.download}: {path}")
         return 0
@@ -243,7 +277,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--download",
         metavar="NAME",
-        choices=[name for name, spec in MODELS.items() if not spec.random_only],
+        choices=[
+            *(name for name, spec in MODELS.items() if not spec.random_only),
+            *(name for name, spec in TEXT_MODELS.items() if not spec.random_only),
+        ],
         help="download the weights of model NAME into the Hugging Face cache and print the path",
     )
     parser.set_defaults(func=run)

@@ -16,10 +16,11 @@ from lfsam.cli.common import (
 )
 from lfsam.cli.models import add_model_arguments, model_options_from_args
 from lfsam.cli.prompts import PROMPT_PARSERS, PromptAction, objects_from_items
+from lfsam.cli.text import add_text_arguments, check_text_weights, report_text
 from lfsam.errors import LfsamError
 from lfsam.fileutil import check_cache_dir, check_output_path
 from lfsam.io import read_lightfield
-from lfsam.prompts import load_prompts
+from lfsam.prompts import ObjectPrompts, load_prompts
 from lfsam.result import save_result
 
 DESCRIPTION = """\
@@ -50,6 +51,15 @@ N views. The result records which views were refined (meta refined_views; lfsam 
 the corner views (corners), the outer ring's corners and edge midpoints (ring), or every view
 (all), there only where no mask lands yet, to find objects the center view cannot see (an object
 found from two of them is kept once).
+
+--text PHRASE finds every instance of a concept with SAM 3's detector in the reference view
+(PHRASE@S,T: in view S,T; with --references, also in those views where nothing found so far
+lands) and segments each as an object whose category is the phrase, kept in the result and in
+`lfsam export --to coco`. Repeat it for several phrases; it mixes with clicks and boxes. SAM 3's
+weights (facebook/sam3) are gated: request access on the model page and `hf auth login`, or pass
+a local copy with --text-checkpoint DIR. With --model oracle the phrases are answered from the
+scene's ground-truth categories (`lfsam synth` names each object by texture and shape, e.g.
+"brick disc"). A phrase that finds nothing is reported on stderr; the run still succeeds.
 """
 
 EPILOG = """\
@@ -66,6 +76,9 @@ examples:
   lfsam segment scene --auto --amg points_per_side=32 --out coarser_auto.npz
   lfsam segment hidden.npz --auto --references corners --out all_objects.npz
   lfsam segment scene --auto --refine-views sparse --out fast.npz   # 17 of 9x9 views encoded
+  lfsam segment scene --text disc --model oracle --disparity gt --out discs.npz
+  lfsam segment scene --text "red cup" --text plate@0,0 --point 60,40 --out mixed.npz
+  lfsam segment scene --text cup --text-checkpoint ~/models/sam3 --out cups.npz
 """
 
 
@@ -99,13 +112,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--references",
         default="center",
         metavar="MODE",
-        help="with --auto: center (paper), corners, ring or all: views where masks are generated",
+        help="with --auto or --text: center (paper), corners, ring or all: views where masks "
+        "are generated or phrases looked for",
     )
     parser.add_argument(
         "--method", choices=["lfsam", "video-baseline"], default="lfsam",
         help="our method or SAM 2 video tracking over the views in snake order",
     )
     add_model_arguments(parser)
+    add_text_arguments(parser)
     method = parser.add_argument_group("method switches (paper Table 2 and beyond)")
     add_disparity_argument(method)
     method.add_argument(
@@ -157,11 +172,11 @@ def run(args: argparse.Namespace) -> int:
     from lfsam.pipeline.references import check_references
 
     check_references(args.references)
-    has_prompts = bool(args.prompt_items or args.prompts)
+    has_prompts = bool(args.prompt_items or args.prompts or args.text)
     if has_prompts == args.auto:
         raise LfsamError(
-            "give prompts (--point X,Y, --box X0,Y0,X1,Y1 or --prompts FILE.json) or --auto, "
-            "not both and not neither"
+            "give prompts (--point X,Y, --box X0,Y0,X1,Y1, --text PHRASE or --prompts "
+            "FILE.json) or --auto, not both and not neither"
         )
     config = PipelineConfig(
         refine=not args.no_refine,
@@ -174,6 +189,7 @@ def run(args: argparse.Namespace) -> int:
     check_output_path(args.out)
     if args.cache is not None:
         check_cache_dir(args.cache)
+    check_text_weights(args)  # missing SAM 3 weights: one line now, not after the reading
     lightfield = read_lightfield(
         args.path, format=args.input_format, value_range=args.value_range
     )
@@ -184,8 +200,9 @@ def run(args: argparse.Namespace) -> int:
             if args.prompts
             else []
         )
-        first = max((o.obj_id for o in objects), default=0) + 1
+        first = max((o.obj_id for o in objects if isinstance(o, ObjectPrompts)), default=0) + 1
         objects += objects_from_items(args.prompt_items, first_id=first)
+        objects += args.text
     options = SegmentOptions(
         pipeline=config,
         model=model_options_from_args(args),
@@ -215,5 +232,8 @@ def run(args: argparse.Namespace) -> int:
             "fallback_views": None if result.fallback is None else int(result.fallback.sum()),
             "random_weights": result.meta.get("random_weights"),
         }
+        if "text" in result.meta:
+            summary["text"] = result.meta["text"]
+            report_text(result.meta["text"], result.meta.get("text_threshold"))
         print(json.dumps(summary), file=sys.stdout)
     return 0

@@ -15,12 +15,14 @@ __all__ = ["register", "run"]
 #: Largest RGB rendering (bytes, before downsampling) that `lfsam synth` attempts.
 MAX_RENDER_BYTES = 8 << 30
 
-DESCRIPTION = """\
-Generate a synthetic light field with exact ground truth: a textured background plane and
-textured planar objects at different depths (some slanted), overlapping so that they occlude
-and disocclude each other, seen by a grid of cameras. Every view gets its exact disparity (in
-lfsam's convention, pixels per view step, larger = closer) and instance labels (background = 1,
-objects = 2, 3, ...). Textures come from scikit-image's sample photographs and procedural
+DESCRIPTION = r"""\
+Generate a synthetic light field with exact ground truth: a textured
+background plane and textured planar objects at different depths (some slanted), overlapping so
+that they occlude and disocclude each other, seen by a grid of cameras. Every view gets its
+exact disparity (in lfsam's convention, pixels per view step, larger = closer) and instance
+labels (background = 1, objects = 2, 3, ...), each label with a category name, texture then
+shape ("brick disc", "checker tile", "dots star"), the ground truth of text prompts (`lfsam
+segment --text disc`). Textures come from scikit-image's sample photographs and procedural
 patterns; the RGB is anti-aliased. The same seed always gives the same bytes.
 
 The disparity range sets the baseline: with 9x9 views and --disparity-range=-2,2 the extreme

@@ -9,6 +9,7 @@ from typing import Any
 
 from lfsam.cli.common import HelpFormatter, add_disparity_argument
 from lfsam.cli.models import add_model_arguments, model_options_from_args
+from lfsam.cli.text import add_text_arguments, check_text_weights
 from lfsam.errors import LfsamError
 from lfsam.fileutil import check_cache_dir
 from lfsam.io import read_lightfield
@@ -22,8 +23,10 @@ The dock widget drives lfsam's interactive predictor (docs/design.md section 8) 
 thread, so the window never freezes: the clicked view's mask appears first, then every view's.
 Keys: S segment, C commit the object, T toggle positive/negative clicks (Ctrl-click adds the
 other kind), Shift-C clear, Ctrl-Z / Ctrl-Shift-Z undo/redo prompt edits. Draw a rectangle in
-"box prompts" for a box. "Segment everything" runs the automatic mode. The Views / EPI buttons
-switch between the views and the epipolar-plane images through the current pixel row or column.
+"box prompts" for a box. "Segment everything" runs the automatic mode; "Find" takes a phrase
+and adds every instance in the view shown as an object (SAM 3; --text PHRASE does it at start).
+The Views / EPI buttons switch between the views and the epipolar-plane images through the
+current pixel row or column.
 Save writes a normal lfsam result (prompts included, so it reopens editable with --result).
 
 Needs the viewer extra: pip install 'lfsam[viewer]'.
@@ -36,6 +39,7 @@ examples:
   lfsam view ../shared/data/lytro_2067 --model sam2.1-hiera-large --checkpoint sam2.1_hiera_large.pt
   lfsam view scene --model sam2-tiny-test --random-weights --device cpu   # try the viewer quickly
   lfsam view scene --result result.npz --model oracle    # reopen a result and correct it
+  lfsam view scene --model oracle --disparity gt --text disc   # every disc, found at start
   lfsam view                                             # empty viewer; File > Open a light field
 """
 
@@ -54,6 +58,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--result", metavar="R.npz", help="reopen this result's objects to edit")
     add_model_arguments(parser)
+    add_text_arguments(parser)
     add_disparity_argument(parser)
     parser.add_argument("--cache", metavar="DIR", help="embedding cache folder")
     parser.add_argument("--format", dest="input_format", help="input format (default: detect)")
@@ -75,6 +80,7 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
     require_napari()
     if args.cache:
         check_cache_dir(args.cache)
+    check_text_weights(args)
     preload_native_libraries()  # before napari draws with OpenGL (native_libraries docstring)
     lightfield = read_lightfield(args.path, format=args.input_format) if args.path else None
     if args.result and lightfield is None:
@@ -94,10 +100,17 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
         disparity=args.disparity,
         cache_dir=args.cache,
         segmenter_options=model.segmenter_keywords(),
+        text_options={
+            "text_model": model.text_model,
+            "text_checkpoint": model.text_checkpoint,
+            "text_threshold": model.text_threshold,
+        },
     )
     viewer.window.add_dock_widget(widget, name="lfsam", area="right")
     if result is not None:
         widget.open_result(result)
+    for text in getattr(args, "text", None) or []:
+        widget.find(text.phrase, view=text.view)
     return viewer, widget
 
 

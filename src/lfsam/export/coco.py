@@ -7,9 +7,11 @@ One ``annotations.json`` in the COCO format that ``pycocotools.coco.COCO`` loads
   index) and ``video_id`` (1: the light field, as in video-instance formats);
 - ``annotations``: one per object and view where the object has pixels: ``segmentation`` as
   compressed RLE (``pycocotools.mask.encode``), ``bbox`` [x, y, width, height] and ``area`` from
-  the RLE, ``iscrowd`` 0, ``category_id`` 1 and ``track_id`` (= ``instance_id``) the object's
+  the RLE, ``iscrowd`` 0, ``category_id`` and ``track_id`` (= ``instance_id``) the object's
   label id, the same in every view;
-- ``categories``: one, ``object`` (lfsam's ids are instances, not classes);
+- ``categories``: the phrases of the text prompts that found objects (docs/design.md section 9;
+  ``meta["categories"]``), in order of first use, then ``object`` for every other object (ids
+  are instances, not classes); ``object`` alone when no text prompt was used;
 - ``info``: grid, view size, source and the ``present`` flags (absent views have no image).
 """
 
@@ -26,7 +28,7 @@ from lfsam.export.common import object_ids, view_names, write_sidecar
 from lfsam.result import SegmentationResult
 from lfsam.version import __version__
 
-__all__ = ["ANNOTATIONS", "coco_dict", "write_coco"]
+__all__ = ["ANNOTATIONS", "categories", "coco_dict", "write_coco"]
 
 #: Name of the COCO file.
 ANNOTATIONS = "annotations.json"
@@ -55,10 +57,25 @@ def _view_annotations(labels: np.ndarray, ids: np.ndarray) -> list[dict[str, Any
     return found
 
 
+def categories(result: SegmentationResult, ids: np.ndarray) -> tuple[list[dict], dict[int, int]]:
+    """COCO categories of ``result`` and the category id of each object id in ``ids``."""
+    named = {int(k): str(v) for k, v in (result.meta.get("categories") or {}).items()}
+    names: list[str] = []
+    for obj_id in sorted(named):
+        if named[obj_id] not in names:
+            names.append(named[obj_id])
+    if not names or any(int(i) not in named for i in ids):
+        names.append("object")
+    number = {name: n + 1 for n, name in enumerate(names)}
+    table = [{"id": number[n], "name": n, "supercategory": "object"} for n in names]
+    return table, {int(i): number[named.get(int(i), "object")] for i in ids}
+
+
 def coco_dict(result: SegmentationResult) -> dict[str, Any]:
     """The COCO dictionary of ``result`` (see the module docstring)."""
     s_count, t_count, rows, cols = result.labels.shape
     ids = object_ids(result)
+    category_table, category_of = categories(result, ids)
     images, annotations = [], []
     for (s, t), name in view_names(result).items():
         image_id = s * t_count + t + 1
@@ -75,7 +92,10 @@ def coco_dict(result: SegmentationResult) -> dict[str, Any]:
             }
         )
         for item in _view_annotations(result.labels[s, t], ids):
-            item.update(id=len(annotations) + 1, image_id=image_id, category_id=1, iscrowd=0)
+            item.update(
+                id=len(annotations) + 1, image_id=image_id,
+                category_id=category_of[item["track_id"]], iscrowd=0,
+            )
             annotations.append(item)
     source = str(result.meta.get("input", result.meta.get("source", "")))
     return {
@@ -91,7 +111,7 @@ def coco_dict(result: SegmentationResult) -> dict[str, Any]:
         "videos": [{"id": 1, "name": source or "lightfield"}],
         "images": images,
         "annotations": annotations,
-        "categories": [{"id": 1, "name": "object", "supercategory": "object"}],
+        "categories": category_table,
     }
 
 

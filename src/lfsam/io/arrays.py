@@ -5,7 +5,8 @@ column, RGB), uint8, or float in [0, 1] or [0, 255] (the rule: :func:`lfsam.ligh
 ``value_range`` says which). Files with several arrays are searched by the usual key names
 (``views``, ``LF``, ``lf``, ``lightfield``, ``data``, ...), otherwise by the only 5-D array they
 hold. ``.npz`` files may also hold ``disparity`` and ``labels`` ([S, T, U, V] or center
-[U, V]) and a JSON ``meta`` string: that is the package's exchange format, written by
+[U, V]), a JSON ``categories`` string (label id -> name, docs/design.md section 9) and a JSON
+``meta`` string: that is the package's exchange format, written by
 :func:`write_npz`, and its disparity is in the package convention.
 
 MATLAB v7.3 files are HDF5; MATLAB stores arrays column-major, so their axes are reversed on
@@ -26,7 +27,7 @@ from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_output
 from lfsam.io.decode import decoding
 from lfsam.io.native import json_safe
-from lfsam.lightfield import LightField
+from lfsam.lightfield import LightField, categories_from_json, categories_to_json
 
 __all__ = ["read_h5", "read_mat", "read_npy", "read_npz", "write_npz"]
 
@@ -114,7 +115,10 @@ def read_npz(path: str | os.PathLike, value_range: int | None = None) -> LightFi
                 if "allow_pickle" not in str(exc):
                     raise
                 continue
-    keys = [k for k in arrays if k not in ("meta", "present", *DISPARITY_KEYS, *LABEL_KEYS)]
+    keys = [
+        k for k in arrays
+        if k not in ("meta", "present", "categories", *DISPARITY_KEYS, *LABEL_KEYS)
+    ]
     key = _pick(keys, arrays, VIEW_KEYS, path)
     views = check_view_array(arrays[key], f"array {key!r} in {path}")
     meta: dict = {}
@@ -128,13 +132,25 @@ def read_npz(path: str | os.PathLike, value_range: int | None = None) -> LightFi
     if old_source is not None or old_format is not None:
         meta["converted_from"] = f"{old_format or '?'}: {old_source or '?'}"
     meta.update(source=str(path), format="npz")
+    labels = _optional(arrays, LABEL_KEYS)
+    categories = None
+    if "categories" in arrays and labels is not None:
+        try:
+            categories = json.loads(str(arrays["categories"]))
+        except ValueError:
+            raise LfsamError(
+                f"{path}: 'categories' is not a JSON object mapping label ids to names; "
+                "rewrite it as e.g. json.dumps({\"2\": \"disc\"})"
+            ) from None
+        categories = categories_from_json(categories, f"{path}: categories")
     return LightField(
         views,
         disparity=_optional(arrays, DISPARITY_KEYS),
-        labels=_optional(arrays, LABEL_KEYS),
+        labels=labels,
         meta=meta,
         present=arrays.get("present"),
         value_range=value_range,
+        categories=categories,
     )
 
 
@@ -279,6 +295,8 @@ def write_npz(lf: LightField, path: str | os.PathLike, compress: bool = True) ->
         arrays["disparity"] = lf.disparity.astype(np.float32)
     if lf.labels is not None:
         arrays["labels"] = lf.labels.astype(np.int32)
+    if lf.categories is not None:
+        arrays["categories"] = np.array(json.dumps(categories_to_json(lf.categories)))
     if not lf.is_complete:
         arrays["present"] = lf.present
     arrays["meta"] = np.array(json.dumps(json_safe(lf.meta), sort_keys=True))

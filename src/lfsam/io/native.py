@@ -10,10 +10,11 @@ Layout of a scene folder (version 1)::
 
 ``lfsam_scene.json`` holds ``format: "lfsam-scene"``, ``version``, ``grid`` [S, T],
 ``view_size`` [U, V], ``center``, ``views`` (the file-name pattern), ``disparity`` and ``labels``
-(``"all views"``, ``"center"`` or null), the disparity ``convention`` in words, and ``meta``
-(free JSON: where the scene came from, the orientation applied on import, generator settings).
-Disparity is always in the package's convention (docs/design.md section 1), so a scene converted
-from any data set reads back without further checks.
+(``"all views"``, ``"center"`` or null), optional ``categories`` (label id -> category name,
+e.g. ``{"2": "brick disc"}``; docs/design.md section 9), the disparity ``convention`` in words,
+and ``meta`` (free JSON: where the scene came from, the orientation applied on import,
+generator settings). Disparity is always in the package's convention (docs/design.md section
+1), so a scene converted from any data set reads back without further checks.
 
 A scene is written into a temporary folder next to the target and renamed onto it only when
 complete (:func:`lfsam.fileutil.atomic_folder_output`), so a failed write leaves no partial
@@ -32,7 +33,7 @@ import numpy as np
 from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_folder_output
 from lfsam.io.images import read_view_grid, write_view_grid
-from lfsam.lightfield import LightField
+from lfsam.lightfield import LightField, categories_from_json, categories_to_json
 
 __all__ = [
     "MARKER",
@@ -158,6 +159,7 @@ def write_native(lf: LightField, path: str | os.PathLike, compress_level: int = 
         "view_digits": digits,
         "disparity": _extent(lf.disparity),
         "labels": _extent(lf.labels),
+        "categories": None if lf.categories is None else categories_to_json(lf.categories),
         "present": None if lf.is_complete else lf.present.tolist(),
         "convention": CONVENTION,
         "meta": json_safe(lf.meta),
@@ -256,9 +258,15 @@ def read_native(path: str | os.PathLike) -> LightField:
         disparity = _load_gt(folder / "disparity.npy", "disparity")
     if description.get("labels"):
         labels = _load_gt(folder / "labels.npy", "labels")
+    categories = description.get("categories")
+    if categories is not None:
+        categories = categories_from_json(categories, f"{marker}: categories")
     meta = dict(description.get("meta") or {})
     old_source, old_format = meta.pop("source", None), meta.pop("format", None)
     if old_source is not None or old_format is not None:
         meta["converted_from"] = f"{old_format or '?'}: {old_source or '?'}"
     meta.update(source=str(folder), format="lfsam")
-    return LightField(views, disparity=disparity, labels=labels, meta=meta, present=present)
+    return LightField(
+        views, disparity=disparity, labels=labels, meta=meta, present=present,
+        categories=categories if labels is not None else None,
+    )

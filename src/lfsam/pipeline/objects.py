@@ -190,6 +190,7 @@ class TrackedObject:
     given_view: View | None = None
     given_score: float = 1.0
     automatic: bool = False
+    category: str | None = None  # the phrase a text prompt found it by (docs/design.md 9)
     reference: Reference | None = None
     coarse: ObjectViews | None = None
     refined: ObjectViews | None = None

@@ -134,7 +134,9 @@ def render_scene(
     -------
     LightField
         ``views`` uint8, ``disparity`` [S, T, U, V] float32 and ``labels`` [S, T, U, V] int32
-        in the package convention; ``meta["generator"]`` describes the scene.
+        in the package convention, ``categories`` naming each label by texture and shape
+        (``"brick disc"``, :attr:`lfsam.synth.spec.PlanarObject.category`); ``meta["generator"]``
+        describes the scene.
     """
     device = resolve_device("cpu" if device is None else device)
     supersample = max(1, int(supersample))
@@ -176,7 +178,10 @@ def render_scene(
     }
     if seed is not None:
         meta["seed"] = int(seed)
-    return LightField(views, disparity=disparity, labels=labels, meta=meta)
+    categories = {obj.label: obj.category for obj in objects if obj.label != 0}
+    return LightField(
+        views, disparity=disparity, labels=labels, meta=meta, categories=categories or None
+    )
 
 
 def sample_geometry(spec: SceneSpec, s: int, t: int, u, v) -> tuple[np.ndarray, np.ndarray]:

@@ -14,10 +14,14 @@ import torch
 
 from lfsam.errors import LfsamError
 
-__all__ = ["SHAPES", "inside", "random_outline"]
+__all__ = ["SHAPES", "SHAPE_NOUNS", "inside", "random_outline"]
 
 #: Bounded outlines (``"plane"`` is the unbounded background).
 SHAPES = ("ellipse", "rounded_rect", "polygon")
+
+#: The everyday noun of each outline, the last word of a patch's category name (text prompts
+#: such as ``--text disc``; docs/design.md section 9).
+SHAPE_NOUNS = {"plane": "background", "ellipse": "disc", "rounded_rect": "tile", "polygon": "star"}
 
 
 def _ellipse(x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:

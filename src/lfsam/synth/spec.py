@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lfsam.errors import LfsamError
+from lfsam.synth.shapes import SHAPE_NOUNS
 
 __all__ = ["PlanarObject", "SceneSpec"]
 
@@ -70,6 +71,12 @@ class PlanarObject:
     texture_seed: int
     vertices: tuple[tuple[float, float], ...] = ()
     corner: float = 0.3
+
+    @property
+    def category(self) -> str:
+        """Its category name: texture then shape noun, e.g. ``"brick disc"`` (the ground truth
+        of text prompts, docs/design.md section 9)."""
+        return f"{self.texture} {SHAPE_NOUNS[self.shape]}"
 
     def _local_matrix(self) -> np.ndarray:
         """``K`` with local ``(y, x) = K ([u, v] - center)``."""
@@ -127,6 +134,7 @@ class PlanarObject:
             "label": self.label,
             "shape": self.shape,
             "texture": self.texture,
+            "category": self.category,
             "center": [round(u0, 3), round(v0, 3)],
             "half_size": [round(x, 3) for x in self.half_size],
             "disparity_at_center": round(a + b * u0 + c * v0, 4),

@@ -19,6 +19,7 @@ from qtpy.QtWidgets import (
     QHBoxLayout,
     QInputDialog,
     QLabel,
+    QLineEdit,
     QListWidget,
     QListWidgetItem,
     QProgressBar,
@@ -116,6 +117,14 @@ class DockControls:
         self.redo_button = QPushButton("Redo [Ctrl-Shift-Z]")
         self.toggle_button = QPushButton("Toggle +/- [T]")
         self.everything_button = QPushButton("Segment everything")
+        #: Text prompts (docs/design.md section 9): a phrase, found in the view shown.
+        self.find_edit = QLineEdit()
+        self.find_edit.setPlaceholderText("find a phrase, e.g. red cup")
+        self.find_edit.setToolTip(
+            "Every instance of the phrase in the view shown becomes an object (SAM 3's concept "
+            "detector; with the oracle model, the scene's ground-truth categories)"
+        )
+        self.find_button = QPushButton("Find")
         self.objects = QListWidget()
         self.edit_button = QPushButton("Edit selected")
         self.remove_button = QPushButton("Remove selected")
@@ -154,6 +163,7 @@ class DockControls:
         layout.addWidget(self.polarity_label)
         layout.addLayout(grid)
         layout.addWidget(self.everything_button)
+        layout.addLayout(_row([self.find_edit, self.find_button]))
         layout.addWidget(QLabel("Objects (double-click to edit)"))
         layout.addWidget(self.objects)
         layout.addLayout(_row([self.edit_button, self.remove_button]))

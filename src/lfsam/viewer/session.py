@@ -24,10 +24,17 @@ from lfsam.fileutil import check_output_path
 from lfsam.generator import LightFieldMaskGenerator
 from lfsam.lightfield import LightField
 from lfsam.predictor import LightFieldPredictor
-from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
+from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt, TextPrompt
 from lfsam.result import SegmentationResult, save_result
 from lfsam.segmenters import load_segmenter
 from lfsam.segmenters.registry import ORACLE
+from lfsam.segmenters.text import (
+    DEFAULT_TEXT_MODEL,
+    TEXT_ORACLE,
+    TextDetector,
+    load_text_detector,
+)
+from lfsam.text_search import TextFind, find_text
 from lfsam.viewer.native_libraries import preload_native_libraries
 
 __all__ = [
@@ -214,6 +221,10 @@ class ViewerSession:
         Embedding cache of the predictor (docs/design.md section 8).
     segmenter_options : dict
         Further keywords of :func:`lfsam.segmenters.load_segmenter` (e.g. ``oracle_options``).
+    text_options : dict
+        The text detector of :meth:`find` (docs/design.md section 9): ``text_model`` (default
+        the oracle with the oracle segmenter, else ``sam3``), ``text_checkpoint``,
+        ``text_threshold``.
     """
 
     lightfield: LightField
@@ -221,12 +232,14 @@ class ViewerSession:
     disparity: Any = "estimate"
     cache_dir: str | os.PathLike | None = None
     segmenter_options: dict[str, Any] = field(default_factory=dict)
+    text_options: dict[str, Any] = field(default_factory=dict)
     predictor: Any = None
     current_id: int = 1
     committed: set[int] = field(default_factory=set)
     auto: set[int] = field(default_factory=set)
     history: PromptHistory = field(default_factory=PromptHistory)
     _given: tuple | None = field(default=None, repr=False)  # (id, view, mask) being edited
+    _detector: tuple[str, TextDetector] | None = field(default=None, repr=False)
 
     # --- model --------------------------------------------------------------------------------
     @property
@@ -395,6 +408,46 @@ class ViewerSession:
         if self.current_id in self.auto:
             self.current_id = self.next_id()
         return pred.predict()
+
+    def text_detector(self) -> TextDetector:
+        """The text detector of :attr:`text_options`, built once per detector name (slow for
+        SAM 3: call it in the worker thread)."""
+        name = self.text_options.get("text_model") or (
+            TEXT_ORACLE if self.model == ORACLE else DEFAULT_TEXT_MODEL
+        )
+        if self._detector is None or self._detector[0] != name:
+            detector = load_text_detector(
+                name,
+                checkpoint=self.text_options.get("text_checkpoint"),
+                random_weights=bool(self.segmenter_options.get("random_weights")),
+                device=self.segmenter_options.get("device"),
+                lightfield=self.lightfield,
+            )
+            self._detector = (name, detector)
+        return self._detector[1]
+
+    def find(
+        self, phrase: str, view: tuple[int, int] | None = None
+    ) -> tuple[Any, list[TextFind]]:
+        """Text prompt: every instance of ``phrase`` in ``view`` (None = center) becomes an
+        object with the phrase as its category, then every object is predicted (worker
+        thread; docs/design.md section 9).
+
+        Returns
+        -------
+        prediction : LightFieldPrediction
+        finds : list of TextFind
+            What the phrase found (:func:`lfsam.text_search.find_text`).
+        """
+        pred = self._require()
+        finds = find_text(
+            pred, self.text_detector(), [TextPrompt(phrase, view)],
+            threshold=self.text_options.get("text_threshold"),
+        )
+        self.auto.update(i for find in finds for i in find.ids)
+        if self.current_id in self.auto:
+            self.current_id = self.next_id()
+        return pred.predict(), finds
 
     def open_result(self, result: Any) -> list[int]:
         """Reopen a result's objects for editing (``LightFieldPredictor.open_result``).

@@ -92,6 +92,7 @@ class LightFieldWidget(QWidget):
         disparity: str | os.PathLike | None = None,
         cache_dir: str | os.PathLike | None = None,
         segmenter_options: dict[str, Any] | None = None,
+        text_options: dict[str, Any] | None = None,
         autoload: bool = True,
     ) -> None:
         super().__init__()
@@ -104,6 +105,7 @@ class LightFieldWidget(QWidget):
         self.session: ViewerSession | None = None
         self.stages: list[str] = []  # stages shown by the last segmentation, in order
         self._options = dict(segmenter_options or {})
+        self._text_options = dict(text_options or {})
         self._cache_dir = cache_dir
         self._autoload = autoload
 
@@ -151,12 +153,14 @@ class LightFieldWidget(QWidget):
             (c.clear_button, self.clear), (c.undo_button, self.undo), (c.redo_button, self.redo),
             (c.toggle_button, self.toggle_polarity),
             (c.everything_button, self.segment_everything),
+            (c.find_button, self.find),
             (c.edit_button, lambda: self._on_selected(self.edit_object)),
             (c.remove_button, lambda: self._on_selected(self.remove_object)),
             (c.open_labels_button, self._open_selected_labels),
             (c.save_button, self._save_dialog), (c.export_button, self._export_dialog),
         ):
             button.clicked.connect(lambda _=False, a=action: a())
+        c.find_edit.returnPressed.connect(lambda: self.find())
         c.objects.itemDoubleClicked.connect(self._on_object_double_clicked)
         for name, button in c.view_buttons.items():
             button.clicked.connect(lambda _=False, n=name: self.show_display(n))
@@ -181,6 +185,7 @@ class LightFieldWidget(QWidget):
             disparity=self.disparity_box.currentText(),
             cache_dir=self._cache_dir,
             segmenter_options=dict(self._options),
+            text_options=dict(self._text_options),
         )
         self.keeper.show(lightfield, layer, self._keymap())
         self.layers[L.COMMITTED].metadata[SESSION_KEY] = self.session
@@ -241,6 +246,14 @@ class LightFieldWidget(QWidget):
             case W.FinalMasks(prediction=prediction):
                 self.stages.append(event.stage)
                 self._show_prediction(prediction)
+            case W.TextFound(prediction=prediction, phrase=phrase, finds=finds):
+                self._show_prediction(prediction)
+                found = sum(find["found"] for find in finds)
+                where = ", ".join(f"view {f['view'][0]},{f['view'][1]}" for f in finds)
+                self._set_status(
+                    f"find {phrase!r}: {found or 'no'} object(s) in {where}"
+                    + ("" if found else " (try another phrase or a lower threshold)")
+                )
             case W.AllMasks(prediction=prediction, found=found):
                 self._show_prediction(prediction)
                 if found is not None:
@@ -398,6 +411,29 @@ class LightFieldWidget(QWidget):
             references = self.references_box.currentText()
             desc = "segmenting everything" + ("" if references == "center" else f" ({references})")
             self.work.start(partial(W.generate_job, self.session, references), 1, desc)
+
+        if self.session is not None:
+            self.work.when_idle(lambda: self._when_loaded(run))
+
+    def shown_view(self) -> tuple[int, int]:
+        """The view on the sliders (view row, view column)."""
+        s, t = (int(x) for x in self.viewer.dims.current_step[:2])
+        grid = self.session.lightfield.grid_shape
+        return min(max(s, 0), grid[0] - 1), min(max(t, 0), grid[1] - 1)
+
+    def find(self, phrase: str | None = None, view: tuple[int, int] | None = None) -> None:
+        """Text prompt (the "Find" field): every instance of ``phrase`` (default: the field's
+        text) in ``view`` (default: the view shown) becomes an object, in the worker thread
+        (docs/design.md section 9)."""
+        phrase = self.controls.find_edit.text() if phrase is None else phrase
+        if not phrase.split():
+            self._set_status("type a phrase to find, e.g. red cup")
+            return
+
+        def run() -> None:
+            where = self.shown_view() if view is None else view
+            desc = f"finding {phrase.strip()!r}"
+            self.work.start(partial(W.find_job, self.session, phrase, where), 1, desc)
 
         if self.session is not None:
             self.work.when_idle(lambda: self._when_loaded(run))

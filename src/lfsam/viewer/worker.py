@@ -33,8 +33,10 @@ __all__ = [
     "FinalMasks",
     "ModelLoaded",
     "ReferenceMask",
+    "TextFound",
     "WorkQueue",
     "WorkerEvent",
+    "find_job",
     "generate_job",
     "guarded",
     "load_job",
@@ -133,6 +135,23 @@ class AllMasks:
 
 
 @dataclass(frozen=True)
+class TextFound:
+    """A text prompt's instances were added; every object's masks.
+
+    Parameters
+    ----------
+    prediction : LightFieldPrediction
+    phrase : str
+    finds : list of dict
+        :meth:`lfsam.text_search.TextFind.to_dict` of each view searched.
+    """
+
+    prediction: Any
+    phrase: str
+    finds: list[dict[str, Any]]
+
+
+@dataclass(frozen=True)
 class Failed:
     """A job stopped on a user error (:class:`LfsamError`); what was queued after it is dropped.
 
@@ -146,7 +165,9 @@ class Failed:
 
 
 #: Everything a job yields.
-WorkerEvent = ModelLoaded | ReferenceMask | CoarseMasks | FinalMasks | AllMasks | Failed
+WorkerEvent = (
+    ModelLoaded | ReferenceMask | CoarseMasks | FinalMasks | AllMasks | TextFound | Failed
+)
 
 #: A job: a generator function run in the worker thread.
 Job = Callable[[], Iterator[WorkerEvent]]
@@ -198,6 +219,13 @@ def generate_job(session: Any, references: str) -> Iterator[WorkerEvent]:
     before = set(session.object_ids)
     prediction = session.generate(references)
     yield AllMasks(prediction, found=len(set(session.object_ids) - before))
+
+
+def find_job(session: Any, phrase: str, view: tuple[int, int] | None) -> Iterator[WorkerEvent]:
+    """Text prompt: the instances of ``phrase`` in ``view`` as objects; then every object's
+    masks (docs/design.md section 9)."""
+    prediction, finds = session.find(phrase, view)
+    yield TextFound(prediction, phrase, [find.to_dict() for find in finds])
 
 
 def guarded(job: Job) -> Job:
