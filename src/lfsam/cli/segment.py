@@ -15,11 +15,13 @@ from lfsam.cli.common import (
 )
 from lfsam.cli.models import add_model_arguments, model_options_from_args
 from lfsam.cli.prompts import PROMPT_PARSERS, PromptAction, objects_from_items
+from lfsam.cli.segment_video import run_video
 from lfsam.errors import LfsamError
 from lfsam.fileutil import check_cache_dir, check_output_path
 from lfsam.io import read_lightfield
 from lfsam.prompts import load_prompts
 from lfsam.result import save_result
+from lfsam.video import is_video
 
 DESCRIPTION = """\
 Segment a light field consistently across all views (paper section 3).
@@ -40,6 +42,11 @@ of points and a box each (format: README, "Prompt files"). The prompts are saved
 so it can be reopened and edited (lfsam view --result). --cache DIR keeps the image encoder's
 output on disk: a second run on the same views encodes nothing (the result's views_encoded).
 
+A light-field video (a folder of frames, of view_SS_TT.mp4 files, or an [F, S, T, U, V, 3]
+array) is tracked: tag prompts with a frame as X,Y#F or X,Y@S,T#F (default frame 0; an object
+starts at its first frame, a --neg at frame F corrects F onwards), --auto finds the objects of
+frame 0, and --out names a folder that receives one result per frame.
+
 --references (with --auto) sets where masks are generated: center (the paper's setting), or also
 the corner views (corners), the outer ring's corners and edge midpoints (ring), or every view
 (all), there only where no mask lands yet, to find objects the center view cannot see (an object
@@ -59,6 +66,7 @@ examples:
   lfsam segment scene --auto --no-refine --occlusion none --out ablation_none.npz
   lfsam segment scene --auto --amg points_per_side=32 --out coarser_auto.npz
   lfsam segment hidden.npz --auto --references corners --out all_objects.npz
+  lfsam segment clip --point 30,20 --point 50,40#3 --model oracle --disparity gt --out tracked
 """
 
 
@@ -162,6 +170,8 @@ def run(args: argparse.Namespace) -> int:
         t_sim=args.t_sim,
         t_iou=args.t_iou,
     )
+    if args.input_format is None and is_video(args.path):  # issue 25: track through frames
+        return run_video(args, config, has_prompts)
     check_output_path(args.out)
     if args.cache is not None:
         check_cache_dir(args.cache)
