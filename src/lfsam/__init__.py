@@ -12,8 +12,21 @@ interactive use: :class:`lfsam.LightFieldPredictor`, wrapped by
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField, snake_order
 from lfsam.prompts import TextPrompt
-from lfsam.result import SegmentationResult, load_result, save_result
+from lfsam.result import SegmentationResult, save_result
+from lfsam.result import load_result as _load_file_result
 from lfsam.version import __version__
+
+
+def load_result(path):
+    """Read a result: a ``.npz`` (:func:`lfsam.result.load_result`, a
+    :class:`SegmentationResult`) or a light-field video's result folder
+    (:func:`lfsam.video.result.load_video_result`, a lazy :class:`~lfsam.video.result.VideoResult`
+    whose ``labels[f]`` reads frame ``f``; docs/design.md section 10)."""
+    from lfsam.video.result import is_video_result, load_video_result
+
+    if is_video_result(path):
+        return load_video_result(path)
+    return _load_file_result(path)
 
 
 def __getattr__(name: str):
@@ -27,6 +40,10 @@ def __getattr__(name: str):
         from lfsam.predictor import LightFieldPredictor
 
         return LightFieldPredictor
+    if name in ("LightFieldVideo", "read_video"):
+        from lfsam import video
+
+        return getattr(video, name)
     if name == "LightFieldMaskGenerator":
         from lfsam.generator import LightFieldMaskGenerator
 
@@ -38,6 +55,7 @@ __all__ = [
     "LightField",
     "LightFieldMaskGenerator",
     "LightFieldPredictor",
+    "LightFieldVideo",
     "ModelOptions",
     "RunOptions",
     "SegmentOptions",
@@ -45,6 +63,7 @@ __all__ = [
     "TextPrompt",
     "__version__",
     "load_result",
+    "read_video",
     "save_result",
     "segment",
     "snake_order",

@@ -83,7 +83,7 @@ class LightFieldPredictor:
     >>> predictor.set_lightfield(lf, disparity="gt")
     >>> predictor.add_prompts(1, points=[(32, 24)], labels=[1])
     ObjectPrompts(obj_id=1, points=(PointPrompt(x=32.0, y=24.0,
-                  positive=True, view=(1, 1)),), box=None)
+                  positive=True, view=(1, 1)...),), box=None)
     >>> prediction = predictor.predict()
     >>> prediction.labels.shape
     (3, 3, 48, 64)

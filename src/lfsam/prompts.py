@@ -28,6 +28,12 @@ A *text prompt* (docs/design.md section 9) is an entry ``{"text": "red cup"}``, 
 finds every instance of it in that view, and each instance becomes an object with the phrase as
 its category (ids after every prompted object's). ``[{"text": "disc"}, {"id": 1, "points":
 [[40, 60]]}]`` mixes both.
+
+For a light-field video (docs/design.md section 10) every point and box may also carry a
+``frame`` (0-based; on the object it is the default of its points and box; absent = frame 0),
+e.g. ``{"id": 4, "points": [[30, 40]], "frame": 3}`` starts object 4 at frame 3, and
+``{"xy": [12, 20], "label": 0, "frame": 5}`` is a negative click at frame 5. A single light
+field takes frame 0 only.
 """
 
 from __future__ import annotations
@@ -35,7 +41,7 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -64,23 +70,27 @@ View = tuple[int, int]
 
 @dataclass(frozen=True)
 class PointPrompt:
-    """One click: ``(x, y)`` = (pixel column, pixel row) in view ``view`` (None = center)."""
+    """One click: ``(x, y)`` = (pixel column, pixel row) in view ``view`` (None = center), in
+    frame ``frame`` of a video (None = frame 0; docs/design.md section 10)."""
 
     x: float
     y: float
     positive: bool = True
     view: View | None = None
+    frame: int | None = None
 
 
 @dataclass(frozen=True)
 class BoxPrompt:
-    """A box ``(x0, y0, x1, y1)`` in view ``view`` (None = center)."""
+    """A box ``(x0, y0, x1, y1)`` in view ``view`` (None = center), in frame ``frame`` of a
+    video (None = frame 0)."""
 
     x0: float
     y0: float
     x1: float
     y1: float
     view: View | None = None
+    frame: int | None = None
 
     @property
     def xyxy(self) -> tuple[float, float, float, float]:
@@ -138,11 +148,8 @@ class ObjectPrompts:
         """A copy with every untagged prompt tagged with ``center``."""
         box = self.box
         if box is not None and box.view is None:
-            box = BoxPrompt(*box.xyxy, view=center)
-        points = tuple(
-            p if p.view is not None else PointPrompt(p.x, p.y, p.positive, center)
-            for p in self.points
-        )
+            box = replace(box, view=center)
+        points = tuple(p if p.view is not None else replace(p, view=center) for p in self.points)
         return ObjectPrompts(self.obj_id, points, box)
 
 
@@ -194,11 +201,12 @@ def _view_or(view: View | None, default: View) -> View:
 
 # --- validation ----------------------------------------------------------------------------------
 def validate_objects(
-    objects: Sequence[Prompt], grid_shape: View, view_shape: View
+    objects: Sequence[Prompt], grid_shape: View, view_shape: View, num_frames: int = 1,
 ) -> None:
     """Check prompts against a light field: ids, views inside the grid, points inside the view,
     boxes non-empty, and at least one positive point or a box per object; text prompts: a
-    phrase and a view inside the grid.
+    phrase and a view inside the grid; frames (of a video of ``num_frames``; 1 = a single light
+    field) from 0 to ``num_frames - 1``.
 
     Raises
     ------
@@ -230,6 +238,7 @@ def validate_objects(
                 f"{name}: only negative points; add a positive point or a box (a negative "
                 "point only removes what a positive prompt selects)"
             )
+        _check_frames(obj, name, num_frames)
         tagged = [(f"point {i + 1}", p.view) for i, p in enumerate(obj.points)]
         if obj.box is not None:
             tagged.append(("box", obj.box.view))
@@ -263,8 +272,24 @@ def validate_objects(
                 )
 
 
+def _check_frames(obj: ObjectPrompts, name: str, num_frames: int) -> None:
+    """Frame tags of one object: whole numbers in range (one line naming the prompt)."""
+    tagged = [(f"point {i + 1}", p.frame) for i, p in enumerate(obj.points)]
+    if obj.box is not None:
+        tagged.append(("box", obj.box.frame))
+    for what, frame in tagged:
+        if frame is None:
+            continue
+        if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)) or frame < 0:
+            raise LfsamError(f"{name}: {what} has frame {frame!r}; frames are whole numbers >= 0")
+        if frame >= num_frames:
+            where = ("a single light field has frame 0 only" if num_frames == 1
+                     else f"the video has frames 0..{num_frames - 1}")
+            raise LfsamError(f"{name}: {what} is tagged with frame {frame}, but {where}")
+
+
 # --- JSON ----------------------------------------------------------------------------------------
-_OBJECT_KEYS = {"id", "points", "labels", "box", "view"}
+_OBJECT_KEYS = {"id", "points", "labels", "box", "view", "frame"}
 
 
 def prompts_to_json(objects: Sequence[Prompt]) -> list[dict[str, Any]]:
@@ -284,6 +309,7 @@ def prompts_to_json(objects: Sequence[Prompt]) -> list[dict[str, Any]]:
                     "xy": [float(p.x), float(p.y)],
                     "label": int(p.positive),
                     **({"view": list(p.view)} if p.view is not None else {}),
+                    **({"frame": int(p.frame)} if p.frame is not None else {}),
                 }
                 for p in obj.points
             ],
@@ -292,6 +318,7 @@ def prompts_to_json(objects: Sequence[Prompt]) -> list[dict[str, Any]]:
             entry["box"] = {
                 "xyxy": [float(v) for v in obj.box.xyxy],
                 **({"view": list(obj.box.view)} if obj.box.view is not None else {}),
+                **({"frame": int(obj.box.frame)} if obj.box.frame is not None else {}),
             }
         out.append(entry)
     return out
@@ -333,8 +360,12 @@ def prompts_from_json(data: Any) -> list[Prompt]:
             raise LfsamError(f"{name}: id must be an integer >= 1, got {obj_id!r}")
         name = f"object {obj_id}"
         default_view = _parse_view(entry.get("view"), f"{name}: view")
+        frame = _parse_frame(entry.get("frame"), f"{name}: frame")
         points = _parse_points(entry.get("points", []), entry.get("labels"), default_view, name)
         box = _parse_box(entry.get("box"), default_view, name)
+        points = [p if p.frame is not None else replace(p, frame=frame) for p in points]
+        if box is not None and box.frame is None:
+            box = replace(box, frame=frame)
         objects.append(ObjectPrompts(obj_id, tuple(points), box))
     return objects
 
@@ -362,6 +393,14 @@ def _parse_view(value: Any, what: str) -> View | None:
     return int(value[0]), int(value[1])
 
 
+def _parse_frame(value: Any, what: str) -> int | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise LfsamError(f"{what} must be a whole number >= 0 (0-based frame), got {value!r}")
+    return int(value)
+
+
 def _number_list(value: Any, count: int, what: str) -> list[float]:
     if (
         not isinstance(value, (list, tuple))
@@ -385,19 +424,21 @@ def _parse_points(
         view = default_view
         label = 1 if labels is None else labels[i]
         if isinstance(item, dict):
-            unknown = sorted(set(item) - {"xy", "label", "view"})
+            unknown = sorted(set(item) - {"xy", "label", "view", "frame"})
             if unknown:
                 raise LfsamError(f"{what}: unknown key(s) {', '.join(unknown)}; allowed: "
-                                 "label, view, xy")
+                                 "frame, label, view, xy")
             xy = _number_list(item.get("xy"), 2, f"{what}: xy")
             label = item.get("label", label)
             if "view" in item:
                 view = _parse_view(item["view"], f"{what}: view")
+            frame = _parse_frame(item.get("frame"), f"{what}: frame")
         else:
             xy = _number_list(item, 2, what)
+            frame = None
         if label not in (0, 1) or isinstance(label, bool):
             raise LfsamError(f"{what}: label must be 1 (positive) or 0 (negative), got {label!r}")
-        points.append(PointPrompt(xy[0], xy[1], bool(label), view))
+        points.append(PointPrompt(xy[0], xy[1], bool(label), view, frame))
     return points
 
 
@@ -406,24 +447,29 @@ def _parse_box(value: Any, default_view: View | None, name: str) -> BoxPrompt | 
         return None
     view = default_view
     if isinstance(value, dict):
-        unknown = sorted(set(value) - {"xyxy", "view"})
+        unknown = sorted(set(value) - {"xyxy", "view", "frame"})
         if unknown:
             raise LfsamError(f"{name}: box: unknown key(s) {', '.join(unknown)}; allowed: "
-                             "view, xyxy")
+                             "frame, view, xyxy")
         if "view" in value:
             view = _parse_view(value["view"], f"{name}: box view")
+        frame = _parse_frame(value.get("frame"), f"{name}: box frame")
         value = value.get("xyxy")
+    else:
+        frame = None
     xyxy = _number_list(value, 4, f"{name}: box")
-    return BoxPrompt(*xyxy, view=view)
+    return BoxPrompt(*xyxy, view=view, frame=frame)
 
 
 def load_prompts(
     path: str | os.PathLike,
     grid_shape: View | None = None,
     view_shape: View | None = None,
+    num_frames: int = 1,
 ) -> list[Prompt]:
     """Read a prompt file (JSON, format in the module docstring): objects and text prompts,
-    validated against a light field's grid and view size when given.
+    validated against a light field's (or a video's, with ``num_frames``) grid and view size
+    when given.
 
     Raises
     ------
@@ -444,7 +490,7 @@ def load_prompts(
         raise LfsamError(f"cannot read prompt file {str(path)!r}: {exc}") from None
     objects = prompts_from_json(data)
     if grid_shape is not None and view_shape is not None:
-        validate_objects(objects, grid_shape, view_shape)
+        validate_objects(objects, grid_shape, view_shape, num_frames)
     return objects
 
 

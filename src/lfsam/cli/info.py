@@ -9,6 +9,7 @@ from typing import Any
 from lfsam.cli.common import HelpFormatter, add_value_range
 from lfsam.io import FORMATS, read_lightfield
 from lfsam.lightfield import LightField
+from lfsam.video import is_video, read_video
 
 __all__ = ["register", "run", "summarize"]
 
@@ -16,6 +17,8 @@ DESCRIPTION = """\
 Show what a light field holds: the view grid and size, the center (reference) view, which ground
 truth is present (disparity, labels; for every view or the center only), the disparity range,
 the number of labels, the format that was detected, and how the reader oriented the data.
+For a light-field video (a folder of frames, of view_SS_TT.mp4 files, or an [F, S, T, U, V, 3]
+array), one line such as "6 frames of 5 x 5 views of 96 x 128" and its ground truth.
 
 Every reader converts its data set to lfsam's one convention (a point at pixel (u, v) of view
 (s, t) with disparity d is at (u - d (s' - s), v - d (t' - t)) in view (s', t'); larger = closer).
@@ -88,8 +91,22 @@ def _text(summary: dict[str, Any]) -> str:
     return "\n".join(f"{name:<{width}}  {value}" for name, value in lines)
 
 
+def _video_text(summary: dict[str, Any]) -> str:
+    lines = [("source", summary["source"]), ("format", summary["format"]),
+             ("video", summary["summary"]),
+             ("center", f"view {tuple(summary['center'])} of every frame"),
+             ("disparity", summary["disparity"] or "none"), ("labels", summary["labels"] or "none")]
+    width = max(len(name) for name, _ in lines)
+    return "\n".join(f"{name:<{width}}  {value}" for name, value in lines)
+
+
 def run(args: argparse.Namespace) -> int:
-    """Print the summary of ``args.path``."""
+    """Print the summary of ``args.path`` (a light field or a light-field video)."""
+    if args.format is None and is_video(args.path):
+        with read_video(args.path, value_range=args.value_range) as video:
+            summary = video.describe()
+        print(json.dumps(summary, indent=2) if args.json else _video_text(summary))
+        return 0
     lf = read_lightfield(args.path, args.format, value_range=args.value_range)
     summary = summarize(lf)
     print(json.dumps(summary, indent=2) if args.json else _text(summary))
@@ -105,7 +122,7 @@ def register(subparsers) -> None:
         epilog=EPILOG,
         formatter_class=HelpFormatter,
     )
-    parser.add_argument("path", help="light-field folder or file")
+    parser.add_argument("path", help="light-field (or light-field video) folder or file")
     parser.add_argument(
         "--format",
         choices=FORMATS,

@@ -1,4 +1,5 @@
-"""Command-line prompts: ``--point``/``--neg``/``--box`` with optional ``@S,T`` view tags.
+"""Command-line prompts: ``--point``/``--neg``/``--box`` with optional ``@S,T`` view tags and
+``#F`` frame tags (a light-field video's 0-based frame, default 0; docs/design.md section 10).
 
 docs/design.md section 8: ``X,Y@S,T`` is a click at pixel column ``X``, row ``Y`` of view
 ``(S, T)``; no tag means the center view. Each ``--point`` or ``--box`` starts a new object and a
@@ -49,10 +50,33 @@ def parse_tagged(text: str, count: int) -> tuple[tuple[float, ...], tuple[int, i
     return values, view
 
 
+def parse_frame_tag(text: str) -> tuple[str, int | None]:
+    """Split ``"...#F"`` into the rest and the frame ``F`` (None without ``#``).
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        If ``F`` is not a whole number >= 0.
+    """
+    body, hash_, tag = text.partition("#")
+    if not hash_:
+        return text, None
+    if not tag.isdigit():
+        raise argparse.ArgumentTypeError(
+            f"the frame after # must be a whole number >= 0 (0-based frame), got {tag!r}"
+        )
+    return body, int(tag)
+
+
+def _item(kind: str, text: str, count: int) -> tuple:
+    body, frame = parse_frame_tag(text)
+    return (kind, *parse_tagged(body, count), frame)
+
+
 PROMPT_PARSERS = {
-    "point": lambda text: ("point", *parse_tagged(text, 2)),
-    "neg": lambda text: ("neg", *parse_tagged(text, 2)),
-    "box": lambda text: ("box", *parse_tagged(text, 4)),
+    "point": lambda text: _item("point", text, 2),
+    "neg": lambda text: _item("neg", text, 2),
+    "box": lambda text: _item("box", text, 4),
 }
 
 
@@ -72,7 +96,8 @@ class PromptAction(argparse.Action):
 
 
 def objects_from_items(items: Sequence[tuple], first_id: int = 1) -> list[ObjectPrompts]:
-    """Objects from the ordered ``(kind, values, view)`` items of :class:`PromptAction`.
+    """Objects from the ordered ``(kind, values, view[, frame])`` items of
+    :class:`PromptAction`.
 
     Raises
     ------
@@ -80,12 +105,13 @@ def objects_from_items(items: Sequence[tuple], first_id: int = 1) -> list[Object
         A ``--neg`` before any ``--point`` or ``--box``.
     """
     objects: list[ObjectPrompts] = []
-    for kind, values, view in items:
+    for kind, values, view, *rest in items:
+        frame = rest[0] if rest else None
         if kind == "point":
-            point = PointPrompt(*values, True, view)
+            point = PointPrompt(*values, True, view, frame)
             objects.append(ObjectPrompts(first_id + len(objects), (point,)))
         elif kind == "box":
-            box = BoxPrompt(*values, view=view)
+            box = BoxPrompt(*values, view=view, frame=frame)
             objects.append(ObjectPrompts(first_id + len(objects), (), box))
         else:
             if not objects:
@@ -93,5 +119,5 @@ def objects_from_items(items: Sequence[tuple], first_id: int = 1) -> list[Object
                     "--neg X,Y belongs to the object started by the last --point or --box; "
                     "give a --point or --box before it"
                 )
-            objects[-1] = objects[-1].with_points([PointPrompt(*values, False, view)])
+            objects[-1] = objects[-1].with_points([PointPrompt(*values, False, view, frame)])
     return objects

@@ -16,12 +16,14 @@ from lfsam.cli.common import (
 )
 from lfsam.cli.models import add_model_arguments, model_options_from_args
 from lfsam.cli.prompts import PROMPT_PARSERS, PromptAction, objects_from_items
+from lfsam.cli.segment_video import run_video
 from lfsam.cli.text import add_text_arguments, check_text_weights, report_text
 from lfsam.errors import LfsamError
 from lfsam.fileutil import check_cache_dir, check_output_path
 from lfsam.io import read_lightfield
 from lfsam.prompts import ObjectPrompts, load_prompts
 from lfsam.result import save_result
+from lfsam.video import is_video
 
 DESCRIPTION = """\
 Segment a light field consistently across all views (paper section 3).
@@ -46,6 +48,11 @@ output on disk: a second run on the same views encodes nothing (the result's vie
 grid) instead of every view, several times faster; every other view takes the refined masks of
 the views nearest to it, moved by disparity (docs/design.md section 3.7). --refine-views N picks
 N views. The result records which views were refined (meta refined_views; lfsam show marks them).
+
+A light-field video (a folder of frames, of view_SS_TT.mp4 files, or an [F, S, T, U, V, 3]
+array) is tracked: tag prompts with a frame as X,Y#F or X,Y@S,T#F (default frame 0; an object
+starts at its first frame, a --neg at frame F corrects F onwards), --auto finds the objects of
+frame 0, and --out names a folder that receives one result per frame.
 
 --references (with --auto) sets where masks are generated: center (the paper's setting), or also
 the corner views (corners), the outer ring's corners and edge midpoints (ring), or every view
@@ -79,6 +86,7 @@ examples:
   lfsam segment scene --text disc --model oracle --disparity gt --out discs.npz
   lfsam segment scene --text "red cup" --text plate@0,0 --point 60,40 --out mixed.npz
   lfsam segment scene --text cup --text-checkpoint ~/models/sam3 --out cups.npz
+  lfsam segment clip --point 30,20 --point 50,40#3 --model oracle --disparity gt --out tracked
 """
 
 
@@ -186,6 +194,8 @@ def run(args: argparse.Namespace) -> int:
         t_iou=args.t_iou,
         refine_views=args.refine_views,
     )
+    if args.input_format is None and is_video(args.path):  # issue 25: track through frames
+        return run_video(args, config, has_prompts)
     check_output_path(args.out)
     if args.cache is not None:
         check_cache_dir(args.cache)

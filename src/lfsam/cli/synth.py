@@ -9,6 +9,7 @@ from lfsam.cli.common import HelpFormatter, bounded_int, parse_pair, unit_interv
 from lfsam.errors import LfsamError
 from lfsam.io import WRITE_FORMATS, resolve_output, write_lightfield
 from lfsam.synth import generate_scene
+from lfsam.video.synth import generate_video, write_video_frames
 
 __all__ = ["register", "run"]
 
@@ -33,6 +34,11 @@ objects there) but that come out from behind them in the outer rows and columns,
 at least 100 pixels (scaled with the view size) in some corner view; their labels follow the
 other objects' and are listed in the metadata (generator.hidden_labels). The rest of the scene is
 the same as without them.
+
+--frames F writes a light-field video instead: a folder of F frames (frame_0000/ ..., each a
+scene folder, and lfsam_video.json). The objects move in the image plane and in depth, pass in
+front of and behind each other, and the first object leaves the frame and comes back (with
+F >= 5); every object keeps its label in every frame.
 """
 
 EPILOG = """\
@@ -42,6 +48,7 @@ examples:
   lfsam synth wide --disparity-range=-4,4              # note the '=' for negative numbers
   lfsam synth hidden.npz --hidden-objects 3            # 3 objects only the outer views see
   lfsam synth glossy --specular 0.6                    # highlights that move across views
+  lfsam synth clip --frames 6 --grid 5x5 --size 96x128 # a light-field video of 6 frames
 """
 
 
@@ -59,8 +66,31 @@ def _positive_pair(text: str) -> tuple[int, int]:
     return pair
 
 
+def _run_video(args: argparse.Namespace) -> int:
+    """``--frames F``: a synthetic light-field video folder, written frame by frame."""
+    if args.hidden_objects or args.specular or str(args.out).lower().endswith(".npz"):
+        raise LfsamError(
+            "--frames writes a folder of frames (give OUT without .npz) and takes neither "
+            "--hidden-objects nor --specular"
+        )
+    frames = generate_video(
+        grid=args.grid, size=args.size, frames=args.frames, seed=args.seed,
+        num_objects=args.objects, disparity_range=args.disparity_range,
+        supersample=args.supersample,
+    )
+    settings = {"seed": args.seed, "objects": args.objects, "frames": args.frames}
+    out = write_video_frames(frames, args.out, meta=settings)
+    print(
+        f"wrote {out}: {args.frames} frames of {args.grid[0]} x {args.grid[1]} views of "
+        f"{args.size[0]} x {args.size[1]}, seed {args.seed}, {args.objects} moving objects"
+    )
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
-    """Generate the scene and write it."""
+    """Generate the scene (or with ``--frames``, the video) and write it."""
+    if args.frames is not None:
+        return _run_video(args)
     resolve_output(args.out, args.format)  # fail before the work, not after
     rendered = args.grid[0] * args.grid[1] * args.size[0] * args.size[1] * args.supersample**2
     if rendered * 3 > MAX_RENDER_BYTES:
@@ -138,6 +168,13 @@ def register(subparsers) -> None:
         default=0.0,
         metavar="STRENGTH",
         help="peak brightness (0-1) of a highlight on each object that moves across views",
+    )
+    parser.add_argument(
+        "--frames",
+        type=bounded_int(1, 100000),
+        default=None,
+        metavar="F",
+        help="write a light-field video of F frames (a folder) with moving objects",
     )
     parser.add_argument(
         "--supersample",

@@ -1,0 +1,144 @@
+"""Carrying an object from one frame to the next in its reference view (docs/design.md
+section 10), for segmenters without memory (the oracle, SAM 2's image model).
+
+The object's last mask and the pixels under it (the *template*) are matched against the new
+frame's reference view by masked sum of squared differences over integer shifts (three FFT
+correlations, :func:`locate`): the shift with the lowest mean squared difference per
+overlapping pixel wins; part of the template may fall outside the frame (objects leaving or
+coming back through the border). The shifted mask, kept where the new pixels still look like
+the template (not covered by something that moved in front), gives the prompt: a positive
+point at its deepest pixel, and a box around the shifted mask widened by a margin.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage, signal
+
+__all__ = ["Carried", "Template", "carry", "locate"]
+
+#: Fraction of the carried mask (inside the frame) that must still look like the template.
+MIN_SUPPORT = 0.5
+#: Per-pixel RGB distance (summed over channels) under which a pixel still looks the same.
+MAX_PIXEL_DIFFERENCE = 60.0
+#: Fewest matching pixels an object needs to be carried.
+MIN_PIXELS = 12
+
+
+@dataclass(frozen=True)
+class Template:
+    """An object's look in its reference view: the mask's bounding crop of the image."""
+
+    image: np.ndarray  # (h, w, 3) float32
+    mask: np.ndarray  # (h, w) bool
+    origin: tuple[int, int]  # (row, column) of the crop's top-left pixel
+
+    @classmethod
+    def from_mask(cls, image: np.ndarray, mask: np.ndarray) -> Template | None:
+        """The template of ``mask`` (None when it is empty)."""
+        rows, cols = np.nonzero(mask)
+        if rows.size == 0:
+            return None
+        r0, r1, c0, c1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
+        return cls(image[r0:r1, c0:c1].astype(np.float32), mask[r0:r1, c0:c1].copy(),
+                   (int(r0), int(c0)))
+
+
+@dataclass(frozen=True)
+class Carried:
+    """Where an object is in the new frame."""
+
+    point: tuple[float, float]  # (x, y): column, row
+    box: tuple[float, float, float, float]  # x0, y0, x1, y1
+    mask: np.ndarray  # (U, V) bool: the shifted template mask, clipped to the frame
+    cost: float
+
+
+def locate(template: Template, image: np.ndarray, radius: int | None) -> tuple[int, int, float]:
+    """The shift ``(du, dv)`` of ``template`` into ``image`` with the least masked mean
+    squared difference, searched within ``radius`` pixels of its place (None: anywhere the
+    template overlaps the frame by at least :data:`MIN_PIXELS` and a fifth of its mask).
+
+    Returns
+    -------
+    du, dv : int
+    cost : float
+        Mean squared RGB difference per overlapping pixel (inf when nothing qualifies).
+    """
+    height, width = image.shape[:2]
+    h, w = template.mask.shape
+    r0, c0 = template.origin
+    if radius is None:
+        top, left, bottom, right = r0 + h, c0 + w, height - r0, width - c0
+    else:
+        top = left = bottom = right = int(radius)
+    # the region of the image the template can land on, zero-padded outside the frame
+    region_r0, region_c0 = r0 - top, c0 - left
+    rh, rw = h + top + bottom, w + left + right
+    region = np.zeros((rh, rw, 3), np.float32)
+    valid = np.zeros((rh, rw), np.float32)
+    sr0, sc0 = max(region_r0, 0), max(region_c0, 0)
+    sr1, sc1 = min(region_r0 + rh, height), min(region_c0 + rw, width)
+    if sr1 > sr0 and sc1 > sc0:
+        region[sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = (
+            image[sr0:sr1, sc0:sc1])
+        valid[sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = 1.0
+    m = template.mask.astype(np.float32)
+    a = template.image * m[..., None]
+
+    def corr(x: np.ndarray, k: np.ndarray) -> np.ndarray:
+        return signal.correlate(x, k, mode="valid", method="fft")
+
+    count = corr(valid, m)
+    cross = sum(corr(region[..., c], a[..., c]) for c in range(3))
+    energy = corr((region**2).sum(-1), m)
+    own = corr(valid, (a**2).sum(-1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cost = (own - 2 * cross + energy) / count
+    needed = max(MIN_PIXELS, 0.2 * m.sum())
+    cost[count < needed - 0.5] = np.inf
+    if not np.isfinite(cost).any():
+        return 0, 0, float("inf")
+    du, dv = np.mgrid[-top:bottom + 1, -left:right + 1]
+    order = np.lexsort((np.abs(du).ravel() + np.abs(dv).ravel(), cost.ravel()))
+    best = order[0]
+    return int(du.ravel()[best]), int(dv.ravel()[best]), float(cost.ravel()[best])
+
+
+def carry(template: Template, image: np.ndarray, radius: int | None,
+          box_margin: float = 0.15) -> Carried | None:
+    """Prompts for the object of ``template`` in ``image`` (None: not found, e.g. hidden or
+    out of the frame)."""
+    image = image.astype(np.float32)
+    du, dv, cost = locate(template, image, radius)
+    if not np.isfinite(cost):
+        return None
+    height, width = image.shape[:2]
+    h, w = template.mask.shape
+    r0, c0 = template.origin[0] + du, template.origin[1] + dv
+    mask = np.zeros((height, width), bool)
+    support = np.zeros((height, width), bool)
+    tr0, tc0 = max(-r0, 0), max(-c0, 0)
+    ir0, ic0 = max(r0, 0), max(c0, 0)
+    ir1, ic1 = min(r0 + h, height), min(c0 + w, width)
+    if ir1 <= ir0 or ic1 <= ic0:
+        return None
+    sub = template.mask[tr0:tr0 + ir1 - ir0, tc0:tc0 + ic1 - ic0]
+    look = template.image[tr0:tr0 + ir1 - ir0, tc0:tc0 + ic1 - ic0]
+    mask[ir0:ir1, ic0:ic1] = sub
+    same = np.abs(image[ir0:ir1, ic0:ic1] - look).sum(-1) < MAX_PIXEL_DIFFERENCE
+    support[ir0:ir1, ic0:ic1] = sub & same
+    if support.sum() < max(MIN_PIXELS, MIN_SUPPORT * sub.sum()):
+        return None
+    depth = ndimage.distance_transform_edt(np.pad(support, 1))[1:-1, 1:-1]
+    row, col = np.unravel_index(int(np.argmax(depth)), depth.shape)
+    rows, cols = np.nonzero(mask)
+    margin_r = 2 + box_margin * (rows.max() - rows.min() + 1)
+    margin_c = 2 + box_margin * (cols.max() - cols.min() + 1)
+    box = (
+        float(max(cols.min() - margin_c, 0)), float(max(rows.min() - margin_r, 0)),
+        float(min(cols.max() + margin_c, width - 1)), float(min(rows.max() + margin_r, height - 1)),
+    )
+    return Carried((float(col), float(row)), box, mask, cost)

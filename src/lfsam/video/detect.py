@@ -1,0 +1,99 @@
+"""Which input is a light-field video, and opening it (docs/design.md section 10).
+
+- a file ``.npy``/``.npz``/``.h5`` whose views are 6-D ``[F, S, T, U, V, 3]``
+  (:mod:`lfsam.video.arrays`);
+- a folder of per-view video files ``view_SS_TT.mp4`` (:mod:`lfsam.video.view_files`);
+- a folder with the video marker ``lfsam_video.json``, or one that holds no views of its own
+  but sub-folders or light-field files: one frame each (:mod:`lfsam.video.frames_folder`).
+
+Everything else is a single light field (:func:`lfsam.io.read_lightfield`).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from lfsam.errors import LfsamError
+from lfsam.io import is_native
+from lfsam.io.grid_folder import list_images
+from lfsam.io.hci4d import is_hci4d
+from lfsam.io.hci_old import is_hci_old
+from lfsam.io.urbanlf import is_urbanlf
+from lfsam.video.arrays import array_video_shape, open_h5, open_npy, open_npz
+from lfsam.video.frames_folder import VIDEO_MARKER, FolderFrames, frame_entries, read_marker
+from lfsam.video.source import LightFieldVideo
+from lfsam.video.view_files import VIDEO_SUFFIXES, ViewVideoFrames
+
+__all__ = ["is_video", "read_video", "video_kind"]
+
+
+def video_kind(path: str | os.PathLike) -> str | None:
+    """``"array"``, ``"view-videos"``, ``"frames"`` or None (not a video; also for a missing
+    path). Cheap: reads headers and names only."""
+    path = Path(path)
+    if path.is_file():
+        return "array" if array_video_shape(path) is not None else None
+    if not path.is_dir():
+        return None
+    if (path / VIDEO_MARKER).is_file():
+        return "frames"
+    if any(p.suffix.lower() in VIDEO_SUFFIXES for p in path.iterdir()):
+        return "view-videos"
+    if is_native(path) or is_hci_old(path) or is_hci4d(path) or is_urbanlf(path):
+        return None
+    if list_images(path):
+        return None
+    return "frames" if frame_entries(path) else None
+
+
+def is_video(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is a light-field video (see the module docstring)."""
+    return video_kind(path) is not None
+
+
+def read_video(path: str | os.PathLike, value_range: int | None = None) -> LightFieldVideo:
+    """Open a light-field video lazily (frames are read when asked for).
+
+    Parameters
+    ----------
+    path : path-like
+        Any form of the module docstring.
+    value_range : {1, 255}, optional
+        For frames stored as floats (see :func:`lfsam.lightfield.float_scale`).
+
+    Raises
+    ------
+    LfsamError
+        Missing path, not a video, or inconsistent frames or views (one line each).
+    """
+    path = Path(path)
+    if not path.exists():
+        raise LfsamError(f"no such file or folder: {str(path)!r}; check the path")
+    kind = video_kind(path)
+    meta: dict = {"source": str(path)}
+    if kind == "array":
+        suffix = path.suffix.lower()
+        opener = open_npy if suffix == ".npy" else open_npz if suffix == ".npz" else open_h5
+        source = opener(path)
+        meta["format"] = f"video-{suffix[1:]}"
+    elif kind == "view-videos":
+        source = ViewVideoFrames(path)
+        meta["format"] = "view-videos"
+    elif kind == "frames":
+        source = FolderFrames(path, value_range=value_range)
+        meta["format"] = "frames-folder"
+        marker = read_marker(path)
+        if marker.get("meta"):
+            meta["generator"] = marker["meta"]
+    elif path.is_dir() and not any(path.iterdir()):
+        raise LfsamError(
+            f"folder {str(path)!r} is empty; a light-field video is a folder of frames, of "
+            "view_SS_TT.mp4 files, or an [F, S, T, U, V, 3] array file"
+        )
+    else:
+        raise LfsamError(
+            f"{str(path)!r} is not a light-field video (a folder of frames, of view_SS_TT.mp4 "
+            "files, or an .npy/.npz/.h5 array [F, S, T, U, V, 3])"
+        )
+    return LightFieldVideo(source, meta)

@@ -1,0 +1,224 @@
+"""The chunked result of a light-field video (docs/design.md section 10).
+
+A folder::
+
+    lfsam_video_result.json   format, version, frames, grid, view_size, object ids, meta
+    frame_0000.npz ...        one result per frame (:func:`lfsam.result.save_result`)
+
+written frame by frame into a temporary folder next to the target and renamed onto it when
+the last frame is in (:func:`lfsam.fileutil.atomic_folder_output`): a failed run leaves
+nothing. Memory stays flat in the number of frames. :func:`load_video_result` (and
+``lfsam.load_result``, which detects the folder) reads frames lazily: the labels
+``[F, S, T, U, V]`` are :class:`FrameLabels`, one frame loaded per index.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lfsam.errors import LfsamError
+from lfsam.fileutil import atomic_folder_output
+from lfsam.result import SegmentationResult, load_result, save_result
+
+__all__ = [
+    "RESULT_MARKER",
+    "FrameLabels",
+    "VideoResult",
+    "is_video_result",
+    "load_video_result",
+    "video_result_writer",
+]
+
+RESULT_MARKER = "lfsam_video_result.json"
+FORMAT = "lfsam-video-result"
+
+
+def frame_name(index: int) -> str:
+    """``frame_0003.npz``."""
+    return f"frame_{index:04d}.npz"
+
+
+def is_video_result(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is a video result folder."""
+    return (Path(path) / RESULT_MARKER).is_file()
+
+
+def check_result_folder(path: str | os.PathLike) -> Path:
+    """Check that a video result can be written to ``path`` (a new name, an earlier video
+    result, or an empty folder, in an existing parent folder).
+
+    Raises
+    ------
+    LfsamError
+        One line naming the problem.
+    """
+    path = Path(path)
+    if path.suffix.lower() == ".npz":
+        raise LfsamError(
+            f"the result of a light-field video is a folder (one file per frame); give --out "
+            f"without .npz, e.g. {path.with_suffix('')}"
+        )
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise LfsamError(f"the folder {str(parent)!r} for {str(path)!r} does not exist")
+    if path.exists() and not (path.is_dir() and (is_video_result(path) or not any(
+            path.iterdir()))):
+        raise LfsamError(
+            f"{str(path)!r} exists and is not a video result; choose a new name (an earlier "
+            "video result or an empty folder is replaced)"
+        )
+    return path
+
+
+class _Writer:
+    """Writes frames into the temporary folder; :func:`video_result_writer` finishes it."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = folder
+        self.frames = 0
+        self.object_ids: set[int] = set()
+        self.grid: list[int] | None = None
+        self.view_size: list[int] | None = None
+
+    def write(self, result: SegmentationResult) -> None:
+        """Append the next frame's result."""
+        shape = list(np.shape(result.labels))
+        if self.grid is None:
+            self.grid, self.view_size = shape[:2], shape[2:]
+        elif shape != [*self.grid, *self.view_size]:
+            raise LfsamError(f"frame {self.frames} has labels {shape}, the first frame "
+                             f"{[*self.grid, *self.view_size]}")
+        save_result(result, self.folder / frame_name(self.frames))
+        self.object_ids.update(int(i) for i in np.unique(result.labels) if i > 0)
+        self.frames += 1
+
+
+@contextlib.contextmanager
+def video_result_writer(path: str | os.PathLike, meta: dict[str, Any] | None = None
+                        ) -> Iterator[_Writer]:
+    """Write a video result frame by frame; it appears at ``path`` only when complete.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> labels = np.zeros((1, 1, 2, 3), np.int32)
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     with video_result_writer(f"{folder}/out") as writer:
+    ...         for f in range(3):
+    ...             writer.write(SegmentationResult(labels=labels + f))
+    ...     video = load_video_result(f"{folder}/out")
+    ...     video.labels.shape, int(video.labels[2].max()), video.object_ids
+    ((3, 1, 1, 2, 3), 2, [1, 2])
+    """
+    path = check_result_folder(path)
+    with atomic_folder_output(path) as tmp:
+        writer = _Writer(tmp)
+        yield writer
+        if writer.frames == 0:
+            raise LfsamError("a video result needs at least one frame")
+        manifest = {
+            "format": FORMAT,
+            "version": 1,
+            "frames": writer.frames,
+            "grid": writer.grid,
+            "view_size": writer.view_size,
+            "object_ids": sorted(writer.object_ids),
+            "meta": meta or {},
+        }
+        (tmp / RESULT_MARKER).write_text(json.dumps(manifest, indent=1, default=str),
+                                         encoding="utf-8")
+
+
+class FrameLabels:
+    """The labels ``[F, S, T, U, V]`` of a video result, one frame read per index."""
+
+    def __init__(self, result: VideoResult) -> None:
+        self._result = result
+
+    @property
+    def shape(self) -> tuple[int, int, int, int, int]:
+        """``(F, S, T, U, V)``."""
+        return self._result.shape
+
+    def __len__(self) -> int:
+        return len(self._result)
+
+    def __getitem__(self, index: int) -> np.ndarray:
+        return self._result.frame(index).labels
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        for index in range(len(self)):
+            yield self[index]
+
+
+class VideoResult:
+    """A video result folder, read lazily (:func:`load_video_result`)."""
+
+    def __init__(self, path: Path, manifest: dict[str, Any]) -> None:
+        self.path = path
+        self.num_frames = int(manifest["frames"])
+        self.grid_shape = tuple(int(x) for x in manifest["grid"])
+        self.view_shape = tuple(int(x) for x in manifest["view_size"])
+        self.object_ids = [int(i) for i in manifest.get("object_ids", [])]
+        self.meta: dict[str, Any] = manifest.get("meta") or {}
+        self.labels = FrameLabels(self)
+
+    def __len__(self) -> int:
+        return self.num_frames
+
+    @property
+    def shape(self) -> tuple[int, int, int, int, int]:
+        """``(F, S, T, U, V)``."""
+        return (self.num_frames, *self.grid_shape, *self.view_shape)
+
+    def frame(self, index: int) -> SegmentationResult:
+        """The result of frame ``index``, read now.
+
+        Raises
+        ------
+        LfsamError
+            For an index outside the video or a missing or damaged frame file.
+        """
+        if not -self.num_frames <= int(index) < self.num_frames:
+            raise LfsamError(
+                f"frame {index} is outside the result (frames 0..{self.num_frames - 1})"
+            )
+        index = int(index) % self.num_frames
+        result = load_result(self.path / frame_name(index))
+        if result.labels.shape != self.shape[1:]:
+            raise LfsamError(f"{frame_name(index)} in {self.path} has labels "
+                             f"{result.labels.shape}, the video {self.shape[1:]}")
+        return result
+
+    def __iter__(self) -> Iterator[SegmentationResult]:
+        for index in range(self.num_frames):
+            yield self.frame(index)
+
+
+def load_video_result(path: str | os.PathLike) -> VideoResult:
+    """Open a video result folder (frames are read when asked for).
+
+    Raises
+    ------
+    LfsamError
+        If the folder or its manifest is missing or damaged.
+    """
+    path = Path(path)
+    try:
+        manifest = json.loads((path / RESULT_MARKER).read_text(encoding="utf-8"))
+        if manifest.get("format") != FORMAT:
+            raise ValueError("not a video result")
+        VideoResult(path, manifest)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise LfsamError(
+            f"{str(path)!r} is not a readable video result ({exc}); give the folder written "
+            "by `lfsam segment VIDEO --out FOLDER`"
+        ) from None
+    return VideoResult(path, manifest)
