@@ -48,6 +48,11 @@ CASES = {
         ["--model", "sam3-tiny-test", "--size", "32x48", "--repeats", "1"],
         "seconds_per_reference_view",
     ),
+    "bench_sparse.py": (
+        ["--seeds", "1", "--size", "32x48", "--settings", "all,sparse", "--disparities", "gt",
+         "--model", "sam2-tiny-test", "--prompts", "3"],
+        "sparse speed-up over all",
+    ),
     "bench_references.py": (
         ["--model", "sam2-tiny-test", "--grid", "3x3", "--size", "48x64", "--modes", "corners",
          "--rounds", "1", "--quality-size", "64x96", "--quality-seeds", "0", "--hidden", "1"],

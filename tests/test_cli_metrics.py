@@ -16,7 +16,7 @@ from lfsam.result import SegmentationResult, save_result
 # label 1 = object, 2 = background.
 ROWS = np.array([[2, 2, 2, 1, 1, 2], [2, 2, 1, 1, 2, 2], [2, 1, 1, 2, 2, 2]])
 KEYS = {"siou", "lpp", "aa", "ue", "coverage", "ms_per_mask_view", "num_masks"}
-KEYS |= {"recall", "siou_center"}
+KEYS |= {"recall", "siou_center", "view_iou", "view_iou_worst"}
 
 
 def as_field(rows: np.ndarray) -> np.ndarray:
@@ -57,6 +57,11 @@ def test_prints_the_metrics_of_a_saved_result(gt_path, tmp_path, capsys):
     assert metrics["coverage"] == pytest.approx(1.0)
     assert metrics["ms_per_mask_view"] == pytest.approx(100.0)
     assert metrics["num_masks"] == 3
+    # Per-view IoU, objects matched in the center view: 1 -> object (IoU 1, 1, then 0 where it
+    # became 3), 2 -> background (1 everywhere), 3 covers nothing there (0 in view 2 only):
+    # views score 1, 1 and (0 + 1 + 0) / 3.
+    assert metrics["view_iou"] == pytest.approx((1 + 1 + 1 / 3) / 3)
+    assert metrics["view_iou_worst"] == pytest.approx(1 / 3)
 
 
 def test_any_npz_with_labels_is_accepted_and_undefined_is_null(gt_path, tmp_path, capsys):

@@ -222,7 +222,7 @@ def test_cli_evaluate_and_compare(dataset, tmp_path, monkeypatch, capsys):
     options = seen["options"]
     assert options.run.method == "lfsam" and options.model.name == "oracle"
     assert seen["disparity"] == "gt" and options.pipeline.ablation == "ref"
-    assert "prompts" not in seen  # automatic
+    assert seen.get("prompts") is None  # automatic
     printed = capsys.readouterr()
     assert "| lfsam ref (oracle, gt disparity) |" in printed.out
     assert "3 scene(s) scored" in printed.err

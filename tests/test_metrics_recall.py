@@ -142,11 +142,15 @@ def test_default_min_area_scales_with_the_view():
 
 def test_reported_beside_the_paper_columns(tmp_path, capsys):
     assert REPORT_METRICS[: len(METRICS)] == METRICS
-    assert [m.key for m in OBJECT_METRICS] == ["recall", "siou_center"]
+    assert [m.key for m in OBJECT_METRICS] == [
+        "recall", "siou_center", "view_iou", "view_iou_worst"
+    ]
     table = format_metrics_table(
         [("x", {"recall": 0.5, "siou_center": 1.0})], metrics=REPORT_METRICS
     )
-    assert table.startswith("| Method | SIoU↑ | LPP↓ | AA↑ | UE↓ | C↑ | T↓ | Recall↑ | SIoU(c)↑ |")
+    assert table.startswith(
+        "| Method | SIoU↑ | LPP↓ | AA↑ | UE↓ | C↑ | T↓ | Recall↑ | SIoU(c)↑ | vIoU↑ | vIoU(min)↑ |"
+    )
     gt = write_lightfield(make_gt(truth()), tmp_path / "gt.npz")
     pred = np.where(truth() == 7, 0, truth()).astype(np.int32)
     path = save_result(SegmentationResult(labels=pred), tmp_path / "r.npz")

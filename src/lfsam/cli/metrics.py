@@ -28,6 +28,11 @@ view (rounded to the nearest pixel; pixels landing outside the frame are dropped
   recall            object recall: fraction of ground-truth objects (with at least --min-area
                     pixels in some view) that a label matches with IoU >= 0.5 in the view where
                     the object is largest; counts objects the center view cannot see
+  view_iou          per-view IoU against the ground truth: each predicted object matched to the
+                    ground-truth object it covers most in its reference view, its IoU with it
+                    in every view; mean over the objects of a view, then over the views (1 is
+                    exact). Unlike siou it sees masks that agree across views but are wrong
+  view_iou_worst    the worst view's per-view IoU
   ms_per_mask_view  milliseconds per mask per view from the result's timings (T; null without)
   num_masks         N used for T: the stored masks, or the distinct labels of a labels-only file
 Undefined values (e.g. of an empty result) are null.

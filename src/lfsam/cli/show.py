@@ -26,7 +26,8 @@ a view-consistent segmentation keeps each object's colour from view to view. Kin
 
   grid   the views with labels overlaid and region edges drawn: all views in their grid
          arrangement (--views all), the four corners and the center (--views corners) or
-         top-left, center, bottom-right as in the paper's Figure 2 (--views diagonal)
+         top-left, center, bottom-right as in the paper's Figure 2 (--views diagonal); views
+         a sparse run refined (--refine-views) are framed in amber and captioned "(s, t) *"
   epi    the center view with its horizontal epipolar-plane image (pixel row --row of every
          view of the center view row) below and its vertical EPI (pixel column --col of every
          view of the center view column) to the right, each view repeated --upsample times.
@@ -152,6 +153,7 @@ class _Scene:
     other_name: str | None = None
     masks: object | None = None
     lightfield: object | None = None
+    refined: np.ndarray | None = None
 
 
 def _is_result_file(path: Path) -> bool:
@@ -216,6 +218,12 @@ def _load_scene(args: argparse.Namespace) -> _Scene:
             )
         scene = _Scene(lightfield.views, result.labels, _result_name(result, source))
         scene.masks, scene.lightfield = result.masks, lightfield
+        refined = result.meta.get("refined_views")
+        if refined is not None and np.shape(refined) == lightfield.views.shape[:2]:
+            refined = np.asarray(refined, dtype=bool)
+            present = np.asarray(lightfield.present, dtype=bool)
+            if not refined[present].all():  # a sparse run (docs/design.md section 3.7)
+                scene.refined = refined
     else:
         lightfield = read_lightfield(source, format=args.input_format)
         labels = _full_labels(lightfield) if args.gt_labels else None
@@ -333,7 +341,8 @@ def run(args: argparse.Namespace) -> int:
         if kind == "grid":
             if other is None:
                 image = viz.view_grid(
-                    scene.views, scene.labels, masks=masks, **grid_opts, **overlay
+                    scene.views, scene.labels, masks=masks, marked=scene.refined, **grid_opts,
+                    **overlay,
                 )
             else:
                 image = viz.compare_grid(

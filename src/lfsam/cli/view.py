@@ -7,7 +7,7 @@ import signal
 import sys
 from typing import Any
 
-from lfsam.cli.common import HelpFormatter, add_disparity_argument
+from lfsam.cli.common import HelpFormatter, add_disparity_argument, add_refine_views_argument
 from lfsam.cli.models import add_model_arguments, model_options_from_args
 from lfsam.cli.text import add_text_arguments, check_text_weights
 from lfsam.errors import LfsamError
@@ -60,6 +60,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_model_arguments(parser)
     add_text_arguments(parser)
     add_disparity_argument(parser)
+    add_refine_views_argument(parser)
     parser.add_argument("--cache", metavar="DIR", help="embedding cache folder")
     parser.add_argument("--format", dest="input_format", help="input format (default: detect)")
     parser.set_defaults(func=run)
@@ -100,6 +101,7 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
         disparity=args.disparity,
         cache_dir=args.cache,
         segmenter_options=model.segmenter_keywords(),
+        refine_views=getattr(args, "refine_views", "all"),
         text_options={
             "text_model": model.text_model,
             "text_checkpoint": model.text_checkpoint,

@@ -22,6 +22,7 @@ import torch
 from lfsam.devices import resolve_device
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
+from lfsam.metrics.accuracy import per_view_iou
 from lfsam.metrics.consistency import ConsistencyScores, consistency_metrics
 from lfsam.metrics.labelmap import compact_labels, to_tensor
 from lfsam.metrics.performance import coverage, ms_per_mask_view
@@ -47,6 +48,7 @@ __all__ = [
     "evaluate_labels",
     "evaluate_result",
     "ms_per_mask_view",
+    "result_reference_views",
     "undersegmentation_error",
 ]
 
@@ -88,6 +90,8 @@ METRICS: tuple[Metric, ...] = (
 OBJECT_METRICS: tuple[Metric, ...] = (
     Metric("recall", "Recall↑", True),
     Metric("siou_center", "SIoU(c)↑", True),
+    Metric("view_iou", "vIoU↑", True),
+    Metric("view_iou_worst", "vIoU(min)↑", True),
 )
 
 #: Every reported column: paper Table 1's, then :data:`OBJECT_METRICS`.
@@ -131,6 +135,7 @@ def evaluate_labels(
     device: str | torch.device | None = None,
     min_area: int | None = None,
     present: np.ndarray | None = None,
+    reference_views: Mapping[int, tuple[int, int]] | None = None,
 ) -> dict[str, float | int | None]:
     """All metrics of paper Table 1 for one predicted label field, and the object metrics.
 
@@ -156,12 +161,17 @@ def evaluate_labels(
         :func:`lfsam.metrics.recall.default_min_area`).
     present : (S, T) bool array, optional
         The views the prediction holds (a result's ``present``); default all.
+    reference_views : mapping obj_id -> (s, t), optional
+        Where each predicted object was segmented, for the per-view IoU's matching (default
+        the center view).
 
     Returns
     -------
     dict
         ``siou``, ``siou_center`` (SIoU over the masks present in the center view), ``lpp``,
-        ``aa``, ``ue``, ``coverage``, ``recall`` (object recall; :mod:`lfsam.metrics.recall`)
+        ``aa``, ``ue``, ``coverage``, ``recall`` (object recall; :mod:`lfsam.metrics.recall`),
+        ``view_iou`` and ``view_iou_worst`` (per-view IoU against the ground truth, mean and
+        worst view; :func:`lfsam.metrics.accuracy.per_view_iou`)
         (floats; NaN where undefined, e.g. SIoU, LPP and AA of an empty prediction),
         ``ms_per_mask_view`` (float or None), and ``num_masks``, the N used for T.
 
@@ -212,6 +222,10 @@ def evaluate_labels(
     recall = object_recall(predicted, truth, len(predicted_ids), len(truth_ids), min_area)
     if num_masks is None:
         num_masks = len(predicted_ids) - 1
+    host_labels = labels.cpu().numpy() if isinstance(labels, torch.Tensor) else labels
+    accuracy = per_view_iou(
+        np.asarray(host_labels), np.asarray(gt.labels), reference_views, present=views
+    )
     return {
         "siou": consistency.siou,
         "siou_center": center_present_siou(consistency, predicted),
@@ -220,6 +234,8 @@ def evaluate_labels(
         "ue": undersegmentation_error(table),
         "coverage": coverage(predicted[~absent]),
         "recall": recall.recall,
+        "view_iou": accuracy.mean,
+        "view_iou_worst": accuracy.worst,
         "ms_per_mask_view": ms_per_mask_view(timings, num_masks, (int(views.sum()), 1)),
         "num_masks": num_masks,
     }
@@ -261,4 +277,15 @@ def evaluate_result(
         device=device,
         min_area=min_area,
         present=result.present_mask,
+        reference_views=result_reference_views(result),
     )
+
+
+def result_reference_views(result: SegmentationResult) -> dict[int, tuple[int, int]]:
+    """Each object's reference view recorded in a result's ``meta["objects"]`` (by id)."""
+    views = {}
+    for entry in result.meta.get("objects", []) or []:
+        if isinstance(entry, dict) and "id" in entry and "reference_view" in entry:
+            s, t = entry["reference_view"]
+            views[int(entry["id"])] = (int(s), int(t))
+    return views

@@ -214,9 +214,9 @@ def load_video_result(path: str | os.PathLike) -> VideoResult:
     try:
         manifest = json.loads((path / RESULT_MARKER).read_text(encoding="utf-8"))
         if manifest.get("format") != FORMAT:
-            raise ValueError("not a video result")
+            raise LfsamError(f"format {manifest.get('format')!r}, not {FORMAT!r}")
         VideoResult(path, manifest)
-    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
+    except (OSError, LfsamError, ValueError, KeyError, TypeError, AttributeError) as exc:
         raise LfsamError(
             f"{str(path)!r} is not a readable video result ({exc}); give the folder written "
             "by `lfsam segment VIDEO --out FOLDER`"

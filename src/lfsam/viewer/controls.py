@@ -74,6 +74,8 @@ class DockControls:
         A checkpoint file chosen in the weights box.
     random_weights : bool
         Untrained weights chosen (when there is no checkpoint).
+    refine_views : str or int
+        The "Refine views" box's choice (docs/design.md section 3.7): ``all``, ``sparse`` or N.
     """
 
     def __init__(
@@ -86,6 +88,7 @@ class DockControls:
         reference_modes: Sequence[str],
         checkpoint: str | None = None,
         random_weights: bool = False,
+        refine_views: str | int = "all",
     ) -> None:
         self.model_box = QComboBox()
         self.model_box.addItems(list(models))
@@ -106,6 +109,14 @@ class DockControls:
         self.references_box.setToolTip(
             "Segment everything from the center view (the paper's setting), or also from the "
             "corner views, the outer ring or every view, to find objects the center cannot see"
+        )
+        self.refine_box = QComboBox()
+        self.refine_box.addItems(["all", "sparse"])
+        _choose_item(self.refine_box, str(refine_views))
+        self.refine_box.setToolTip(
+            "Views SAM 2 refines: all (the paper) or sparse (about one in five, spread over the "
+            "grid; the others take the masks of the refined views nearest to them). Choosing "
+            "all after a sparse pass refines the remaining views"
         )
         self.load_button = QPushButton("Load model")
         self.polarity_label = QLabel()
@@ -144,12 +155,17 @@ class DockControls:
         self.status.setWordWrap(True)
         self.layout = self._lay_out()
 
+    def show_refine_views(self, setting: str | int) -> None:
+        """Show ``setting`` in the "Refine views" box (an N is added as an item)."""
+        _choose_item(self.refine_box, str(setting))
+
     def _lay_out(self) -> QVBoxLayout:
         form = QFormLayout()
         form.addRow("Model", self.model_box)
         form.addRow("Weights", self.weights_box)
         form.addRow("Disparity", self.disparity_box)
         form.addRow("Everything from", self.references_box)
+        form.addRow("Refine views", self.refine_box)
         grid = QGridLayout()
         prompt_buttons = [
             self.segment_button, self.commit_button, self.toggle_button, self.clear_button,

@@ -23,6 +23,8 @@ from lfsam.errors import LfsamError
 from lfsam.fileutil import check_output_path
 from lfsam.generator import LightFieldMaskGenerator
 from lfsam.lightfield import LightField
+from lfsam.pipeline.config import PipelineConfig
+from lfsam.pipeline.sparse import check_refine_views
 from lfsam.predictor import LightFieldPredictor
 from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt, TextPrompt
 from lfsam.result import SegmentationResult, save_result
@@ -221,6 +223,8 @@ class ViewerSession:
         Embedding cache of the predictor (docs/design.md section 8).
     segmenter_options : dict
         Further keywords of :func:`lfsam.segmenters.load_segmenter` (e.g. ``oracle_options``).
+    refine_views : str or int
+        Which views SAM 2 refines (docs/design.md section 3.7): ``"all"``, ``"sparse"`` or N.
     text_options : dict
         The text detector of :meth:`find` (docs/design.md section 9): ``text_model`` (default
         the oracle with the oracle segmenter, else ``sam3``), ``text_checkpoint``,
@@ -233,6 +237,7 @@ class ViewerSession:
     cache_dir: str | os.PathLike | None = None
     segmenter_options: dict[str, Any] = field(default_factory=dict)
     text_options: dict[str, Any] = field(default_factory=dict)
+    refine_views: str | int = "all"
     predictor: Any = None
     current_id: int = 1
     committed: set[int] = field(default_factory=set)
@@ -265,7 +270,9 @@ class ViewerSession:
         for key in dropped:
             options.pop(key, None)
         segmenter = load_segmenter(self.model, lightfield=self.lightfield, **options)
-        predictor = LightFieldPredictor(segmenter, cache_dir=self.cache_dir)
+        predictor = LightFieldPredictor(
+            segmenter, PipelineConfig(refine_views=self.refine_views), cache_dir=self.cache_dir
+        )
         predictor.set_lightfield(self.lightfield, disparity=self.disparity)
         old = self.predictor
         if old is not None and old.object_ids:
@@ -275,6 +282,22 @@ class ViewerSession:
             else:  # automatic or imported objects are carried by their masks
                 predictor.open_result(old.to_result())
         self.predictor = predictor
+
+    def set_refine_views(self, setting: str | int) -> None:
+        """Refine ``"all"`` views, ``"sparse"`` or N from now on; a loaded predictor refines
+        its objects again at the next prediction (``LightFieldPredictor.set_refine_views``:
+        after a sparse pass, ``"all"`` encodes and refines only the remaining views)."""
+        self.refine_views = check_refine_views(setting)
+        if self.predictor is not None:
+            self.predictor.set_refine_views(self.refine_views)
+
+    def refined_summary(self) -> str | None:
+        """E.g. ``"17 of 81 views refined (sparse)"``; None when every view is refined."""
+        if self.predictor is None or self.refine_views == "all":
+            return None
+        flags = self.predictor.refined_views
+        present = int(np.count_nonzero(self.lightfield.present))
+        return f"{int(flags.sum())} of {present} views refined ({self.refine_views})"
 
     def _require(self) -> Any:
         if self.predictor is None:

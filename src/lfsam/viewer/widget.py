@@ -94,6 +94,7 @@ class LightFieldWidget(QWidget):
         segmenter_options: dict[str, Any] | None = None,
         text_options: dict[str, Any] | None = None,
         autoload: bool = True,
+        refine_views: str | int = "all",
     ) -> None:
         super().__init__()
         from lfsam.segmenters import available_models
@@ -108,6 +109,7 @@ class LightFieldWidget(QWidget):
         self._text_options = dict(text_options or {})
         self._cache_dir = cache_dir
         self._autoload = autoload
+        self._refine_views = refine_views
 
         self.controls = c = C.DockControls(
             models=available_models(),
@@ -117,6 +119,7 @@ class LightFieldWidget(QWidget):
             reference_modes=list(REFERENCE_MODES),
             checkpoint=self._options.get("checkpoint"),
             random_weights=bool(self._options.get("random_weights")),
+            refine_views=refine_views,
         )
         self.setLayout(c.layout)
         # the controls callers read through the widget
@@ -148,6 +151,9 @@ class LightFieldWidget(QWidget):
         self._on_model_changed(c.model_box.currentText())
         c.weights_box.activated.connect(self._on_weights_activated)
         c.disparity_box.activated.connect(self._on_disparity_activated)
+        c.refine_box.activated.connect(
+            lambda _index: self.set_refine_views(c.refine_box.currentText())
+        )
         for button, action in (
             (c.segment_button, self.segment), (c.commit_button, self.commit),
             (c.clear_button, self.clear), (c.undo_button, self.undo), (c.redo_button, self.redo),
@@ -186,6 +192,7 @@ class LightFieldWidget(QWidget):
             cache_dir=self._cache_dir,
             segmenter_options=dict(self._options),
             text_options=dict(self._text_options),
+            refine_views=self._refine_views,
         )
         self.keeper.show(lightfield, layer, self._keymap())
         self.layers[L.COMMITTED].metadata[SESSION_KEY] = self.session
@@ -298,6 +305,22 @@ class LightFieldWidget(QWidget):
         if source is not None and self.session is not None and source != in_use:
             self.session.disparity = source
             self._reload()
+
+    def set_refine_views(self, setting: str | int) -> None:
+        """Refine ``"all"`` views, ``"sparse"`` or N (docs/design.md section 3.7). The objects
+        are refined again in a worker: ``"all"`` after a sparse pass encodes and refines only
+        the remaining views (their masks replace the filled ones as it finishes)."""
+        from lfsam.pipeline.sparse import check_refine_views
+
+        setting = check_refine_views(setting)
+        self._refine_views = setting
+        self.controls.show_refine_views(setting)
+        session = self.session
+        if session is None or session.refine_views == setting:
+            return
+        session.set_refine_views(setting)
+        if session.loaded and session.object_ids:
+            self.work.when_idle(lambda: self._predict_all(f"refining {setting} views"))
 
     def _reload(self) -> None:
         """Load the model again if it is loaded (its name, weights or disparity changed)."""
@@ -521,7 +544,11 @@ class LightFieldWidget(QWidget):
         self.masks.show_prediction(prediction, session.committed, session.auto)
         self._show_current(session.current_id, masks=self.masks.mask_of(session.current_id))
         self._refresh_objects()
-        self._set_status(f"{len(prediction.masks)} object(s) segmented in every view")
+        refined = session.refined_summary()
+        self._set_status(
+            f"{len(prediction.masks)} object(s) segmented in every view"
+            + ("" if refined is None else f"; {refined}, the others filled from them")
+        )
 
     def _refresh_objects(self) -> None:
         if self.session is not None:

@@ -75,6 +75,19 @@ def grid_layout(
     return 1, len(chosen), list(chosen)
 
 
+#: Frame colour of marked views (:func:`view_grid`): amber, apart from the label palette's use.
+MARK_COLOR = (255, 176, 0)
+
+
+def frame(image: np.ndarray, color: tuple[int, int, int], width: int | None = None) -> np.ndarray:
+    """``image`` with a frame of ``color`` drawn inside its border (a copy); ``width`` defaults
+    to 1/40 of the shorter side, at least 2 pixels."""
+    out = np.array(image, copy=True)
+    width = max(2, min(out.shape[:2]) // 40) if width is None else width
+    out[:width], out[-width:], out[:, :width], out[:, -width:] = color, color, color, color
+    return out
+
+
 def view_grid(
     views: ArrayLike,
     labels: ArrayLike | None = None,
@@ -87,6 +100,8 @@ def view_grid(
     captions: bool = False,
     background: int | tuple[int, int, int] = 255,
     progress: bool | None = None,
+    marked: ArrayLike | None = None,
+    mark_color: tuple[int, int, int] = MARK_COLOR,
 ) -> np.ndarray:
     """A figure of views with their labels overlaid.
 
@@ -108,6 +123,11 @@ def view_grid(
         Put ``(s, t)`` in a strip of ``CAPTION_HEIGHT`` pixels above each tile.
     progress : bool or None
         Show a progress bar (None: only on a terminal).
+    marked : (S, T) array_like of bool, optional
+        Views framed in ``mark_color`` (and captioned ``(s, t) *``), e.g. the views a sparse run
+        refined (a result's ``meta["refined_views"]``, docs/design.md section 3.7).
+    mark_color : (r, g, b)
+        Colour of the frames of ``marked`` views.
 
     Returns
     -------
@@ -119,6 +139,9 @@ def view_grid(
     if views.ndim != 5 or views.shape[-1] != 3:
         raise LfsamError(f"views must have shape (S, T, U, V, 3), got {views.shape}")
     labels = _matching_labels(views, labels)
+    marks = None if marked is None else np.asarray(marked, dtype=bool)
+    if marks is not None and marks.shape != views.shape[:2]:
+        raise LfsamError(f"marked must have shape (S, T) = {views.shape[:2]}, got {marks.shape}")
     rows, cols, cells = grid_layout(views.shape[:2], which)
     tiles: list[np.ndarray | None] = []
     bar = tqdm(cells, desc="views", unit="view", disable=None if progress is None else not progress)
@@ -128,7 +151,11 @@ def view_grid(
             continue
         s, t = cell
         image = overlay_view(views, labels, masks, s, t, alpha=alpha, boundaries=boundaries)
+        is_marked = marks is not None and bool(marks[s, t])
+        if is_marked:
+            image = frame(image, mark_color)
         if captions:
-            image = caption(image, f"({s}, {t})", height=CAPTION_HEIGHT, background=background)
+            text = f"({s}, {t}) *" if is_marked else f"({s}, {t})"
+            image = caption(image, text, height=CAPTION_HEIGHT, background=background)
         tiles.append(image)
     return tile(tiles, rows, cols, pad=pad, background=background)
