@@ -71,16 +71,25 @@ def gaussian_blur(image: torch.Tensor, sigma: float) -> torch.Tensor:
     return smooth_axis(smooth_axis(image, kernel, -1), kernel, -2)
 
 
+#: :func:`box_blur` windows up to this radius are one 2-D pooling (measured faster on a CPU).
+_POOL2D_MAX_RADIUS = 2
+
+
 def box_blur(image: torch.Tensor, radius: int) -> torch.Tensor:
     """Mean over a ``(2 radius + 1)^2`` window of the last two axes (borders replicated).
 
     Separable: one running mean along each axis (``avg_pool1d``), so the cost grows only linearly
-    with the window width.
+    with the window width; windows up to 5 x 5 are one ``avg_pool2d`` instead (twice as fast:
+    no transposed, strided pass).
     """
     if radius <= 0:
         return image
     shape = image.shape
     size = 2 * radius + 1
+    if radius <= _POOL2D_MAX_RADIUS:
+        x = image.reshape(-1, 1, shape[-2], shape[-1])
+        x = F.pad(x, (radius, radius, radius, radius), mode="replicate")
+        return F.avg_pool2d(x, size, stride=1).reshape(shape)
     x = image.reshape(-1, shape[-2], shape[-1])
     x = F.pad(x, (radius, radius), mode="replicate")
     x = F.avg_pool1d(x, size, stride=1)

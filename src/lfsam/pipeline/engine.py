@@ -102,6 +102,8 @@ class StreamingEngine:
         self._disp_tensors: dict[tuple[View, bool], torch.Tensor] = {}
         self._warps: OrderedDict[tuple[View, View, bool], ForwardWarp] = OrderedDict()
         self._base: frozenset[View] | None = None
+        # refined masks of fill sources, unpacked, within one pass (:meth:`run`, :meth:`_fill`)
+        self._sources: dict[tuple[View, tuple[int, ...]], torch.Tensor] = {}
         self._base_key: tuple[bool, str | int] | None = None
         self._warp_bytes = 0
 
@@ -356,10 +358,12 @@ class StreamingEngine:
                     objects, view, ids, embeddings.get(view), refine, out, coarse_out,
                     stage="refine",
                 ))
+        self._sources.clear()
         for view in filled_here:
             done(view, self.view_step(
                 objects, view, ids, None, refine, out, coarse_out, stage="fill"
             ))
+        self._sources.clear()
         bar.close()
         for i in ids:
             obj = objects[i]
@@ -488,15 +492,26 @@ class StreamingEngine:
         with self.timer("fill"):
             masks = []
             for source in sources:
-                packed = np.stack([out[i].bits[source] for i in members])
-                bits = np.unpackbits(packed, axis=1, count=height * width).astype(bool)
-                masks.append(torch.from_numpy(bits.reshape(-1, height, width)).to(self.device))
+                key = (source, tuple(members))
+                if key not in self._sources:  # each source serves several filled views
+                    packed = np.stack([out[i].bits[source] for i in members])
+                    bits = np.unpackbits(packed, axis=1, count=height * width).astype(bool)
+                    self._sources[key] = torch.from_numpy(
+                        bits.reshape(-1, height, width)
+                    ).to(self.device)
+                masks.append(self._sources[key])
             disparities = [self.disparity(source, carried=True) for source in sources]
             warps = [self.warp(source, view, carried=True) for source in sources]
             distances = [math.hypot(s - view[0], t - view[1]) for s, t in sources]
             return fill_from_sources(
-                masks, disparities, warps, distances, coarse, self.config.zbuffer_tolerance
+                masks, disparities, warps, distances, coarse, self.config.zbuffer_tolerance,
+                guide=self.gray(view),
             ).masks
+
+    def gray(self, view: View) -> torch.Tensor:
+        """The view's gray image in [0, 1] on the device (the fill's guide)."""
+        image = torch.as_tensor(np.asarray(self.lightfield.views[view]), device=self.device)
+        return image.to(torch.float32).mean(dim=-1) / 255.0
 
     def masks_in_view(
         self, objects: Mapping[int, TrackedObject], ids: list[int], view: View
@@ -521,7 +536,9 @@ class StreamingEngine:
                 for source in self.fill_sources(view, ref_view):
                     embedding = self.embedding(source) if source != ref_view else None
                     self.view_step(objects, source, members, embedding, True, out, coarse)
+            self._sources.clear()
             self.view_step(objects, view, ids, None, refine, out, coarse, stage="fill")
+            self._sources.clear()
         if any(self.refines(view, r) for r in references):
             embedding = (
                 self.embedding(view)
