@@ -49,7 +49,8 @@ CASES = {
         "seconds_per_reference_view",
     ),
     "bench_sparse.py": (
-        ["--seeds", "1", "--size", "32x48", "--settings", "all,sparse", "--disparities", "gt",
+        ["--seeds", "1", "--hidden", "0", "--size", "32x48", "--settings", "all,sparse",
+         "--disparities", "gt",
          "--model", "sam2-tiny-test", "--prompts", "3"],
         "sparse speed-up over all",
     ),
