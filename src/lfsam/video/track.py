@@ -6,7 +6,8 @@ Each frame is segmented across its views by the light-field pipeline
 at frame f + 1 comes from frame f through constrained prompts (:mod:`lfsam.video.carry`): its
 frame-f mask and pixels are matched into frame f + 1, and the segmenter is prompted there with a
 point at the deepest matching pixel (and, for SAM 2, a box around the carried mask); the user's
-negative clicks of earlier frames stay (those landing on the carried mask are dropped). An
+negative clicks of earlier frames stay (those landing on the carried mask are dropped; those
+given in the frame itself always stay, and the carried point keeps away from them). An
 answer is rejected (the object is *lost* in that frame: empty masks) when it holds less than
 half of the carried pixels, is more than :data:`MAX_GROWTH` times larger than the object was,
 or lies mostly on an object already placed in that frame. A lost object is searched for over the
@@ -59,14 +60,17 @@ class _Track:
     lost: bool = False
 
 
-def _carried_prompts(obj_id: int, track: _Track, image: np.ndarray, negatives, radius: int,
-                     use_box: bool) -> tuple[ObjectPrompts, np.ndarray, int] | None:
-    found = carry(track.template, image, None if track.lost else radius)
+def _carried_prompts(obj_id: int, track: _Track, image: np.ndarray, negatives, fresh,
+                     radius: int, use_box: bool) -> tuple[ObjectPrompts, np.ndarray, int] | None:
+    """The constrained prompts of a carried object: ``negatives`` of earlier frames are
+    dropped where they land on the carried mask, ``fresh`` ones (given in this frame) never."""
+    avoid = tuple((p.x, p.y) for p in fresh)
+    found = carry(track.template, image, None if track.lost else radius, avoid=avoid)
     if found is None:
         return None
     view = track.view
     kept = [p for p in negatives
-            if not found.mask[round(p.y), round(p.x)]]
+            if p in fresh or not found.mask[round(p.y), round(p.x)]]
     points = (PointPrompt(*found.point, True, view), *(PointPrompt(p.x, p.y, False, view)
                                                        for p in kept))
     box = BoxPrompt(*found.box, view=view) if use_box else None
@@ -195,8 +199,9 @@ def _segment_object(predictor: LightFieldPredictor, lf, index: int, obj_id: int,
         earlier = [p for p in negatives if p not in own.points]
         prompt = own.with_points(earlier)
     elif track is not None and track.template is not None:
-        carried = _carried_prompts(obj_id, track, lf.views[track.view], negatives, radius,
-                                   use_box)
+        fresh = () if own is None else tuple(p for p in own.points if not p.positive)
+        carried = _carried_prompts(obj_id, track, lf.views[track.view], negatives, fresh,
+                                   radius, use_box)
         if carried is None:
             track.lost = True
             return empty
