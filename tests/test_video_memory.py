@@ -121,3 +121,22 @@ def test_tracking_with_memory_covers_every_frame_and_view(present, tmp_path):
     with pytest.raises(LfsamError, match="no video memory"):
         track_video(video, [ObjectPrompts(1, (point,))], tmp_path / "bad", model="oracle",
                     disparity="gt", options=options, memory=True)
+
+
+def test_a_correction_click_changes_the_tracked_mask(present):
+    rng = np.random.default_rng(1)
+    images = rng.integers(0, 256, (2, *SHAPE, 3), dtype=np.uint8)
+    first = np.zeros(SHAPE, bool)
+    first[10:30, 12:40] = True
+    memory = ReferenceMemory(present, 2, SHAPE)
+    memory.next_frame(0, images[0])
+    memory.add_mask(1, first)
+    memory.track()
+    memory.next_frame(1, images[1])
+    tracked = memory.track()[1]
+    before = memory.logits.copy()
+    corrected = memory.correct(1, [(20.0, 15.0)])[1]
+    assert corrected.shape == tracked.shape == SHAPE
+    assert np.abs(memory.logits - before).max() > 1e-3  # SAM 2 took the click into account
+    inputs = memory.state["point_inputs_per_obj"][0][1]
+    assert inputs["point_labels"].tolist() == [[0]]

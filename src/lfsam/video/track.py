@@ -265,7 +265,8 @@ def _memory_frame(memory: ReferenceMemory, predictor: LightFieldPredictor, lf, i
         if own is None or obj.obj_id in prompted or obj.obj_id not in masks:
             continue
         fresh = [p for p in own.points if not p.positive]
-        masks = memory.correct(obj.obj_id, [(p.x, p.y) for p in fresh])
+        if fresh:
+            masks = memory.correct(obj.obj_id, [(p.x, p.y) for p in fresh])
     for obj_id, mask in masks.items():
         if obj_id not in prompted and mask.any():
             predictor.add_mask(obj_id, mask, lf.center)
