@@ -54,6 +54,11 @@ CASES = {
          "--model", "sam2-tiny-test", "--prompts", "3"],
         "sparse speed-up over all",
     ),
+    "bench_video.py": (
+        ["--grid", "3x3", "--size", "24x32", "--frames", "2", "--models", "oracle",
+         "--settings", "all", "--memory-frames", "2,3", "--memory-model", "oracle"],
+        "peak RSS growth",
+    ),
     "bench_references.py": (
         ["--model", "sam2-tiny-test", "--grid", "3x3", "--size", "48x64", "--modes", "corners",
          "--rounds", "1", "--quality-size", "64x96", "--quality-seeds", "0", "--hidden", "1"],

@@ -142,7 +142,8 @@ def init_video_state(
     predictor : SAM2VideoPredictor
         The video model (its device is the compute device).
     frames : (F, 3, S, S) float tensor
-        From :func:`video_frames`.
+        From :func:`video_frames`; or anything with ``len``, ``device`` and frame indexing
+        (:mod:`lfsam.video.memory` holds one frame at a time).
     video_size : (U, V)
         Pixel rows and columns of the original views.
     offload_state_to_cpu : bool

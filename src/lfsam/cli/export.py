@@ -5,10 +5,12 @@ from __future__ import annotations
 import argparse
 
 from lfsam.cli.common import HelpFormatter
-from lfsam.export import EXPORT_FORMATS, check_export_target, export_result
+from lfsam.errors import LfsamError
+from lfsam.export import EXPORT_FORMATS, check_export_target, export_result, export_video
 from lfsam.io import read_lightfield
 from lfsam.lightfield import check_result_shape
 from lfsam.result import load_result
+from lfsam.video.result import is_video_result, load_video_result
 
 DESCRIPTION = """\
 Export a segmentation result (.npz from `lfsam segment`) into a folder, for the next tool:
@@ -19,6 +21,11 @@ Export a segmentation result (.npz from `lfsam segment`) into a folder, for the 
   coco   annotations.json: COCO instances, one image per view (grid position in view_row,
          view_col), one RLE annotation per object and view, track_id = object id in every view
   npy    labels.npy [S, T, U, V] int32, masks.npy [K, S, T, U, V] bool, ids.npy [K], present.npy
+
+A light-field video's result folder (from `lfsam segment VIDEO`) is exported frame by frame:
+png, masks and npy into frame_FFFF/ folders (frame_0000/view_SS_TT.png ...), coco as one
+annotations.json with one image per frame and view (frame_index, view_row, view_col; one COCO
+video per view) and track_id = object id in every frame and view.
 
 Every folder also holds lfsam_export.json (grid, view size, object ids, source, views present).
 Views absent from a partial grid (the result's `present` flags) are never written, only flagged.
@@ -31,6 +38,7 @@ examples:
   lfsam export result.npz --to png --out labels/
   lfsam export result.npz --to coco --out coco/ --force
   lfsam export result.npz --to masks --out masks/ --lightfield scene
+  lfsam export video_result/ --to coco --out coco/
 """
 
 
@@ -58,6 +66,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Load the result (and its light field), export it, print what was written."""
     check_export_target(args.out, args.force)
+    if is_video_result(args.result):
+        return _run_video(args)
     result = load_result(args.result)
     if args.lightfield:
         lightfield = read_lightfield(args.lightfield)
@@ -70,4 +80,20 @@ def run(args: argparse.Namespace) -> int:
         f"wrote {args.to} export of {s_count} x {t_count} views "
         f"({int(result.present_mask.sum())} present) to {out}"
     )
+    return 0
+
+
+def _run_video(args: argparse.Namespace) -> int:
+    """Export a video result folder frame by frame."""
+    video = load_video_result(args.result)
+    if args.lightfield:
+        from lfsam.video import read_video
+
+        with read_video(args.lightfield) as frames:
+            if tuple(frames.shape) != tuple(video.shape):
+                raise LfsamError(f"{args.result} has labels {video.shape}, {args.lightfield} "
+                                 f"is a video of {tuple(frames.shape)}")
+    out = export_video(iter(video), args.out, args.to, force=args.force)
+    frames, s_count, t_count = video.shape[:3]
+    print(f"wrote {args.to} export of {frames} frames of {s_count} x {t_count} views to {out}")
     return 0

@@ -7,8 +7,10 @@ import json
 import math
 
 from lfsam.cli.common import HelpFormatter, add_device_argument, bounded_int
+from lfsam.errors import LfsamError
 from lfsam.io import read_lightfield
 from lfsam.result import load_result
+from lfsam.video.result import is_video_result, load_video_result
 
 DESCRIPTION = """\
 Score a segmentation result with the paper's metrics (section 4.1) and print them as JSON.
@@ -39,6 +41,17 @@ Undefined values (e.g. of an empty result) are null.
 
 RESULT is any .npz holding labels [S, T, U, V] (0 = unlabeled), e.g. from `lfsam segment`. The
 ground truth must have disparity and labels for every view (UrbanLF-Syn, `lfsam synth` scenes).
+
+A light-field video's result folder (from `lfsam segment VIDEO`) is scored against a video with
+ground truth (`lfsam synth OUT --frames F`), frame by frame: {"frames": [per frame the metrics
+above, "frame" and "matches" (ground-truth id -> best-matching predicted id: largest IoU over
+all views of the frame)], "summary": {...}} with
+  identity_switches  changes of a ground-truth object's best-matching id between consecutive
+                     frames where it is visible and matched, summed over objects ("switches":
+                     per object)
+  mean_view_iou      mean over frames of view_iou (the mean IoU over frames and views)
+  view_iou_worst     the worst view of any frame
+and the mean over frames of every other metric.
 """
 
 EPILOG = """\
@@ -46,6 +59,7 @@ examples:
   lfsam metrics result.npz --gt scene
   lfsam metrics result.npz --gt UrbanLF_Syn/val/Image001 --device cpu
   lfsam metrics result.npz --gt hidden.npz --min-area 50   # objects >= 50 pixels count
+  lfsam metrics video_result/ --gt clip/                   # a light-field video
 """
 
 
@@ -79,12 +93,36 @@ def run(args: argparse.Namespace) -> int:
     """Load the result and the ground truth, print the metrics as one JSON object."""
     from lfsam.metrics import evaluate_result  # loads on use, keeping `lfsam --help` light
 
+    if is_video_result(args.result):
+        return _run_video(args)
     result = load_result(args.result)
     gt = read_lightfield(args.gt)
     metrics = evaluate_result(result, gt, device=args.device, min_area=args.min_area)
-    clean = {
-        key: value if key == "num_masks" or value is None or not math.isnan(value) else None
+    print(json.dumps(_clean(metrics), indent=2))
+    return 0
+
+
+def _clean(metrics: dict) -> dict:
+    """NaN as null."""
+    return {
+        key: value if not isinstance(value, float) or not math.isnan(value) else None
         for key, value in metrics.items()
     }
-    print(json.dumps(clean, indent=2))
+
+
+def _run_video(args: argparse.Namespace) -> int:
+    """Score a video result frame by frame against a video with ground truth."""
+    from lfsam.metrics.temporal import evaluate_frames
+    from lfsam.video import read_video
+
+    result = load_video_result(args.result)
+    with read_video(args.gt) as video:
+        if tuple(video.shape) != tuple(result.shape):
+            raise LfsamError(f"{args.result} has labels {result.shape}, {args.gt} is a video "
+                             f"of {tuple(video.shape)}")
+        pairs = ((result.frame(f), video.frame(f)) for f in range(len(result)))
+        scores = evaluate_frames(pairs, device=args.device, min_area=args.min_area)
+    scores["frames"] = [_clean(row) for row in scores["frames"]]
+    scores["summary"] = _clean(scores["summary"])
+    print(json.dumps(scores, indent=1))
     return 0

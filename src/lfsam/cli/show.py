@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from lfsam.cli.common import HelpFormatter
+from lfsam.cli.show_video import parse_view, run_video
 from lfsam.errors import LfsamError
 from lfsam.fileutil import check_output_path
 from lfsam.io import read_lightfield
@@ -43,6 +44,10 @@ INPUT is a result (.npz from `lfsam segment`; give its light field with --lightf
 result records where it came from) or a light field (then --gt-labels overlays its ground truth).
 --compare puts a second result (or the light field's ground truth: --compare gt) beside the
 first in every figure.
+
+A light-field video's result folder (from `lfsam segment VIDEO`) is drawn as an animation over
+time (--out .gif or .mp4): one frame per video frame, the whole view grid, or one view with
+--view S,T, a time bar below.
 """
 
 EPILOG = """\
@@ -54,6 +59,7 @@ examples:
   lfsam show ours.npz --lightfield scene --compare gt --kind epi --out ours_vs_gt.png
   lfsam show ../shared/data/hci_antinous --out antinous --scale 0.5    # the light field alone
   lfsam show scene --gt-labels --out scene_gt.mp4                      # its ground truth
+  lfsam show video_result/ --out tracks.gif --view 2,2                 # a video, one view
 """
 
 
@@ -89,6 +95,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         choices=["all", "corners", "diagonal"],
         default="all",
         help="views in the grid figure",
+    )
+    what.add_argument(
+        "--view", type=parse_view, metavar="S,T",
+        help="a light-field video's result: animate this view only (default the whole grid)",
     )
     what.add_argument(
         "--row", type=int, help="pixel row of the horizontal EPI; the middle row when omitted"
@@ -316,7 +326,12 @@ def _outputs(args: argparse.Namespace) -> tuple[list[tuple[str, Path]], Path | N
 def run(args: argparse.Namespace) -> int:
     """Run ``lfsam show``."""
     from lfsam import viz
+    from lfsam.video.result import is_video_result
 
+    if is_video_result(args.input):
+        return run_video(args)
+    if args.view is not None:
+        raise LfsamError("--view is for a light-field video's result")
     outputs, new_folder = _outputs(args)
     scene = _load_scene(args)
     _check_options(args, scene)

@@ -11,6 +11,10 @@ npy         ``labels.npy`` [S, T, U, V], ``masks.npy`` [K, S, T, U, V], ``ids.np
             ``present.npy``
 ==========  ================================================================================
 
+A light-field video's result (any iterable of per-frame results) is exported by
+:func:`export_video`: ``frame_FFFF/`` folders in the formats above, or one COCO file over
+frames and views (:mod:`lfsam.export.video`, docs/design.md section 10).
+
 Every folder also gets ``lfsam_export.json`` (grid, view size, object ids, source, the views
 present). Sorted view file names are row-major view order. Absent views of a partial grid are
 never written, only flagged. The folder is written atomically: into a temporary folder renamed
@@ -20,7 +24,7 @@ into place at the end, so a failure leaves nothing behind.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from lfsam.errors import LfsamError
@@ -29,9 +33,10 @@ from lfsam.export.folder import atomic_folder, check_export_target
 from lfsam.export.masks import write_masks
 from lfsam.export.npy import write_npy
 from lfsam.export.png import write_png
+from lfsam.export.video import video_coco, write_video_frames, write_video_sidecar
 from lfsam.result import SegmentationResult
 
-__all__ = ["EXPORT_FORMATS", "check_export_target", "export_result"]
+__all__ = ["EXPORT_FORMATS", "check_export_target", "export_result", "export_video"]
 
 _WRITERS: dict[str, Callable[[SegmentationResult, Path], list[str]]] = {
     "png": write_png,
@@ -78,4 +83,43 @@ def export_result(
         raise LfsamError(f"unknown export format {to!r}; choose one of {', '.join(_WRITERS)}")
     with atomic_folder(out, force) as tmp:
         _WRITERS[to](result, tmp)
+    return Path(out)
+
+
+def export_video(
+    frames: Iterable[SegmentationResult],
+    out: str | os.PathLike,
+    to: str,
+    force: bool = False,
+) -> Path:
+    """Write a light-field video's per-frame results into ``out`` in format ``to``,
+    atomically (:mod:`lfsam.export.video`): ``frame_FFFF/`` folders, or for ``coco`` one
+    ``annotations.json`` with ``frame_index``, ``view_row``, ``view_col`` per image and
+    ``track_id`` per annotation.
+
+    Parameters
+    ----------
+    frames : iterable of SegmentationResult
+        The frames in order (read one at a time).
+    out, to, force
+        As :func:`export_result`.
+
+    Returns
+    -------
+    Path
+        The folder written.
+
+    Raises
+    ------
+    LfsamError
+        As :func:`export_result`, and for frames of different shapes or no frame.
+    """
+    if to not in _WRITERS:
+        raise LfsamError(f"unknown export format {to!r}; choose one of {', '.join(_WRITERS)}")
+    with atomic_folder(out, force) as tmp:
+        if to == "coco":
+            description = video_coco(frames, tmp)
+        else:
+            description = write_video_frames(frames, tmp, to, _WRITERS[to])
+        write_video_sidecar(tmp, description)
     return Path(out)

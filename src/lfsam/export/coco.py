@@ -28,13 +28,14 @@ from lfsam.export.common import object_ids, view_names, write_sidecar
 from lfsam.result import SegmentationResult
 from lfsam.version import __version__
 
-__all__ = ["ANNOTATIONS", "categories", "coco_dict", "write_coco"]
+__all__ = ["ANNOTATIONS", "categories", "category_table", "coco_dict", "view_annotations",
+           "write_coco"]
 
 #: Name of the COCO file.
 ANNOTATIONS = "annotations.json"
 
 
-def _view_annotations(labels: np.ndarray, ids: np.ndarray) -> list[dict[str, Any]]:
+def view_annotations(labels: np.ndarray, ids: np.ndarray) -> list[dict[str, Any]]:
     """RLE, bbox and area of every object with pixels in one view's labels."""
     visible = ids[np.isin(ids, np.unique(labels))]
     if visible.size == 0:
@@ -59,7 +60,13 @@ def _view_annotations(labels: np.ndarray, ids: np.ndarray) -> list[dict[str, Any
 
 def categories(result: SegmentationResult, ids: np.ndarray) -> tuple[list[dict], dict[int, int]]:
     """COCO categories of ``result`` and the category id of each object id in ``ids``."""
-    named = {int(k): str(v) for k, v in (result.meta.get("categories") or {}).items()}
+    return category_table(result.meta.get("categories") or {}, ids)
+
+
+def category_table(named: dict, ids: Any) -> tuple[list[dict], dict[int, int]]:
+    """COCO categories for objects ``ids`` given ``{id: phrase}`` of the text-prompted ones,
+    and the category id of each object (see the module docstring)."""
+    named = {int(k): str(v) for k, v in named.items()}
     names: list[str] = []
     for obj_id in sorted(named):
         if named[obj_id] not in names:
@@ -91,7 +98,7 @@ def coco_dict(result: SegmentationResult) -> dict[str, Any]:
                 "video_id": 1,
             }
         )
-        for item in _view_annotations(result.labels[s, t], ids):
+        for item in view_annotations(result.labels[s, t], ids):
             item.update(
                 id=len(annotations) + 1, image_id=image_id,
                 category_id=category_of[item["track_id"]], iscrowd=0,

@@ -7,7 +7,8 @@ correlations, :func:`locate`): the shift with the lowest mean squared difference
 overlapping pixel wins; part of the template may fall outside the frame (objects leaving or
 coming back through the border). The shifted mask, kept where the new pixels still look like
 the template (not covered by something that moved in front), gives the prompt: a positive
-point at its deepest pixel, and a box around the shifted mask widened by a margin.
+point at its deepest pixel (away from negative clicks given in that frame), and a box around
+the shifted mask widened by a margin.
 """
 
 from __future__ import annotations
@@ -108,9 +109,15 @@ def locate(template: Template, image: np.ndarray, radius: int | None) -> tuple[i
 
 
 def carry(template: Template, image: np.ndarray, radius: int | None,
-          box_margin: float = 0.15) -> Carried | None:
+          box_margin: float = 0.15,
+          avoid: tuple[tuple[float, float], ...] = ()) -> Carried | None:
     """Prompts for the object of ``template`` in ``image`` (None: not found, e.g. hidden or
-    out of the frame)."""
+    out of the frame).
+
+    ``avoid`` holds ``(x, y)`` negative clicks the user gave in this frame: the positive point
+    is the supported pixel farthest from the mask's border *and* from them (a correction that
+    removes part of the carried mask must not be answered by a point on that part).
+    """
     image = image.astype(np.float32)
     du, dv, cost = locate(template, image, radius)
     if not np.isfinite(cost):
@@ -132,7 +139,12 @@ def carry(template: Template, image: np.ndarray, radius: int | None,
     support[ir0:ir1, ic0:ic1] = sub & same
     if support.sum() < max(MIN_PIXELS, MIN_SUPPORT * sub.sum()):
         return None
-    depth = ndimage.distance_transform_edt(np.pad(support, 1))[1:-1, 1:-1]
+    seeds = support.copy()
+    for x, y in avoid:
+        row, col = round(y), round(x)
+        if 0 <= row < height and 0 <= col < width:
+            seeds[row, col] = False
+    depth = ndimage.distance_transform_edt(np.pad(seeds, 1))[1:-1, 1:-1]
     row, col = np.unravel_index(int(np.argmax(depth)), depth.shape)
     rows, cols = np.nonzero(mask)
     margin_r = 2 + box_margin * (rows.max() - rows.min() + 1)

@@ -3,10 +3,21 @@
 Each frame is segmented across its views by the light-field pipeline
 (:class:`lfsam.predictor.LightFieldPredictor`, with every option of
 :class:`lfsam.api.SegmentOptions` passed through unchanged). Each object's reference-view mask
-at frame f + 1 comes from frame f through constrained prompts (:mod:`lfsam.video.carry`): its
+at frame f + 1 comes from frame f:
+
+- with a SAM 2 segmenter, through SAM 2's video memory over the sequence of center views
+  (:class:`lfsam.video.memory.ReferenceMemory`): an object is conditioned on its center-view
+  mask where the user prompts it (the light-field pipeline segments that frame from the user's
+  prompts, as a single light field), SAM 2 tracks it in every later frame, negative clicks at a
+  later frame are SAM 2 correction clicks there (center view), and each frame's light field is
+  then segmented from SAM 2's masks given as masks (:meth:`LightFieldPredictor.add_mask`); an
+  empty mask leaves the object out of that frame;
+- with segmenters without memory (the oracle), through constrained prompts
+  (:mod:`lfsam.video.carry`): its
 frame-f mask and pixels are matched into frame f + 1, and the segmenter is prompted there with a
 point at the deepest matching pixel (and, for SAM 2, a box around the carried mask); the user's
-negative clicks of earlier frames stay (those landing on the carried mask are dropped). An
+negative clicks of earlier frames stay (those landing on the carried mask are dropped; those
+given in the frame itself always stay, and the carried point keeps away from them). An
 answer is rejected (the object is *lost* in that frame: empty masks) when it holds less than
 half of the carried pixels, is more than :data:`MAX_GROWTH` times larger than the object was,
 or lies mostly on an object already placed in that frame. A lost object is searched for over the
@@ -16,7 +27,6 @@ frame replace the carried ones there. ``auto`` finds the objects of frame 0
 (:class:`lfsam.generator.LightFieldMaskGenerator`).
 
 The result is written frame by frame (:mod:`lfsam.video.result`): memory stays flat in F.
-SAM 2's own video memory (Meta's video predictor on the reference views) is not used yet.
 """
 
 from __future__ import annotations
@@ -38,7 +48,8 @@ from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt, validate_object
 from lfsam.segmenters.base import Segmenter
 from lfsam.version import __version__
 from lfsam.video.carry import Template, carry
-from lfsam.video.prompts import negatives_since, prompts_at, start_frame
+from lfsam.video.memory import ReferenceMemory, has_video_memory
+from lfsam.video.prompts import frame_of, negatives_since, prompts_at, start_frame
 from lfsam.video.result import VideoResult, load_video_result, video_result_writer
 from lfsam.video.source import LightFieldVideo
 
@@ -59,14 +70,17 @@ class _Track:
     lost: bool = False
 
 
-def _carried_prompts(obj_id: int, track: _Track, image: np.ndarray, negatives, radius: int,
-                     use_box: bool) -> tuple[ObjectPrompts, np.ndarray, int] | None:
-    found = carry(track.template, image, None if track.lost else radius)
+def _carried_prompts(obj_id: int, track: _Track, image: np.ndarray, negatives, fresh,
+                     radius: int, use_box: bool) -> tuple[ObjectPrompts, np.ndarray, int] | None:
+    """The constrained prompts of a carried object: ``negatives`` of earlier frames are
+    dropped where they land on the carried mask, ``fresh`` ones (given in this frame) never."""
+    avoid = tuple((p.x, p.y) for p in fresh)
+    found = carry(track.template, image, None if track.lost else radius, avoid=avoid)
     if found is None:
         return None
     view = track.view
     kept = [p for p in negatives
-            if not found.mask[round(p.y), round(p.x)]]
+            if p in fresh or not found.mask[round(p.y), round(p.x)]]
     points = (PointPrompt(*found.point, True, view), *(PointPrompt(p.x, p.y, False, view)
                                                        for p in kept))
     box = BoxPrompt(*found.box, view=view) if use_box else None
@@ -95,6 +109,7 @@ def track_video(
     model: str | Segmenter | None = None,
     disparity: str = "estimate",
     options: SegmentOptions | None = None,
+    memory: bool | None = None,
 ) -> VideoResult:
     """Track objects through a light-field video and write the chunked result.
 
@@ -113,6 +128,9 @@ def track_video(
         Where each frame's disparity comes from.
     options : SegmentOptions, optional
         Pipeline, model and run options, passed through to every frame.
+    memory : bool, optional
+        Track with SAM 2's video memory (True) or constrained prompts (False); default: the
+        memory for SAM 2 segmenters, prompts for the others.
 
     Returns
     -------
@@ -122,8 +140,9 @@ def track_video(
     Raises
     ------
     LfsamError
-        Prompts that do not fit the video, a disparity other than a name, or the video
-        baseline method (single light fields only).
+        Prompts that do not fit the video, a disparity other than a name, the video
+        baseline method (single light fields only), ``memory=True`` without SAM 2, or a
+        correction click outside the center view with SAM 2's memory.
     """
     options = options or SegmentOptions()
     if not isinstance(disparity, str) or disparity not in ("estimate", "gt"):
@@ -149,18 +168,26 @@ def track_video(
     }
     bar = tqdm(total=video.num_frames, desc="tracking", unit="frame",
                disable=not options.run.progress)
+    reference: ReferenceMemory | None = None
     with video_result_writer(out, meta=meta) as writer:
         for index in range(video.num_frames):
             lf = video.frame(index)
             if per_frame or segmenter is None:
                 segmenter = model_options.build(lf, keep_decoder_state=False)
+            if index == 0:
+                reference = _memory_for(segmenter, memory, video)
+                if reference is not None:
+                    _check_corrections(objects or (), lf.center)
+                meta["tracking"] = "sam2-memory" if reference else "constrained-prompts"
             predictor = LightFieldPredictor(
                 segmenter, options.pipeline, cache_dir=options.run.cache_dir,
                 memory_budget_mb=options.run.memory_budget_mb, progress=False,
             )
             predictor.set_lightfield(lf, disparity=disparity)
             placed = np.zeros(lf.view_shape, bool)
-            if objects is None and index == 0:
+            if reference is not None:
+                _memory_frame(reference, predictor, lf, index, objects, options.run.references)
+            elif objects is None and index == 0:
                 LightFieldMaskGenerator(predictor, options.run.references).generate()
                 for obj_id in predictor.object_ids:
                     view, mask, _ = predictor.predict_reference(obj_id)
@@ -180,6 +207,72 @@ def track_video(
     return result
 
 
+def _memory_for(segmenter: Segmenter, memory: bool | None,
+                video: LightFieldVideo) -> ReferenceMemory | None:
+    """SAM 2's video memory for this run, or None (constrained prompts)."""
+    if memory is False:
+        return None
+    if not has_video_memory(segmenter):
+        if memory:
+            raise LfsamError(f"the {segmenter.name!r} segmenter has no video memory; track with "
+                             "a SAM 2 --model or with constrained prompts")
+        return None
+    return ReferenceMemory(segmenter, video.num_frames, video.view_shape)
+
+
+def _check_corrections(objects: Sequence[ObjectPrompts], center: tuple[int, int]) -> None:
+    """With SAM 2's memory, a negative click at a frame where its object has no positive
+    prompt is a SAM 2 correction click in the center view (checked before any work)."""
+    for obj in objects:
+        starts = {frame_of(p) for p in obj.points if p.positive}
+        if obj.box is not None:
+            starts.add(frame_of(obj.box))
+        for p in obj.points:
+            if (not p.positive and frame_of(p) not in starts and p.view is not None
+                    and tuple(p.view) != center):
+                raise LfsamError(
+                    f"object {obj.obj_id}: with SAM 2's video memory a correction click at a "
+                    f"later frame goes in the center view {center}, not {tuple(p.view)}")
+
+
+def _center_mask(predictor: LightFieldPredictor, lf, obj_id: int) -> np.ndarray:
+    """An object's step-1 mask in the center view (its final mask there when it was prompted
+    in another view)."""
+    view, mask, _ = predictor.predict_reference(obj_id)
+    return mask if view == lf.center else predictor.masks_in_view([obj_id], lf.center)[0]
+
+
+def _memory_frame(memory: ReferenceMemory, predictor: LightFieldPredictor, lf, index: int,
+                  objects: Sequence[ObjectPrompts] | None, references: Any) -> None:
+    """One frame tracked with SAM 2's memory (see the module docstring): prompted objects
+    from their prompts, the others from the memory's masks."""
+    memory.next_frame(index, lf.views[lf.center])
+    prompted: set[int] = set()
+    if objects is None and index == 0:
+        LightFieldMaskGenerator(predictor, references).generate()
+        prompted = set(predictor.object_ids)
+    for obj in objects or ():
+        own = prompts_at(obj, index)
+        if own is not None and own.has_positive:
+            earlier = [p for p in negatives_since(obj, index) if p not in own.points]
+            predictor.set_object(own.with_points(earlier))
+            prompted.add(obj.obj_id)
+    for obj_id in sorted(prompted):
+        memory.add_mask(obj_id, _center_mask(predictor, lf, obj_id))
+    masks = memory.track()
+    for obj in objects or ():
+        own = prompts_at(obj, index)
+        if own is None or obj.obj_id in prompted or obj.obj_id not in masks:
+            continue
+        fresh = [p for p in own.points if not p.positive]
+        if fresh:
+            masks = memory.correct(obj.obj_id, [(p.x, p.y) for p in fresh])
+    for obj_id, mask in masks.items():
+        if obj_id not in prompted and mask.any():
+            predictor.add_mask(obj_id, mask, lf.center)
+    memory.forget()
+
+
 def _segment_object(predictor: LightFieldPredictor, lf, index: int, obj_id: int,
                     obj: ObjectPrompts | None, tracks: dict[int, _Track], radius: int,
                     placed: np.ndarray, use_box: bool) -> np.ndarray:
@@ -195,8 +288,9 @@ def _segment_object(predictor: LightFieldPredictor, lf, index: int, obj_id: int,
         earlier = [p for p in negatives if p not in own.points]
         prompt = own.with_points(earlier)
     elif track is not None and track.template is not None:
-        carried = _carried_prompts(obj_id, track, lf.views[track.view], negatives, radius,
-                                   use_box)
+        fresh = () if own is None else tuple(p for p in own.points if not p.positive)
+        carried = _carried_prompts(obj_id, track, lf.views[track.view], negatives, fresh,
+                                   radius, use_box)
         if carried is None:
             track.lost = True
             return empty

@@ -8,6 +8,7 @@ Plain arrays in, ``(H, W, 3)`` uint8 RGB images out, each of a size documented f
   upsampled along the view axis, with labels;
 - :mod:`~lfsam.viz.grid`: a figure of all views, or of the corners and center;
 - :mod:`~lfsam.viz.animation`: GIF/MP4 running through the views in snake order;
+- :mod:`~lfsam.viz.timeline`: animations over the frames of a light-field video;
 - :mod:`~lfsam.viz.compare`: two results side by side;
 - :mod:`~lfsam.viz.layout`: tiling, captions and stacking used by the above.
 
@@ -50,6 +51,7 @@ from lfsam.viz.epi import (
 from lfsam.viz.grid import VIEW_SELECTIONS, grid_layout, select_views, view_grid
 from lfsam.viz.layout import CAPTION_HEIGHT, as_rgb_uint8, rescale
 from lfsam.viz.overlay import label_boundaries, mask_boundaries, overlay_labels
+from lfsam.viz.timeline import time_frames, time_strip
 
 __all__ = [
     "ANIMATION_SUFFIXES",
@@ -80,6 +82,8 @@ __all__ = [
     "save_image",
     "select_views",
     "side_by_side",
+    "time_frames",
+    "time_strip",
     "upsample_views",
     "vertical_epi",
     "view_grid",
