@@ -5,10 +5,11 @@ SIoU (paper section 4.1) measures agreement between views: masks carried between
 refinement agree perfectly with each other even where they are wrong. :func:`per_view_iou` asks
 instead how well each predicted object matches its ground-truth object in every view. Each
 predicted object is matched to the ground-truth object it covers most in its reference view
-(where it was segmented; the center view when not given), and its IoU with that object is taken
-in every view present. A view's score is the mean over the objects present there (in the
-prediction or the matched ground truth); the light field's scores are the mean and the worst
-view. This is the metric by which refining only some views is judged (issue 24).
+(where it was segmented; the center view when not given; a tie goes to the candidate with the
+best IoUs, so that the scores never depend on how labels are numbered), and its IoU with that
+object is taken in every view present. A view's score is the mean over the objects present
+there (in the prediction or the matched ground truth); the light field's scores are the mean and
+the worst view. This is the metric by which refining only some views is judged (issue 24).
 """
 
 from __future__ import annotations
@@ -21,6 +22,12 @@ import numpy as np
 __all__ = ["ViewAccuracy", "per_view_iou"]
 
 View = tuple[int, int]
+
+
+def _nanmean(values: np.ndarray) -> float:
+    """Mean of the finite values (-1 when there is none)."""
+    finite = values[np.isfinite(values)]
+    return float(finite.mean()) if finite.size else -1.0
 
 
 @dataclass(frozen=True)
@@ -118,11 +125,7 @@ def per_view_iou(
     labelled = gt_ids != 0
     per_object: dict[int, np.ndarray] = {}
     matched: dict[int, int] = {}
-    for k, obj_id in enumerate(ids, start=1):  # objects, not pixels
-        s, t = refs.get(obj_id, center)
-        overlap = table[s * t_count + t, k] * labelled
-        g = int(np.argmax(overlap)) if overlap.any() else None
-        matched[obj_id] = 0 if g is None else int(gt_ids[g])
+    def iou_with(k: int, g: int | None) -> np.ndarray:
         inter = table[:, k, g] if g is not None else np.zeros(num_views, np.int64)
         other = gt_area[:, g] if g is not None else np.zeros(num_views, np.int64)
         union = pred_area[:, k] + other - inter
@@ -130,6 +133,22 @@ def per_view_iou(
             iou = np.where(union > 0, inter / np.maximum(union, 1), np.nan)
         iou = iou.reshape(s_count, t_count)
         iou[~present] = np.nan
+        return iou
+
+    for k, obj_id in enumerate(ids, start=1):  # objects, not pixels
+        s, t = refs.get(obj_id, center)
+        overlap = table[s * t_count + t, k] * labelled
+        g, iou = None, iou_with(k, None)
+        if overlap.any():
+            # ties go to the best match (mean IoU, then the IoUs view by view), never to the
+            # smaller label: the scores do not depend on how either field numbers its labels
+            tied = np.flatnonzero(overlap == overlap.max())
+            candidates = [(iou_with(k, int(c)), int(c)) for c in tied]
+            g, iou = max(
+                ((c, v) for v, c in candidates),
+                key=lambda cv: (_nanmean(cv[1]), tuple(np.nan_to_num(cv[1].ravel(), nan=-1.0))),
+            )
+        matched[obj_id] = 0 if g is None else int(gt_ids[g])
         per_object[obj_id] = iou
     if per_object:
         stacked = np.stack(list(per_object.values()))

@@ -32,7 +32,7 @@ def time_strip(index: int, count: int, width: int) -> np.ndarray:
     Examples
     --------
     >>> bar = time_strip(1, 4, 8)
-    >>> bar.shape, int((bar[0, :, 0] == 255).sum())
+    >>> bar.shape, int((bar[1, :, 0] == 255).sum())
     ((6, 8, 3), 4)
     """
     strip = blank(_BAR_HEIGHT, width, _BAR_BG)
