@@ -153,6 +153,22 @@ def _first(names: list[str], keys: tuple[str, ...]) -> str | None:
     return next((k for k in keys if k in names), None)
 
 
+def _named_frames(arrays: dict[str, Any], path: Path, closer: Any) -> ArrayFrames:
+    """:class:`ArrayFrames` of named arrays (``.npz`` members, HDF5 datasets): the views array
+    (:func:`_pick_key`) and the optional disparity and labels."""
+    names = list(arrays)
+    key = _pick_key(names, {n: a.shape for n, a in arrays.items()}, path)
+    disparity = _first(names, DISPARITY_KEYS)
+    labels = _first(names, LABEL_KEYS)
+    return ArrayFrames(
+        arrays[key],
+        None if disparity is None else arrays[disparity],
+        None if labels is None else arrays[labels],
+        where=str(path),
+        closer=closer,
+    )
+
+
 def open_npy(path: str | os.PathLike) -> ArrayFrames:
     """A memory-mapped ``.npy`` of views ``[F, S, T, U, V, 3]``."""
     path = Path(path)
@@ -173,17 +189,7 @@ def open_npz(path: str | os.PathLike) -> ArrayFrames:
                    if n.endswith(".npy")}
     except (OSError, ValueError, zipfile.BadZipFile) as exc:
         raise LfsamError(f"cannot read {str(path)!r} as .npz: {exc}") from None
-    names = list(members)
-    key = _pick_key(names, {n: m.shape for n, m in members.items()}, path)
-    disparity = _first(names, DISPARITY_KEYS)
-    labels = _first(names, LABEL_KEYS)
-    return ArrayFrames(
-        members[key],
-        None if disparity is None else members[disparity],
-        None if labels is None else members[labels],
-        where=str(path),
-        closer=_Closer(*members.values(), archive),
-    )
+    return _named_frames(members, path, _Closer(*members.values(), archive))
 
 
 def open_h5(path: str | os.PathLike) -> ArrayFrames:
@@ -197,18 +203,8 @@ def open_h5(path: str | os.PathLike) -> ArrayFrames:
     except OSError as exc:
         raise LfsamError(f"cannot read {str(path)!r} as HDF5: {exc}") from None
     datasets = {k: v for k, v in handle.items() if isinstance(v, h5py.Dataset)}
-    names = list(datasets)
     try:
-        key = _pick_key(names, {n: d.shape for n, d in datasets.items()}, path)
-        disparity = _first(names, DISPARITY_KEYS)
-        labels = _first(names, LABEL_KEYS)
-        return ArrayFrames(
-            datasets[key],
-            None if disparity is None else datasets[disparity],
-            None if labels is None else datasets[labels],
-            where=str(path),
-            closer=handle,
-        )
+        return _named_frames(datasets, path, handle)
     except BaseException:
         handle.close()
         raise
