@@ -160,7 +160,7 @@ def add_refine_views_argument(parser: argparse.ArgumentParser | argparse._Argume
     """``--refine-views all|sparse|N`` (docs/design.md section 3.7)."""
     parser.add_argument(
         "--refine-views", type=refine_views, default="all", metavar="all|sparse|N",
-        help="views encoded and refined with SAM 2: all (the paper), sparse (about one in five: "
-        "17 of 9x9, 9 of 5x5, spread over the grid; about 4.5x faster) or N views; the other "
+        help="views encoded and refined with SAM 2: all (the paper), sparse (about one in six: "
+        "13 of 9x9, 9 of 5x5, spread over the grid; about 5x faster) or N views; the other "
         "views take the masks of the refined views nearest to them, moved by disparity",
     )

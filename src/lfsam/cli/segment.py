@@ -44,7 +44,7 @@ of points and a box each (format: README, "Prompt files"). The prompts are saved
 so it can be reopened and edited (lfsam view --result). --cache DIR keeps the image encoder's
 output on disk: a second run on the same views encodes nothing (the result's views_encoded).
 
---refine-views sparse encodes and refines about one view in five (17 of 9x9, spread over the
+--refine-views sparse encodes and refines about one view in six (13 of 9x9, spread over the
 grid) instead of every view, several times faster; every other view takes the refined masks of
 the views nearest to it, moved by disparity (docs/design.md section 3.7). --refine-views N picks
 N views. The result records which views were refined (meta refined_views; lfsam show marks them).
@@ -82,7 +82,7 @@ examples:
   lfsam segment scene --auto --no-refine --occlusion none --out ablation_none.npz
   lfsam segment scene --auto --amg points_per_side=32 --out coarser_auto.npz
   lfsam segment hidden.npz --auto --references corners --out all_objects.npz
-  lfsam segment scene --auto --refine-views sparse --out fast.npz   # 17 of 9x9 views encoded
+  lfsam segment scene --auto --refine-views sparse --out fast.npz   # 13 of 9x9 views encoded
   lfsam segment scene --text disc --model oracle --disparity gt --out discs.npz
   lfsam segment scene --text "red cup" --text plate@0,0 --point 60,40 --out mixed.npz
   lfsam segment scene --text cup --text-checkpoint ~/models/sam3 --out cups.npz

@@ -53,7 +53,7 @@ class PipelineConfig:
         (:func:`lfsam.devices.default_encode_batch_size`: batched on CUDA, 1 on a CPU).
     refine_views : {"all", "sparse"} or int
         Which views are encoded and refined (docs/design.md section 3.7): ``"all"`` (the
-        paper), ``"sparse"`` (about one in five, :func:`lfsam.pipeline.sparse.sparse_view_count`)
+        paper), ``"sparse"`` (about one in six, :func:`lfsam.pipeline.sparse.sparse_view_count`)
         or that many views spread over the grid; every other view is filled from the refined
         views nearest to it (:mod:`lfsam.pipeline.fill`). A string of digits is read as N.
 

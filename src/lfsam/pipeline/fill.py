@@ -183,19 +183,38 @@ def fill_from_sources(
 
 def _guide_contested(decided: torch.Tensor, share: torch.Tensor, guide: torch.Tensor) -> None:
     """Step 3 of the module docstring, in place on ``decided``: each object's vote is
-    guided-filtered within the bounding box of its contested pixels (plus the filter's reach),
-    and the contested pixels take the filtered answer."""
+    guided-filtered within the bounding box of its contested pixels plus the filter's reach,
+    and the contested pixels take the filtered answer. A pixel's filtered value depends only on
+    the vote within ``2 * GUIDE_RADIUS`` of it, so any box holding that reach gives the same
+    answer: when the objects' boxes overlap much (masks covering most of the view), their votes
+    are filtered together in one box (one batched filter), else box by box."""
     contested = (share > 0) & (share < 1)  # where the sources disagree
-    reach = 2 * GUIDE_RADIUS
-    height, width = share.shape[-2:]
     rows, cols = contested.any(dim=2), contested.any(dim=1)
-    for k in torch.nonzero(rows.any(dim=1), as_tuple=True)[0].tolist():
-        r = torch.nonzero(rows[k], as_tuple=True)[0]
-        c = torch.nonzero(cols[k], as_tuple=True)[0]
-        r0, r1 = max(int(r[0]) - reach, 0), min(int(r[-1]) + reach + 1, height)
-        c0, c1 = max(int(c[0]) - reach, 0), min(int(c[-1]) + reach + 1, width)
-        filtered = guided_filter(guide[r0:r1, c0:c1], share[k, r0:r1, c0:c1], GUIDE_RADIUS,
-                                 GUIDE_EPS)
-        window = contested[k, r0:r1, c0:c1]
-        decided[k, r0:r1, c0:c1] = torch.where(window, filtered > 0.5,
-                                               decided[k, r0:r1, c0:c1])
+    objects = torch.nonzero(rows.any(dim=1), as_tuple=True)[0].tolist()
+    boxes = {k: _reach_box(rows[k], cols[k]) for k in objects}
+    if not boxes:
+        return
+    union = _reach_box(rows.any(dim=0), cols.any(dim=0))
+    areas = sum(_area(box) for box in boxes.values())
+    groups = ([(objects, union)] if len(objects) * _area(union) <= 2 * areas
+              else [([k], box) for k, box in boxes.items()])
+    for members, (r0, r1, c0, c1) in groups:
+        filtered = guided_filter(guide[r0:r1, c0:c1], share[members, r0:r1, c0:c1],
+                                 GUIDE_RADIUS, GUIDE_EPS)
+        window = contested[members, r0:r1, c0:c1]
+        decided[members, r0:r1, c0:c1] = torch.where(window, filtered > 0.5,
+                                                     decided[members, r0:r1, c0:c1])
+
+
+def _reach_box(rows: torch.Tensor, cols: torch.Tensor) -> tuple[int, int, int, int]:
+    """Rows ``r0:r1`` and columns ``c0:c1`` of the flagged rows and columns, widened by the
+    guided filter's reach (``2 * GUIDE_RADIUS``) within the view."""
+    reach = 2 * GUIDE_RADIUS
+    r = torch.nonzero(rows, as_tuple=True)[0]
+    c = torch.nonzero(cols, as_tuple=True)[0]
+    return (max(int(r[0]) - reach, 0), min(int(r[-1]) + reach + 1, len(rows)),
+            max(int(c[0]) - reach, 0), min(int(c[-1]) + reach + 1, len(cols)))
+
+
+def _area(box: tuple[int, int, int, int]) -> int:
+    return (box[1] - box[0]) * (box[3] - box[2])

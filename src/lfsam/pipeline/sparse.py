@@ -7,7 +7,7 @@ evenly over the grid and carrying their refined masks into the others
 passes (docs/design.md section 3.7).
 
 * :func:`check_refine_views` — parse and check ``all``, ``sparse`` or a count ``N``;
-* :func:`sparse_view_count` — how many views ``sparse`` means for a grid (17 of 81, 9 of 25, all
+* :func:`sparse_view_count` — how many views ``sparse`` means for a grid (13 of 81, 9 of 25, all
   of 9);
 * :func:`select_views` — ``N`` views spread evenly over the present views (farthest-point
   sampling seeded with the center and, from ``N >= 5``, the corners);
@@ -62,21 +62,24 @@ def check_refine_views(value: str | int) -> str | int:
         return str(value)
     raise LfsamError(
         f"refine_views must be 'all', 'sparse' or a number of views N >= 1, got {value!r}; "
-        "e.g. --refine-views sparse (17 of 9x9 views) or --refine-views 9"
+        "e.g. --refine-views sparse (13 of 9x9 views) or --refine-views 9"
     )
 
 
 def sparse_view_count(num_views: int) -> int:
-    """Views refined by ``sparse`` out of ``num_views`` present: about one in five, at least 9.
+    """Views refined by ``sparse`` out of ``num_views`` present: about one in six, at least 9.
 
-    ``ceil(17 num_views / 81)``, at least 9 and at most ``num_views``: 17 of 81 (9 x 9), 9 of
-    25 (5 x 5, the center, the corners and the edge midpoints), all of 9 (3 x 3); 11 of 49
-    (7 x 7). Chosen with ``benchmarks/bench_sparse.py`` (docs/performance.md).
+    ``ceil(13 num_views / 81)``, at least 9 and at most ``num_views``: 13 of 81 (9 x 9: the
+    center, the corners, the edge midpoints and the four views two steps in from the corners),
+    9 of 25 (5 x 5, the center, the corners and the edge midpoints), all of 9 (3 x 3); 9 of 49
+    (7 x 7). On 9 x 9 views every view is within two steps of a refined one, as with 17, and
+    ``benchmarks/bench_sparse.py`` measured the same accuracy as 17 for a quarter fewer
+    encoder passes (docs/performance.md, "Refining a few views").
 
     >>> [sparse_view_count(n) for n in (9, 25, 49, 81, 169)]
-    [9, 9, 11, 17, 36]
+    [9, 9, 9, 13, 28]
     """
-    return min(num_views, max(9, math.ceil(17 * num_views / 81)))
+    return min(num_views, max(9, math.ceil(13 * num_views / 81)))
 
 
 def select_views(

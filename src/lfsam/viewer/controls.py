@@ -114,7 +114,7 @@ class DockControls:
         self.refine_box.addItems(["all", "sparse"])
         _choose_item(self.refine_box, str(refine_views))
         self.refine_box.setToolTip(
-            "Views SAM 2 refines: all (the paper) or sparse (about one in five, spread over the "
+            "Views SAM 2 refines: all (the paper) or sparse (about one in six, spread over the "
             "grid; the others take the masks of the refined views nearest to them). Choosing "
             "all after a sparse pass refines the remaining views"
         )

@@ -292,7 +292,7 @@ class ViewerSession:
             self.predictor.set_refine_views(self.refine_views)
 
     def refined_summary(self) -> str | None:
-        """E.g. ``"17 of 81 views refined (sparse)"``; None when every view is refined."""
+        """E.g. ``"13 of 81 views refined (sparse)"``; None when every view is refined."""
         if self.predictor is None or self.refine_views == "all":
             return None
         flags = self.predictor.refined_views
