@@ -14,6 +14,7 @@ from lfsam.errors import LfsamError
 from lfsam.fileutil import check_cache_dir
 from lfsam.io import read_lightfield
 from lfsam.result import load_result
+from lfsam.video import is_video, read_video
 
 DESCRIPTION = """\
 Open a light field in napari: the views are one image layer with the view row s and column t on
@@ -29,6 +30,11 @@ The Views / EPI buttons switch between the views and the epipolar-plane images t
 current pixel row or column.
 Save writes a normal lfsam result (prompts included, so it reopens editable with --result).
 
+A light-field video (a folder of frames, an [F, S, T, U, V, 3] array, per-view videos) opens
+with a frame slider before the view sliders, read lazily; a click is tagged with the frame shown
+and segments that frame at once. "Track" (Ctrl-T) tracks every object through all frames in the
+worker, each frame showing as it finishes; Save then writes the video result folder.
+
 Needs the viewer extra: pip install 'lfsam[viewer]'.
 """
 
@@ -40,6 +46,7 @@ examples:
   lfsam view scene --model sam2-tiny-test --random-weights --device cpu   # try the viewer quickly
   lfsam view scene --result result.npz --model oracle    # reopen a result and correct it
   lfsam view scene --model oracle --disparity gt --text disc   # every disc, found at start
+  lfsam view clip --model oracle --disparity gt          # a video (lfsam synth clip --frames 6)
   lfsam view                                             # empty viewer; File > Open a light field
 """
 
@@ -83,7 +90,16 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
         check_cache_dir(args.cache)
     check_text_weights(args)
     preload_native_libraries()  # before napari draws with OpenGL (native_libraries docstring)
-    lightfield = read_lightfield(args.path, format=args.input_format) if args.path else None
+    video = None
+    if args.path and args.input_format is None and is_video(args.path):
+        video = read_video(args.path)
+        if args.result:
+            raise LfsamError("--result reopens single light fields only; for a video, click "
+                             "the objects again and press Track")
+    lightfield = (
+        read_lightfield(args.path, format=args.input_format)
+        if args.path and video is None else None
+    )
     if args.result and lightfield is None:
         raise LfsamError("--result needs its light field: give the light field's path too")
     result = load_result(args.result) if args.result else None
@@ -97,6 +113,7 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
     widget = LightFieldWidget(
         viewer,
         lightfield=lightfield,
+        video=video,
         model=model.name,
         disparity=args.disparity,
         cache_dir=args.cache,
