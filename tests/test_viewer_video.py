@@ -214,3 +214,53 @@ def test_sam2_random_weights_tracks_end_to_end(make_napari_viewer, qtbot, clip):
     assert result.meta["tracking"] == "sam2-memory"
     for f in range(3):
         np.testing.assert_array_equal(widget.layers[L.COMMITTED].data[f], result.labels[f])
+
+
+def test_lfsam_view_video_tracks_with_sam2_in_a_fresh_process(clip, tmp_path):
+    """``lfsam view VIDEO`` as the CLI opens it, in a new process (window first, then the tiny
+    SAM 2 in the worker; see tests/test_viewer_process.py): a click on frame 1, Track, Save."""
+    import json
+    import os
+    import subprocess
+    import sys
+    import textwrap
+
+    out = tmp_path / "saved"
+    script = textwrap.dedent(f"""
+        import json, sys, time
+        from qtpy.QtWidgets import QApplication
+        from lfsam.cli.main import build_parser
+        from lfsam.cli.view import open_viewer
+        from lfsam.viewer import layers as L
+
+        def wait(condition, what, timeout=200):
+            end = time.monotonic() + timeout
+            while not condition():
+                QApplication.processEvents()
+                time.sleep(0.01)
+                if time.monotonic() > end:
+                    sys.exit(f"timed out waiting for {{what}}")
+
+        args = build_parser().parse_args(
+            ["view", {str(clip)!r}, "--model", "sam2-tiny-test", "--random-weights",
+             "--device", "cpu", "--disparity", "gt"])
+        viewer, widget = open_viewer(args, show=True)
+        wait(lambda: widget.session.loaded and not widget.busy, "the model")
+        widget.layers[L.POINTS].add([[1, 1, 1, 16, 24]])  # a click on frame 1
+        wait(lambda: not widget.busy and not widget._segment_pending, "the click")
+        widget.track()
+        wait(lambda: widget.session.tracked is not None and not widget.busy, "the track")
+        saved = widget.save({str(out)!r})
+        result = {{"frames": len(widget.session.tracked), "point_frame":
+                   widget.session.video_objects[1].points[0].frame,
+                   "axes": list(viewer.dims.axis_labels[:3]), "saved": str(saved)}}
+        viewer.close()
+        print(json.dumps(result))
+    """)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=240, env={**os.environ, "PYTHONFAULTHANDLER": "1"})
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert result == {"frames": 3, "point_frame": 1, "axes": ["frame", "s", "t"],
+                      "saved": str(out)}
+    assert lfsam.load_result(out).shape == (3, 3, 3, 32, 48)
