@@ -264,3 +264,26 @@ def test_lfsam_view_video_tracks_with_sam2_in_a_fresh_process(clip, tmp_path):
     assert result == {"frames": 3, "point_frame": 1, "axes": ["frame", "s", "t"],
                       "saved": str(out)}
     assert lfsam.load_result(out).shape == (3, 3, 3, 32, 48)
+
+
+def test_frame_store_holds_written_frames_spills_and_reads_results(tmp_path):
+    from lfsam.result import SegmentationResult
+    from lfsam.video.result import load_video_result, video_result_writer
+
+    store = FrameStore((5, 1, 2, 3, 4), budget_mb=0)  # keeps 2 frames, spills the others
+    assert store[3].shape == (1, 2, 3, 4) and not store[3].any() and store.written() == []
+    for f in range(4):
+        store.put(f, np.full((1, 2, 3, 4), f + 1))
+    assert len(store._live) == 2 and store.written() == [0, 1, 2, 3]
+    assert [int(store[f].max()) for f in range(5)] == [1, 2, 3, 4, 0]  # spilled ones read back
+    store[4, 0, 1] = 7  # an index on (F, S, T, U, V)
+    store[(np.array([0, 0, 2]), np.zeros(3, int), np.zeros(3, int), np.array([0, 1, 2]),
+           np.zeros(3, int))] = 9  # napari's painting index
+    assert int(store[4][0, 1].min()) == 7 and int(store[0][0, 0, 1, 0]) == 9
+    assert int(store[2][0, 0, 2, 0]) == 9 and int(store[1].max()) == 2
+    with video_result_writer(tmp_path / "r") as writer:
+        for f in range(5):
+            writer.write(SegmentationResult(labels=np.full((1, 2, 3, 4), 10 + f, np.int32)))
+    store.attach_result(load_video_result(tmp_path / "r"))
+    assert store.written() == [] and [int(store[f].max()) for f in range(5)] == [10, 11, 12, 13, 14]
+    assert store[1:3].shape == (2, 1, 2, 3, 4)

@@ -100,7 +100,7 @@ def make_layer(name: str, shape: tuple[int, ...]) -> Any:
             face_color="positive",
             face_color_cycle={True: POSITIVE_COLOR, False: NEGATIVE_COLOR},
             border_color="white",
-            size=max(4, min(shape[2:]) // 40),
+            size=max(4, min(shape[-2:]) // 40),
             axis_labels=axis_labels,
             out_of_slice_display=False,
         )
@@ -112,7 +112,7 @@ def make_layer(name: str, shape: tuple[int, ...]) -> Any:
             name=BOXES,
             face_color="transparent",
             edge_color="#00c8ff",
-            edge_width=max(1, min(shape[2:]) // 120),
+            edge_width=max(1, min(shape[-2:]) // 120),
             axis_labels=axis_labels,
         )
     if name in (CURRENT, COMMITTED, AUTO):

@@ -185,6 +185,24 @@ class FrameStore(_LazyFrames):
             np.savez_compressed(self._spill_path(old), labels=array)
             self._spilled.add(old)
 
+    def __setitem__(self, key: Any, value: Any) -> None:
+        """Write through an index on ``(F, S, T, U, V)``: an integer or slice of frames, or
+        napari's painting index (one coordinate array per axis), frame by frame."""
+        key = key if isinstance(key, tuple) else (key,)
+        if key and isinstance(key[0], np.ndarray) and key[0].ndim == 1 and len(key) > 1:
+            frames = np.asarray(key[0]).astype(int)
+            values = np.asarray(value)
+            for frame in np.unique(frames):
+                chosen = frames == frame
+                part = values[chosen] if values.ndim and values.shape[0] == len(frames) else values
+                self.frame_array(int(frame))[tuple(np.asarray(k)[chosen] for k in key[1:])] = part
+            return
+        frames, rest, single = frames_of(key, self.shape[0])
+        values = np.asarray(value)
+        for i, frame in enumerate(frames):
+            part = values if single or values.ndim < self.ndim else values[i]
+            self.frame_array(frame)[rest] = part
+
     def clear(self) -> None:
         """Forget every written frame (a result attached stays)."""
         self._live.clear()
