@@ -18,6 +18,7 @@ from napari.utils.interactions import mouse_press_callbacks, mouse_release_callb
 from scipy import ndimage
 
 import lfsam
+from lfsam.errors import LfsamError
 from lfsam.video import read_video
 from lfsam.video.synth import generate_video, write_video_frames
 from lfsam.viewer import layers as L
@@ -152,6 +153,8 @@ def test_click_on_a_later_frame_is_tagged_and_segments_that_frame(
     np.testing.assert_array_equal(current[2][CENTER] == obj_id, truth[CENTER] == LATER)
     assert not current[0].any() and not current[1].any()
     assert widget.stages == ["reference", "coarse", "final"]
+    with pytest.raises(LfsamError, match="press Track"):  # nothing tracked yet
+        widget.save(clip.parent / "not_yet")
     # what a single light field does not offer is refused in one line saying what to do
     widget.segment_everything()
     _idle(qtbot, widget)
@@ -198,6 +201,9 @@ def test_track_shows_every_frame_as_track_video_gives_it(
     assert saved.shape == (3, 3, 3, 32, 48)
     for f in range(3):
         np.testing.assert_array_equal(saved.labels[f], direct.labels[f])
+    exported = widget.export(tmp_path / "png", "png")  # lfsam export's video layout
+    assert sorted(p.name for p in exported.glob("frame_*")) == [
+        "frame_0000", "frame_0001", "frame_0002"]
 
 
 def test_sam2_random_weights_tracks_end_to_end(make_napari_viewer, qtbot, clip):
