@@ -153,6 +153,12 @@ def test_click_on_a_later_frame_is_tagged_and_segments_that_frame(
     np.testing.assert_array_equal(current[2][CENTER] == obj_id, truth[CENTER] == LATER)
     assert not current[0].any() and not current[1].any()
     assert widget.stages == ["reference", "coarse", "final"]
+    # S on a frame where the object has no click: nothing to segment there, said so
+    viewer.dims.current_step = (0, *viewer.dims.current_step[1:])
+    widget.segment()
+    _idle(qtbot, widget)
+    assert "no positive click or box on frame 0" in widget.status.text()
+    assert widget.session.frame == 2 and not widget.layers[L.CURRENT].data[0].any()
     with pytest.raises(LfsamError, match="press Track"):  # nothing tracked yet
         widget.save(clip.parent / "not_yet")
     # what a single light field does not offer is refused in one line saying what to do

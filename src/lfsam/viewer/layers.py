@@ -261,15 +261,19 @@ class MaskLayers:
         self.array(name)[...] = labels
         self.layers[name].refresh()
 
+    def clear_frame(self, name: str, index: int) -> None:
+        """A video: nothing in mask layer ``name`` at frame ``index``."""
+        data = self.layers[name].data
+        if index in data.written():
+            data.frame_array(index)[...] = 0
+            self.layers[name].refresh()
+
     def show_frame(self, index: int, labels: np.ndarray) -> None:
         """A video: frame ``index`` of every object (a tracked frame) in the committed layer;
         the current object's layer is cleared there."""
         self.layers[COMMITTED].data.put(index, labels)
-        current = self.layers[CURRENT].data
-        if index in current.written():
-            current.frame_array(index)[...] = 0
-        for name in (COMMITTED, CURRENT):
-            self.layers[name].refresh()
+        self.layers[COMMITTED].refresh()
+        self.clear_frame(CURRENT, index)
 
     def show_current(
         self,

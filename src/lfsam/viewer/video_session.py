@@ -139,6 +139,13 @@ class VideoSession(ViewerSession):
                 pred.remove_object(obj_id)
         return obj
 
+    def has_positive_at(self, frame: int) -> bool:
+        """Whether the current object has a positive click or its box on ``frame`` (what
+        segmenting that frame's light field needs)."""
+        obj = self.video_objects.get(self.current_id)
+        own = None if obj is None else prompts_at(obj, frame)
+        return own is not None and own.has_positive
+
     def current_prompts(self) -> Any | None:
         """The current object's frame-tagged prompts, or None."""
         return self.video_objects.get(self.current_id)

@@ -447,6 +447,13 @@ class LightFieldWidget(QWidget):
         self.stages = []
         if self.is_video:
             frame = self.shown_frame()
+            if not self.session.has_positive_at(frame):
+                self.masks.clear_frame(L.CURRENT, frame)
+                self._set_status(
+                    f"object {obj_id} has no positive click or box on frame {frame}; its other "
+                    "clicks there count when tracking (Track, Ctrl-T)"
+                )
+                return
             self.work.start(partial(W.video_segment_job, self.session, obj_id, frame), 3,
                             f"segmenting object {obj_id} in frame {frame}")
             return
