@@ -207,6 +207,9 @@ def test_track_shows_every_frame_as_track_video_gives_it(
     assert saved.shape == (3, 3, 3, 32, 48)
     for f in range(3):
         np.testing.assert_array_equal(saved.labels[f], direct.labels[f])
+    (data, _kwargs, kind), = read_path(out)  # File > Open of the folder: lazy labels
+    assert kind == "labels" and isinstance(data, FrameStore) and data.shape == saved.shape
+    np.testing.assert_array_equal(data[2], direct.labels[2])
     exported = widget.export(tmp_path / "png", "png")  # lfsam export's video layout
     assert sorted(p.name for p in exported.glob("frame_*")) == [
         "frame_0000", "frame_0001", "frame_0002"]
@@ -299,3 +302,31 @@ def test_frame_store_holds_written_frames_spills_and_reads_results(tmp_path):
     store.attach_result(load_video_result(tmp_path / "r"))
     assert store.written() == [] and [int(store[f].max()) for f in range(5)] == [10, 11, 12, 13, 14]
     assert store[1:3].shape == (2, 1, 2, 3, 4)
+
+
+def test_lfsam_view_video_with_its_result_folder(qtbot, clip, tmp_path):
+    """``lfsam view VIDEO --result FOLDER`` shows the tracked labels; a result of another
+    shape, or a single result file, is refused in one line."""
+    import argparse
+
+    from lfsam.cli.main import build_parser
+    from lfsam.cli.view import open_viewer
+    from lfsam.result import SegmentationResult
+    from lfsam.video.result import video_result_writer
+
+    with video_result_writer(tmp_path / "r") as writer:
+        for f in range(3):
+            writer.write(SegmentationResult(labels=np.full((3, 3, 32, 48), f + 1, np.int32)))
+    args = build_parser().parse_args(["view", str(clip), "--model", "oracle", "--disparity",
+                                      "gt", "--result", str(tmp_path / "r")])
+    viewer, widget = open_viewer(args, show=False)
+    try:
+        qtbot.waitUntil(lambda: widget.session.loaded and not widget.busy, timeout=TIMEOUT)
+        assert widget.session.tracked is not None
+        assert [int(widget.layers[L.COMMITTED].data[f].max()) for f in range(3)] == [1, 2, 3]
+        assert "showing" in widget.status.text()
+    finally:
+        viewer.close()
+    bad = argparse.Namespace(**{**vars(args), "result": str(tmp_path / "x.npz")})
+    with pytest.raises(LfsamError, match="result folder"):
+        open_viewer(bad, show=False)

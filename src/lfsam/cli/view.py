@@ -33,7 +33,8 @@ Save writes a normal lfsam result (prompts included, so it reopens editable with
 A light-field video (a folder of frames, an [F, S, T, U, V, 3] array, per-view videos) opens
 with a frame slider before the view sliders, read lazily; a click is tagged with the frame shown
 and segments that frame at once. "Track" (Ctrl-T) tracks every object through all frames in the
-worker, each frame showing as it finishes; Save then writes the video result folder.
+worker, each frame showing as it finishes; Save then writes the video result folder, which
+--result FOLDER shows again (read lazily; click and Track again to change it).
 
 Needs the viewer extra: pip install 'lfsam[viewer]'.
 """
@@ -93,16 +94,22 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
     video = None
     if args.path and args.input_format is None and is_video(args.path):
         video = read_video(args.path)
-        if args.result:
-            raise LfsamError("--result reopens single light fields only; for a video, click "
-                             "the objects again and press Track")
     lightfield = (
         read_lightfield(args.path, format=args.input_format)
         if args.path and video is None else None
     )
-    if args.result and lightfield is None:
+    if args.result and lightfield is None and video is None:
         raise LfsamError("--result needs its light field: give the light field's path too")
-    result = load_result(args.result) if args.result else None
+    if video is not None:
+        from lfsam import load_result as load_any_result
+        from lfsam.video.result import is_video_result
+
+        if args.result and not is_video_result(args.result):
+            raise LfsamError("--result of a light-field video is its result folder (written "
+                             "by `lfsam segment VIDEO --out FOLDER` or the viewer's Save)")
+        result = load_any_result(args.result) if args.result else None
+    else:
+        result = load_result(args.result) if args.result else None
 
     import napari
 
@@ -126,7 +133,9 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
         },
     )
     viewer.window.add_dock_widget(widget, name="lfsam", area="right")
-    if result is not None:
+    if result is not None and video is not None:
+        widget.show_tracked(result)
+    elif result is not None:
         widget.open_result(result)
     for text in getattr(args, "text", None) or []:
         widget.find(text.phrase, view=text.view)

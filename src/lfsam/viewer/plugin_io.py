@@ -91,8 +91,17 @@ def lightfield_layers(lightfield: LightField, name: str | None = None) -> list[L
 
 
 def result_layers(result: Any, name: str = "result") -> list[LayerData]:
-    """A result's label field as a labels layer, the result kept in its metadata."""
-    return [(result.labels, {"name": name, "metadata": {RESULT_KEY: result}}, "labels")]
+    """A result's label field as a labels layer, the result kept in its metadata; a video
+    result folder's ``(F, S, T, U, V)`` labels are read one frame at a time (section 10)."""
+    labels = result.labels
+    kwargs: dict[str, Any] = {"name": name, "metadata": {RESULT_KEY: result}}
+    if getattr(result, "num_frames", None) is not None:  # a VideoResult
+        from lfsam.viewer.video import VIDEO_AXES, FrameStore
+
+        labels = FrameStore(result.shape)
+        labels.attach_result(result)
+        kwargs["axis_labels"] = VIDEO_AXES
+    return [(labels, kwargs, "labels")]
 
 
 def read_path(path: str | os.PathLike) -> list[LayerData]:
@@ -106,11 +115,14 @@ def read_path(path: str | os.PathLike) -> list[LayerData]:
     from lfsam.io import read_lightfield
     from lfsam.result import load_result
     from lfsam.video import is_video, read_video
+    from lfsam.video.result import is_video_result, load_video_result
     from lfsam.viewer.video import video_layers
 
     path = Path(path)
     if is_result_file(path):
         return result_layers(load_result(path), name=path.stem)
+    if is_video_result(path):
+        return result_layers(load_video_result(path), name=path.name)
     if is_video(path):
         return video_layers(read_video(path))
     return lightfield_layers(read_lightfield(path))
@@ -124,12 +136,13 @@ def get_reader(path: str | list[str]) -> Callable[[Any], list[LayerData]] | None
     """
     from lfsam.io import detect_format
     from lfsam.video import is_video
+    from lfsam.video.result import is_video_result
 
     if isinstance(path, (list, tuple)):
         if len(path) != 1:
             return None
         path = path[0]
-    if not is_result_file(path) and not is_video(path):
+    if not (is_result_file(path) or is_video_result(path) or is_video(path)):
         try:
             detect_format(path)
         except LfsamError:

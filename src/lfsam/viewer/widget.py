@@ -527,6 +527,28 @@ class LightFieldWidget(QWidget):
         if self.session is not None:
             self.work.when_idle(lambda: self._when_loaded(run))
 
+    def show_tracked(self, result: Any) -> None:
+        """Show a video result folder's labels (``lfsam view VIDEO --result FOLDER``) in the
+        committed layer, read lazily; Save copies it. Its objects are not editable (their
+        prompts are not kept per frame): click them again and Track to change them."""
+        session = self.session
+        if not self.is_video:
+            raise LfsamError("a video result needs its video: open the light-field video")
+        if tuple(result.shape) != tuple(session.video.shape):
+            raise LfsamError(
+                f"the result has labels {tuple(result.shape)}, the video "
+                f"{tuple(session.video.shape)}; open the result of this video"
+            )
+
+        def run() -> None:  # after the model's loading, which would overwrite the status
+            session.tracked = result
+            self.layers[L.COMMITTED].data.attach_result(result)
+            self.layers[L.COMMITTED].refresh()
+            self._set_status(f"showing {result.path} ({len(result.object_ids)} object(s)); "
+                             "to change it, click the objects and Track again")
+
+        self.work.when_idle(run)
+
     def shown_view(self) -> tuple[int, int]:
         """The view on the sliders (view row, view column)."""
         first = self._frame_axes
