@@ -172,7 +172,13 @@ class FrameStore(_LazyFrames):
         return self._live[index]
 
     def put(self, index: int, labels: np.ndarray) -> None:
-        """Set frame ``index`` to ``labels`` ``(S, T, U, V)``."""
+        """Set frame ``index`` to ``labels`` ``(S, T, U, V)``.
+
+        Raises
+        ------
+        ValueError
+            For labels of another shape (the caller's code is at fault).
+        """
         labels = np.asarray(labels)
         if labels.shape != self.shape[1:]:
             raise ValueError(f"labels {labels.shape} do not fit frames {self.shape[1:]}")
