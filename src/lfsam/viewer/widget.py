@@ -313,6 +313,8 @@ class LightFieldWidget(QWidget):
                 self.masks.show_frame(index, labels)
                 found = len(np.unique(labels)) - int((labels == 0).any())
                 self._set_status(f"tracking frame {index + 1} of {total}: {found} object(s)")
+                if index + 1 < total:
+                    self.work.describe(f"tracking frame {index + 2} of {total}")
             case W.Tracked(result=result):
                 self.layers[L.COMMITTED].data.attach_result(result)
                 self.layers[L.CURRENT].data.clear()

@@ -418,6 +418,12 @@ class WorkQueue(QObject):
             _start_thread=True,
         )
 
+    def describe(self, text: str) -> None:
+        """Rename the running job in napari's activity dock (e.g. the frame being tracked)."""
+        pbar = getattr(self.worker, "pbar", None)
+        if pbar is not None:
+            pbar.set_description(text)
+
     def drain(self) -> None:
         """Run queued actions in order until one starts a job; then a pending segmentation."""
         while self.actions and not self.busy:
