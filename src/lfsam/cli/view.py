@@ -14,6 +14,7 @@ from lfsam.errors import LfsamError
 from lfsam.fileutil import check_cache_dir
 from lfsam.io import read_lightfield
 from lfsam.result import load_result
+from lfsam.video import is_video, read_video
 
 DESCRIPTION = """\
 Open a light field in napari: the views are one image layer with the view row s and column t on
@@ -29,6 +30,12 @@ The Views / EPI buttons switch between the views and the epipolar-plane images t
 current pixel row or column.
 Save writes a normal lfsam result (prompts included, so it reopens editable with --result).
 
+A light-field video (a folder of frames, an [F, S, T, U, V, 3] array, per-view videos) opens
+with a frame slider before the view sliders, read lazily; a click is tagged with the frame shown
+and segments that frame at once. "Track" (Ctrl-T) tracks every object through all frames in the
+worker, each frame showing as it finishes; Save then writes the video result folder, which
+--result FOLDER shows again (read lazily; click and Track again to change it).
+
 Needs the viewer extra: pip install 'lfsam[viewer]'.
 """
 
@@ -40,6 +47,7 @@ examples:
   lfsam view scene --model sam2-tiny-test --random-weights --device cpu   # try the viewer quickly
   lfsam view scene --result result.npz --model oracle    # reopen a result and correct it
   lfsam view scene --model oracle --disparity gt --text disc   # every disc, found at start
+  lfsam view clip --model oracle --disparity gt          # a video (lfsam synth clip --frames 6)
   lfsam view                                             # empty viewer; File > Open a light field
 """
 
@@ -83,10 +91,25 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
         check_cache_dir(args.cache)
     check_text_weights(args)
     preload_native_libraries()  # before napari draws with OpenGL (native_libraries docstring)
-    lightfield = read_lightfield(args.path, format=args.input_format) if args.path else None
-    if args.result and lightfield is None:
+    video = None
+    if args.path and args.input_format is None and is_video(args.path):
+        video = read_video(args.path)
+    lightfield = (
+        read_lightfield(args.path, format=args.input_format)
+        if args.path and video is None else None
+    )
+    if args.result and lightfield is None and video is None:
         raise LfsamError("--result needs its light field: give the light field's path too")
-    result = load_result(args.result) if args.result else None
+    if video is not None:
+        from lfsam import load_result as load_any_result
+        from lfsam.video.result import is_video_result
+
+        if args.result and not is_video_result(args.result):
+            raise LfsamError("--result of a light-field video is its result folder (written "
+                             "by `lfsam segment VIDEO --out FOLDER` or the viewer's Save)")
+        result = load_any_result(args.result) if args.result else None
+    else:
+        result = load_result(args.result) if args.result else None
 
     import napari
 
@@ -97,6 +120,7 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
     widget = LightFieldWidget(
         viewer,
         lightfield=lightfield,
+        video=video,
         model=model.name,
         disparity=args.disparity,
         cache_dir=args.cache,
@@ -109,7 +133,9 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
         },
     )
     viewer.window.add_dock_widget(widget, name="lfsam", area="right")
-    if result is not None:
+    if result is not None and video is not None:
+        widget.show_tracked(result)
+    elif result is not None:
         widget.open_result(result)
     for text in getattr(args, "text", None) or []:
         widget.find(text.phrase, view=text.view)

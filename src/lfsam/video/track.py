@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -45,6 +45,7 @@ from lfsam.errors import LfsamError
 from lfsam.generator import LightFieldMaskGenerator
 from lfsam.predictor import LightFieldPredictor
 from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt, validate_objects
+from lfsam.result import SegmentationResult
 from lfsam.segmenters.base import Segmenter
 from lfsam.version import __version__
 from lfsam.video.carry import Template, carry
@@ -110,6 +111,7 @@ def track_video(
     disparity: str = "estimate",
     options: SegmentOptions | None = None,
     memory: bool | None = None,
+    on_frame: Callable[[int, SegmentationResult], None] | None = None,
 ) -> VideoResult:
     """Track objects through a light-field video and write the chunked result.
 
@@ -131,6 +133,11 @@ def track_video(
     memory : bool, optional
         Track with SAM 2's video memory (True) or constrained prompts (False); default: the
         memory for SAM 2 segmenters, prompts for the others.
+    on_frame : callable, optional
+        Called as ``on_frame(index, result)`` with each frame's
+        :class:`~lfsam.result.SegmentationResult` once it is written, in frame order and in the
+        calling thread (the viewer shows frames as they finish, docs/design.md section 8). An
+        exception it raises stops the run; nothing is left at ``out`` then.
 
     Returns
     -------
@@ -199,7 +206,10 @@ def track_video(
                                                             if o.obj_id == obj_id)
                     placed |= _segment_object(predictor, lf, index, obj_id, obj, tracks,
                                               radius, placed, segmenter.name != "oracle")
-            writer.write(predictor.to_result())
+            frame_result = predictor.to_result()
+            writer.write(frame_result)
+            if on_frame is not None:
+                on_frame(index, frame_result)
             bar.update(1)
     bar.close()
     result = load_video_result(out)

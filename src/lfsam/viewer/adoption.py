@@ -26,7 +26,7 @@ from lfsam.lightfield import LightField
 from lfsam.viewer import layers as L
 from lfsam.viewer.plugin_io import LIGHTFIELD_KEY, RESULT_KEY, lightfield_layers
 
-__all__ = ["LayerKeeper", "lightfield_of", "result_to_reopen"]
+__all__ = ["LayerKeeper", "lightfield_of", "result_to_reopen", "video_of"]
 
 
 def lightfield_of(layer: Any) -> LightField | None:
@@ -56,6 +56,16 @@ def lightfield_of(layer: Any) -> LightField | None:
         return LightField(views=np.asarray(data))
     except LfsamError:
         return None
+
+
+def video_of(layer: Any) -> Any:
+    """The light-field video ``layer`` shows (this plugin's reader keeps it in the metadata),
+    or None (docs/design.md section 10)."""
+    from napari.layers import Image
+
+    from lfsam.viewer.video import VIDEO_KEY
+
+    return layer.metadata.get(VIDEO_KEY) if isinstance(layer, Image) else None
 
 
 def result_to_reopen(layer: Any, fixed: Iterable[Any]) -> Any:
@@ -128,7 +138,7 @@ class LayerKeeper:
 
     def show(
         self,
-        lightfield: LightField,
+        lightfield: Any,
         layer: Any = None,
         keymap: Mapping[str, Callable[[], None]] | None = None,
     ) -> dict[str, Any]:
@@ -136,7 +146,8 @@ class LayerKeeper:
 
         Parameters
         ----------
-        lightfield : LightField
+        lightfield : LightField or LightFieldVideo
+            A video's layers get the frame axis first (docs/design.md section 10).
         layer : napari.layers.Image, optional
             The layer already showing it; default: add the plugin's layers (the views, and the
             ground truth hidden).
@@ -148,15 +159,19 @@ class LayerKeeper:
         dict
             :attr:`layers`.
         """
+        from lfsam.viewer.video import video_layers
+
+        is_video = not isinstance(lightfield, LightField)
         self._adding = True
         try:
             if layer is None:
-                for data, kwargs, kind in lightfield_layers(lightfield):
+                made = video_layers(lightfield) if is_video else lightfield_layers(lightfield)
+                for data, kwargs, kind in made:
                     added = getattr(self.viewer, f"add_{kind}")(data, **kwargs)
                     if kind == "image":
                         layer = added
             self.image_layer = layer
-            shape = lightfield.views.shape[:4]
+            shape = lightfield.shape if is_video else lightfield.views.shape[:4]
             for name in L.LAYER_NAMES:
                 fixed = L.make_layer(name, shape)
                 self.viewer.layers.append(fixed)

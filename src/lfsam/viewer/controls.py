@@ -146,6 +146,13 @@ class DockControls:
             "epi-row": QPushButton("EPI (row)"),
             "epi-column": QPushButton("EPI (column)"),
         }
+        #: Light-field videos only (docs/design.md section 10); hidden for a single light field.
+        self.track_button = QPushButton("Track through the video [Ctrl-T]")
+        self.track_button.setToolTip(
+            "Track every object from its clicks (on any frame) through all frames; each "
+            "frame's labels show as it finishes"
+        )
+        self.track_button.setVisible(False)
         self.save_button = QPushButton("Save result…")
         self.export_button = QPushButton("Export…")
         self.progress = QProgressBar()
@@ -185,6 +192,7 @@ class DockControls:
         layout.addLayout(_row([self.edit_button, self.remove_button]))
         layout.addWidget(self.open_labels_button)
         layout.addLayout(_row(self.view_buttons.values()))
+        layout.addWidget(self.track_button)
         layout.addLayout(_row([self.save_button, self.export_button]))
         layout.addWidget(self.progress)
         layout.addWidget(self.status)

@@ -1,6 +1,8 @@
 """The widget's fixed set of layers (as in micro-sam) and the view/EPI axis orders.
 
-Layers (docs/design.md section 8), all with the light field's ``(s, t, u, v)`` dimensions:
+Layers (docs/design.md section 8), all with the light field's ``(s, t, u, v)`` dimensions (a
+video's with ``(frame, s, t, u, v)``: prompts carry their frame, and the mask layers are lazy
+:class:`lfsam.viewer.video.FrameStore` objects written one frame at a time):
 
 - ``point prompts``: points with a boolean ``positive`` feature (green positive, red negative);
 - ``box prompts``: rectangles (the object's box is the last one);
@@ -63,15 +65,15 @@ POSITIVE_COLOR = "#00ff00"
 NEGATIVE_COLOR = "#ff2020"
 
 
-def make_layer(name: str, shape: tuple[int, int, int, int]) -> Any:
+def make_layer(name: str, shape: tuple[int, ...]) -> Any:
     """A new, empty layer ``name`` (one of :data:`LAYER_NAMES`) for a light field of ``shape``.
 
     Parameters
     ----------
     name : str
         Which layer.
-    shape : (S, T, U, V)
-        The light field's dimensions.
+    shape : (S, T, U, V) or (F, S, T, U, V)
+        The light field's dimensions, or a video's (docs/design.md section 10).
 
     Returns
     -------
@@ -85,17 +87,20 @@ def make_layer(name: str, shape: tuple[int, int, int, int]) -> Any:
     import pandas as pd
     from napari.layers import Labels, Points, Shapes
 
-    axis_labels = ("s", "t", "u", "v")
+    from lfsam.viewer.video import VIDEO_AXES, FrameStore
+
+    ndim = len(shape)
+    axis_labels = VIDEO_AXES[-ndim:]
     if name == POINTS:
         layer = Points(
-            np.zeros((0, 4)),
-            ndim=4,
+            np.zeros((0, ndim)),
+            ndim=ndim,
             name=POINTS,
             features={"positive": pd.Series([], dtype=bool)},
             face_color="positive",
             face_color_cycle={True: POSITIVE_COLOR, False: NEGATIVE_COLOR},
             border_color="white",
-            size=max(4, min(shape[2:]) // 40),
+            size=max(4, min(shape[-2:]) // 40),
             axis_labels=axis_labels,
             out_of_slice_display=False,
         )
@@ -103,18 +108,17 @@ def make_layer(name: str, shape: tuple[int, int, int, int]) -> Any:
         return layer
     if name == BOXES:
         return Shapes(
-            ndim=4,
+            ndim=ndim,
             name=BOXES,
             face_color="transparent",
             edge_color="#00c8ff",
-            edge_width=max(1, min(shape[2:]) // 120),
+            edge_width=max(1, min(shape[-2:]) // 120),
             axis_labels=axis_labels,
         )
     if name in (CURRENT, COMMITTED, AUTO):
         opacity = {CURRENT: 0.6, COMMITTED: 0.45, AUTO: 0.35}[name]
-        return Labels(
-            np.zeros(shape, dtype=np.int32), name=name, opacity=opacity, axis_labels=axis_labels
-        )
+        data = FrameStore(shape) if ndim == 5 else np.zeros(shape, dtype=np.int32)
+        return Labels(data, name=name, opacity=opacity, axis_labels=axis_labels)
     raise ValueError(f"unknown layer {name!r}")
 
 
@@ -195,7 +199,8 @@ class PromptLayers:
         rects = [
             d for d, kind in zip(boxes.data, boxes.shape_type, strict=True) if kind == "rectangle"
         ]
-        return prompts_from_layers(obj_id, points.data, positive, rects, grid_shape)
+        return prompts_from_layers(obj_id, points.data, positive, rects, grid_shape,
+                                   ndim=points.ndim)
 
     def write(self, obj: Any | None, center: tuple[int, int]) -> None:
         """Show ``obj``'s prompts (None: none) in the layers, replacing theirs.
@@ -207,7 +212,7 @@ class PromptLayers:
             The view of prompts without a view tag.
         """
 
-        points, positive, boxes = layers_from_prompts(obj, center)
+        points, positive, boxes = layers_from_prompts(obj, center, self.layers[POINTS].ndim)
         self._writing = True
         try:
             layer = self.layers[POINTS]
@@ -238,15 +243,37 @@ class MaskLayers:
         The last prediction shown (its masks are unpacked lazily, by :meth:`mask_of`).
     """
 
-    def __init__(self, layers: dict[str, Any]) -> None:
+    def __init__(self, layers: dict[str, Any], frame: Callable[[], int] = lambda: 0) -> None:
         self.layers = layers
         self.prediction: Any = None
+        self._frame = frame
+
+    def array(self, name: str) -> np.ndarray:
+        """Mask layer ``name``'s labels ``(S, T, U, V)``, writable in place: a video's are
+        those of the frame the predictor works on (``frame``)."""
+        data = self.layers[name].data
+        if hasattr(data, "frame_array"):  # a video's FrameStore
+            return data.frame_array(self._frame())
+        return data
 
     def show_labels(self, name: str, labels: np.ndarray) -> None:
         """Replace mask layer ``name``'s labels by ``labels`` ``(S, T, U, V)``."""
-        layer = self.layers[name]
-        layer.data[...] = labels
-        layer.refresh()
+        self.array(name)[...] = labels
+        self.layers[name].refresh()
+
+    def clear_frame(self, name: str, index: int) -> None:
+        """A video: nothing in mask layer ``name`` at frame ``index``."""
+        data = self.layers[name].data
+        if index in data.written():
+            data.frame_array(index)[...] = 0
+            self.layers[name].refresh()
+
+    def show_frame(self, index: int, labels: np.ndarray) -> None:
+        """A video: frame ``index`` of every object (a tracked frame) in the committed layer;
+        the current object's layer is cleared there."""
+        self.layers[COMMITTED].data.put(index, labels)
+        self.layers[COMMITTED].refresh()
+        self.clear_frame(CURRENT, index)
 
     def show_current(
         self,
@@ -258,13 +285,13 @@ class MaskLayers:
     ) -> None:
         """The current object's layer: ``mask`` in ``view`` only, ``masks`` in every view, or
         nothing (neither given)."""
-        layer = self.layers[CURRENT]
-        layer.data[...] = 0
+        data = self.array(CURRENT)
+        data[...] = 0
         if view is not None and mask is not None:
-            layer.data[view][mask] = obj_id
+            data[view][mask] = obj_id
         elif masks is not None:
-            layer.data[np.asarray(masks, dtype=bool)] = obj_id
-        layer.refresh()
+            data[np.asarray(masks, dtype=bool)] = obj_id
+        self.layers[CURRENT].refresh()
 
     def show_prediction(self, prediction: Any, committed: set[int], auto: set[int]) -> None:
         """Show ``prediction``'s ``committed`` and ``auto`` objects (not the current one)."""
@@ -282,20 +309,20 @@ class MaskLayers:
 
     def shown(self, obj_id: int) -> np.ndarray:
         """Where the committed or automatic layer shows object ``obj_id``, ``(S, T, U, V)``."""
-        return (self.layers[COMMITTED].data == obj_id) | (self.layers[AUTO].data == obj_id)
+        return (self.array(COMMITTED) == obj_id) | (self.array(AUTO) == obj_id)
 
     def erase(self, obj_id: int, names: tuple[str, ...] = MASK_NAMES) -> None:
         """Remove object ``obj_id`` from the mask layers ``names``."""
         for name in names:
-            layer = self.layers[name]
-            layer.data[layer.data == obj_id] = 0
-            layer.refresh()
+            data = self.array(name)
+            data[data == obj_id] = 0
+            self.layers[name].refresh()
 
     def recommit(self, obj_id: int) -> None:
         """Show object ``obj_id``'s last predicted mask in the committed layer again, where the
         layer shows no other object (it has just stopped being the current object)."""
         mask = self.mask_of(obj_id)
         if mask is not None:
-            layer = self.layers[COMMITTED]
-            layer.data[mask & (layer.data == 0)] = obj_id
-            layer.refresh()
+            data = self.array(COMMITTED)
+            data[mask & (data == 0)] = obj_id
+            self.layers[COMMITTED].refresh()

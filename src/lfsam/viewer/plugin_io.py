@@ -4,7 +4,9 @@ Layer data are returned as napari "layer data tuples" ``(data, kwargs, layer_typ
 no napari import. The light field is ONE image layer: the ``(S, T, U, V, 3)`` uint8 views with
 ``rgb=True``, so ``s`` and ``t`` become slider dimensions and no view is copied. Its metadata
 keeps the :class:`~lfsam.lightfield.LightField` (``metadata["lfsam_lightfield"]``) for the
-widget. A result is a labels layer ``(S, T, U, V)`` with the result in its metadata
+widget. A light-field video is one lazy RGB image layer ``(F, S, T, U, V, 3)`` with a ``frame``
+slider (:func:`lfsam.viewer.video.video_layers`; section 10). A result is a labels layer
+``(S, T, U, V)`` with the result in its metadata
 (``metadata["lfsam_result"]``) so the widget can reopen its objects. docs/design.md sections 1
 and 8.
 """
@@ -89,8 +91,17 @@ def lightfield_layers(lightfield: LightField, name: str | None = None) -> list[L
 
 
 def result_layers(result: Any, name: str = "result") -> list[LayerData]:
-    """A result's label field as a labels layer, the result kept in its metadata."""
-    return [(result.labels, {"name": name, "metadata": {RESULT_KEY: result}}, "labels")]
+    """A result's label field as a labels layer, the result kept in its metadata; a video
+    result folder's ``(F, S, T, U, V)`` labels are read one frame at a time (section 10)."""
+    labels = result.labels
+    kwargs: dict[str, Any] = {"name": name, "metadata": {RESULT_KEY: result}}
+    if getattr(result, "num_frames", None) is not None:  # a VideoResult
+        from lfsam.viewer.video import VIDEO_AXES, FrameStore
+
+        labels = FrameStore(result.shape)
+        labels.attach_result(result)
+        kwargs["axis_labels"] = VIDEO_AXES
+    return [(labels, kwargs, "labels")]
 
 
 def read_path(path: str | os.PathLike) -> list[LayerData]:
@@ -103,10 +114,17 @@ def read_path(path: str | os.PathLike) -> list[LayerData]:
     """
     from lfsam.io import read_lightfield
     from lfsam.result import load_result
+    from lfsam.video import is_video, read_video
+    from lfsam.video.result import is_video_result, load_video_result
+    from lfsam.viewer.video import video_layers
 
     path = Path(path)
     if is_result_file(path):
         return result_layers(load_result(path), name=path.stem)
+    if is_video_result(path):
+        return result_layers(load_video_result(path), name=path.name)
+    if is_video(path):
+        return video_layers(read_video(path))
     return lightfield_layers(read_lightfield(path))
 
 
@@ -117,12 +135,14 @@ def get_reader(path: str | list[str]) -> Callable[[Any], list[LayerData]] | None
     appear as napari notifications with lfsam's one-line message.
     """
     from lfsam.io import detect_format
+    from lfsam.video import is_video
+    from lfsam.video.result import is_video_result
 
     if isinstance(path, (list, tuple)):
         if len(path) != 1:
             return None
         path = path[0]
-    if not is_result_file(path):
+    if not (is_result_file(path) or is_video_result(path) or is_video(path)):
         try:
             detect_format(path)
         except LfsamError:
@@ -162,6 +182,11 @@ def write_result(path: str, data: Any, attributes: dict[str, Any]) -> list[str]:
     try:
         if session is not None:
             return [str(session.save(path))]
+        if getattr(data, "ndim", 0) == 5:
+            raise LfsamError(
+                "this labels layer is a light-field video's; save it from the lfsam dock "
+                "(Track, then Save result) to write the video result folder"
+            )
         labels = np.asarray(data)
         if labels.ndim != 4:
             raise LfsamError(

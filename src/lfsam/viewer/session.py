@@ -62,6 +62,7 @@ def prompts_from_layers(
     positive: np.ndarray,
     boxes: list[np.ndarray],
     grid_shape: tuple[int, int],
+    ndim: int = 4,
 ) -> Any | None:
     """The prompts of one object from the point and box layers' data.
 
@@ -69,15 +70,18 @@ def prompts_from_layers(
     ----------
     obj_id : int
         Object id (>= 1).
-    points : (N, 4) float ndarray
-        Points in layer coordinates ``(s, t, u, v)``: the view, then pixel row and column.
+    points : (N, ndim) float ndarray
+        Points in layer coordinates ``(s, t, u, v)``: the view, then pixel row and column; a
+        video's layers (``ndim`` 5) put the frame first, ``(frame, s, t, u, v)``.
     positive : (N,) bool ndarray
         Whether each point is positive.
-    boxes : list of (K, 4) float ndarrays
-        Rectangles' vertices in ``(s, t, u, v)``; the last one is the object's box (an object has
-        at most one, docs/design.md section 8).
+    boxes : list of (K, ndim) float ndarrays
+        Rectangles' vertices; the last one is the object's box (an object has at most one,
+        docs/design.md section 8).
     grid_shape : (S, T)
         The grid, to clip view indices.
+    ndim : {4, 5}
+        The layers' dimensions: 5 tags each prompt with its frame (docs/design.md section 10).
 
     Returns
     -------
@@ -85,27 +89,35 @@ def prompts_from_layers(
         None when there is no prompt at all.
     """
 
-    points = np.asarray(points, dtype=float).reshape(-1, 4)
+    points = np.asarray(points, dtype=float).reshape(-1, ndim)
+    frames = np.rint(points[:, 0]).astype(int) if ndim == 5 else [None] * len(points)
+    points = points[:, ndim - 4 :]
     positive = np.asarray(positive, dtype=bool).reshape(-1)
     limit = np.array(grid_shape) - 1
     views = np.clip(np.rint(points[:, :2]).astype(int), 0, limit)
     point_prompts = tuple(
-        PointPrompt(x=float(p[3]), y=float(p[2]), positive=bool(pos), view=(int(v[0]), int(v[1])))
-        for p, pos, v in zip(points, positive, views, strict=True)
+        PointPrompt(
+            x=float(p[3]), y=float(p[2]), positive=bool(pos), view=(int(v[0]), int(v[1])),
+            frame=None if f is None else max(int(f), 0),
+        )
+        for p, pos, v, f in zip(points, positive, views, frames, strict=True)
     )
     box = None
     if boxes:
-        verts = np.asarray(boxes[-1], dtype=float).reshape(-1, 4)
+        verts = np.asarray(boxes[-1], dtype=float).reshape(-1, ndim)
+        frame = max(int(np.rint(verts[0, 0])), 0) if ndim == 5 else None
+        verts = verts[:, ndim - 4 :]
         s, t = np.clip(np.rint(verts[0, :2]).astype(int), 0, limit)
         (y0, x0), (y1, x1) = verts[:, 2:].min(0), verts[:, 2:].max(0)
-        box = BoxPrompt(float(x0), float(y0), float(x1), float(y1), view=(int(s), int(t)))
+        box = BoxPrompt(float(x0), float(y0), float(x1), float(y1), view=(int(s), int(t)),
+                        frame=frame)
     if not point_prompts and box is None:
         return None
     return ObjectPrompts(obj_id, points=point_prompts, box=box)
 
 
 def layers_from_prompts(
-    obj: Any | None, center: tuple[int, int]
+    obj: Any | None, center: tuple[int, int], ndim: int = 4
 ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
     """Layer data for one object's prompts: the inverse of :func:`prompts_from_layers`.
 
@@ -115,33 +127,33 @@ def layers_from_prompts(
         The object's prompts (None: no prompts).
     center : (s, t)
         The view of prompts without a view tag.
+    ndim : {4, 5}
+        5: a video's layers, each row starting with the prompt's frame (None reads as 0).
 
     Returns
     -------
-    points : (N, 4) float ndarray
-        ``(s, t, u, v)`` of each point.
+    points : (N, ndim) float ndarray
+        ``([frame,] s, t, u, v)`` of each point.
     positive : (N,) bool ndarray
-    boxes : list of (4, 4) float ndarrays
+    boxes : list of (4, ndim) float ndarrays
         The box's corners (zero or one rectangle).
     """
     if obj is None:
-        return np.zeros((0, 4)), np.zeros(0, dtype=bool), []
-    rows = []
-    for p in obj.points:
-        s, t = p.view if p.view is not None else center
-        rows.append((s, t, p.y, p.x))
-    points = np.array(rows, dtype=float).reshape(-1, 4)
+        return np.zeros((0, ndim)), np.zeros(0, dtype=bool), []
+
+    def lead(prompt: Any) -> tuple:
+        view = prompt.view if prompt.view is not None else center
+        frame = 0 if prompt.frame is None else int(prompt.frame)
+        return (frame, *view) if ndim == 5 else tuple(view)
+
+    points = np.array([(*lead(p), p.y, p.x) for p in obj.points], dtype=float)
+    points = points.reshape(-1, ndim)
     positive = np.array([bool(p.positive) for p in obj.points], dtype=bool)
     boxes = []
     if obj.box is not None:
-        b = obj.box
-        s, t = b.view if b.view is not None else center
-        boxes.append(
-            np.array(
-                [[s, t, b.y0, b.x0], [s, t, b.y0, b.x1], [s, t, b.y1, b.x1], [s, t, b.y1, b.x0]],
-                dtype=float,
-            )
-        )
+        b, head = obj.box, lead(obj.box)
+        corners = [(b.y0, b.x0), (b.y0, b.x1), (b.y1, b.x1), (b.y1, b.x0)]
+        boxes.append(np.array([(*head, y, x) for y, x in corners], dtype=float))
     return points, positive, boxes
 
 
@@ -264,16 +276,7 @@ class ViewerSession:
         """
 
         preload_native_libraries()  # a no-op when the widget did it in the main thread
-        options = dict(self.segmenter_options)
-        # the options of the other kind of segmenter stay for when the model box switches back
-        dropped = SAM2_ONLY_OPTIONS if self.model == ORACLE else ("oracle_options",)
-        for key in dropped:
-            options.pop(key, None)
-        segmenter = load_segmenter(self.model, lightfield=self.lightfield, **options)
-        predictor = LightFieldPredictor(
-            segmenter, PipelineConfig(refine_views=self.refine_views), cache_dir=self.cache_dir
-        )
-        predictor.set_lightfield(self.lightfield, disparity=self.disparity)
+        predictor = self._new_predictor(self.lightfield)
         old = self.predictor
         if old is not None and old.object_ids:
             if set(old.objects) == set(old.object_ids):  # every object has prompts
@@ -282,6 +285,27 @@ class ViewerSession:
             else:  # automatic or imported objects are carried by their masks
                 predictor.open_result(old.to_result())
         self.predictor = predictor
+
+    def segmenter_keywords(self) -> dict[str, Any]:
+        """The keywords of :func:`lfsam.segmenters.load_segmenter` for :attr:`model` (the
+        options of the other kind of segmenter stay for when the model box switches back)."""
+        options = dict(self.segmenter_options)
+        dropped = SAM2_ONLY_OPTIONS if self.model == ORACLE else ("oracle_options",)
+        for key in dropped:
+            options.pop(key, None)
+        return options
+
+    def _new_predictor(self, lightfield: LightField, segmenter: Any = None) -> Any:
+        """A predictor on ``lightfield`` with ``segmenter`` (default: a new one of
+        :attr:`model`), its disparity set (slow: worker thread)."""
+        if segmenter is None:
+            segmenter = load_segmenter(self.model, lightfield=lightfield,
+                                       **self.segmenter_keywords())
+        predictor = LightFieldPredictor(
+            segmenter, PipelineConfig(refine_views=self.refine_views), cache_dir=self.cache_dir
+        )
+        predictor.set_lightfield(lightfield, disparity=self.disparity)
+        return predictor
 
     def set_refine_views(self, setting: str | int) -> None:
         """Refine ``"all"`` views, ``"sparse"`` or N from now on; a loaded predictor refines

@@ -15,7 +15,12 @@ plugins such as micro-sam's. It connects three parts and shows what they produce
 
 Keys (as in micro-sam): ``S`` segment, ``C`` commit the current object, ``T`` toggle positive /
 negative clicks (Ctrl-click adds a point of the other polarity), ``Shift-C`` clear the current
-object, ``Ctrl-Z`` / ``Ctrl-Shift-Z`` undo / redo prompt edits.
+object, ``Ctrl-Z`` / ``Ctrl-Shift-Z`` undo / redo prompt edits, ``Ctrl-T`` track a video.
+
+A light-field video (docs/design.md section 10) gets a ``frame`` slider before ``s`` and ``t``
+(its layers are read lazily, :mod:`lfsam.viewer.video`); a click is tagged with the frame shown
+and segments that frame at once (:class:`lfsam.viewer.video_session.VideoSession`); "Track"
+runs :func:`lfsam.video.track.track_video` in the worker and shows each frame as it finishes.
 """
 
 from __future__ import annotations
@@ -37,17 +42,18 @@ from lfsam.segmenters.registry import ORACLE
 from lfsam.viewer import controls as C
 from lfsam.viewer import layers as L
 from lfsam.viewer import worker as W
-from lfsam.viewer.adoption import LayerKeeper, lightfield_of, result_to_reopen
+from lfsam.viewer.adoption import LayerKeeper, lightfield_of, result_to_reopen, video_of
 from lfsam.viewer.native_libraries import preload_native_libraries
 from lfsam.viewer.plugin_io import SESSION_KEY
 from lfsam.viewer.session import DISPARITY_SOURCES, ViewerSession
+from lfsam.viewer.video_session import VideoSession
 
 __all__ = ["LightFieldWidget"]
 
 #: Keys (napari's names) and the widget's methods they call.
 _KEYS = {
     "s": "segment", "c": "commit", "t": "toggle_polarity", "Shift-c": "clear",
-    "Control-z": "undo", "Control-Shift-z": "redo",
+    "Control-z": "undo", "Control-Shift-z": "redo", "Control-t": "track",
 }
 
 
@@ -78,6 +84,8 @@ class LightFieldWidget(QWidget):
         Further keywords of :func:`lfsam.segmenters.load_segmenter` (e.g. ``oracle_options``).
     autoload : bool
         Load the model as soon as a light field is known.
+    video : LightFieldVideo, optional
+        A light-field video instead of ``lightfield`` (docs/design.md section 10).
     """
 
     #: Emitted with every status line the dock shows (``lfsam view`` echoes them on stderr).
@@ -95,6 +103,7 @@ class LightFieldWidget(QWidget):
         text_options: dict[str, Any] | None = None,
         autoload: bool = True,
         refine_views: str | int = "all",
+        video: Any = None,
     ) -> None:
         super().__init__()
         from lfsam.segmenters import available_models
@@ -134,11 +143,13 @@ class LightFieldWidget(QWidget):
         self._connect_controls()
         self.keeper = LayerKeeper(napari_viewer, adopt=self._adopt)
         self.layers: dict[str, Any] = self.keeper.layers
-        self.masks = L.MaskLayers(self.layers)
+        self.masks = L.MaskLayers(self.layers, frame=lambda: getattr(self.session, "frame", 0))
         self.prompts = L.PromptLayers(self.layers, on_edit=self._on_prompts_edited)
         for key, func in self._keymap().items():
             self.viewer.bind_key(key, lambda _v, f=func: f(), overwrite=True)
-        if lightfield is not None:
+        if video is not None:
+            self.set_video(video)
+        elif lightfield is not None:
             self.set_lightfield(lightfield)
         else:
             self.keeper.adopt_existing()
@@ -164,6 +175,7 @@ class LightFieldWidget(QWidget):
             (c.remove_button, lambda: self._on_selected(self.remove_object)),
             (c.open_labels_button, self._open_selected_labels),
             (c.save_button, self._save_dialog), (c.export_button, self._export_dialog),
+            (c.track_button, self.track),
         ):
             button.clicked.connect(lambda _=False, a=action: a())
         c.find_edit.returnPressed.connect(lambda: self.find())
@@ -178,14 +190,30 @@ class LightFieldWidget(QWidget):
 
     def _adopt(self, layer: Any) -> bool:
         """Use ``layer`` as the light field if it is one; returns whether it was adopted."""
-        lightfield = None if self.session is not None else lightfield_of(layer)
+        if self.session is not None:
+            return False
+        video = video_of(layer)
+        if video is not None:
+            self.set_video(video, layer)
+            return True
+        lightfield = lightfield_of(layer)
         if lightfield is not None:
             self.set_lightfield(lightfield, layer)
         return lightfield is not None
 
     def set_lightfield(self, lightfield: LightField, layer: Any = None) -> None:
         """Show ``lightfield`` (one image layer) and create the prompt and mask layers."""
-        self.session = ViewerSession(
+        self._start_session(ViewerSession, lightfield, lightfield, layer)
+
+    def set_video(self, video: Any, layer: Any = None) -> None:
+        """Show a light-field video (one lazy image layer with a ``frame`` slider) and create
+        the prompt and mask layers, all with the frame axis (docs/design.md section 10)."""
+        self._start_session(VideoSession, video, video.frame(0), layer, video=video)
+        self.controls.track_button.setVisible(True)
+
+    def _start_session(self, kind: type, shown: Any, lightfield: LightField, layer: Any,
+                       **extra: Any) -> None:
+        self.session = kind(
             lightfield,
             model=self.model_box.currentText(),
             disparity=self.disparity_box.currentText(),
@@ -193,15 +221,35 @@ class LightFieldWidget(QWidget):
             segmenter_options=dict(self._options),
             text_options=dict(self._text_options),
             refine_views=self._refine_views,
+            **extra,
         )
-        self.keeper.show(lightfield, layer, self._keymap())
+        self.keeper.show(shown, layer, self._keymap())
         self.layers[L.COMMITTED].metadata[SESSION_KEY] = self.session
-        self.viewer.dims.current_step = (*lightfield.center, *self.viewer.dims.current_step[2:])
+        lead = (0,) * self._frame_axes  # a video opens on its first frame, the session's
+        rest = self.viewer.dims.current_step[self._frame_axes + 2 :]
+        self.viewer.dims.current_step = (*lead, *lightfield.center, *rest)
         self.viewer.layers.selection.active = self.layers[L.POINTS]
         self.prompts.attach()
         self._refresh_objects()
         if self._autoload:
             self.load_model()
+
+    @property
+    def is_video(self) -> bool:
+        """Whether the session is a light-field video's."""
+        return isinstance(self.session, VideoSession)
+
+    @property
+    def _frame_axes(self) -> int:
+        """Sliders before ``s`` and ``t``: 1 (the frame) for a video, else 0."""
+        return 1 if self.is_video else 0
+
+    def shown_frame(self) -> int:
+        """The frame on the ``frame`` slider (0 for a single light field)."""
+        if not self.is_video:
+            return 0
+        count = self.session.video.num_frames
+        return min(max(int(self.viewer.dims.current_step[0]), 0), count - 1)
 
     @property
     def image_layer(self) -> Any:
@@ -260,6 +308,21 @@ class LightFieldWidget(QWidget):
                 self._set_status(
                     f"find {phrase!r}: {found or 'no'} object(s) in {where}"
                     + ("" if found else " (try another phrase or a lower threshold)")
+                )
+            case W.FrameTracked(index=index, total=total, labels=labels):
+                self.masks.show_frame(index, labels)
+                found = len(np.unique(labels)) - int((labels == 0).any())
+                self._set_status(f"tracking frame {index + 1} of {total}: {found} object(s)")
+                if index + 1 < total:
+                    self.work.describe(f"tracking frame {index + 2} of {total}")
+            case W.Tracked(result=result):
+                self.layers[L.COMMITTED].data.attach_result(result)
+                self.layers[L.CURRENT].data.clear()
+                for name in (L.COMMITTED, L.CURRENT):
+                    self.layers[name].refresh()
+                self._set_status(
+                    f"tracked {len(result.object_ids)} object(s) through {len(result)} frames "
+                    f"into {result.path}; Save copies the result folder"
                 )
             case W.AllMasks(prediction=prediction, found=found):
                 self._show_prediction(prediction)
@@ -384,6 +447,18 @@ class LightFieldWidget(QWidget):
             self._show_current(obj_id)
             return
         self.stages = []
+        if self.is_video:
+            frame = self.shown_frame()
+            if not self.session.has_positive_at(frame):
+                self.masks.clear_frame(L.CURRENT, frame)
+                self._set_status(
+                    f"object {obj_id} has no positive click or box on frame {frame}; its other "
+                    "clicks there count when tracking (Track, Ctrl-T)"
+                )
+                return
+            self.work.start(partial(W.video_segment_job, self.session, obj_id, frame), 3,
+                            f"segmenting object {obj_id} in frame {frame}")
+            return
         self.work.start(partial(W.segment_job, self.session, obj_id), 3,
                         f"segmenting object {obj_id}")
 
@@ -438,9 +513,48 @@ class LightFieldWidget(QWidget):
         if self.session is not None:
             self.work.when_idle(lambda: self._when_loaded(run))
 
+    def track(self, out: str | os.PathLike | None = None) -> None:
+        """Ctrl-T: track every object of a video through all its frames in the worker (into
+        ``out``, default a temporary folder); each frame's labels show as it finishes."""
+
+        def run() -> None:
+            if not self.is_video:
+                raise LfsamError("Track follows objects through a light-field video; open a "
+                                 "video (a folder of frames or an [F, S, T, U, V, 3] array)")
+            self.session.sync_current()
+            total = self.session.video.num_frames
+            self.work.start(partial(W.track_job, self.session, out), total + 1,
+                            f"tracking frame 1 of {total}")
+
+        if self.session is not None:
+            self.work.when_idle(lambda: self._when_loaded(run))
+
+    def show_tracked(self, result: Any) -> None:
+        """Show a video result folder's labels (``lfsam view VIDEO --result FOLDER``) in the
+        committed layer, read lazily; Save copies it. Its objects are not editable (their
+        prompts are not kept per frame): click them again and Track to change them."""
+        session = self.session
+        if not self.is_video:
+            raise LfsamError("a video result needs its video: open the light-field video")
+        if tuple(result.shape) != tuple(session.video.shape):
+            raise LfsamError(
+                f"the result has labels {tuple(result.shape)}, the video "
+                f"{tuple(session.video.shape)}; open the result of this video"
+            )
+
+        def run() -> None:  # after the model's loading, which would overwrite the status
+            session.tracked = result
+            self.layers[L.COMMITTED].data.attach_result(result)
+            self.layers[L.COMMITTED].refresh()
+            self._set_status(f"showing {result.path} ({len(result.object_ids)} object(s)); "
+                             "to change it, click the objects and Track again")
+
+        self.work.when_idle(run)
+
     def shown_view(self) -> tuple[int, int]:
         """The view on the sliders (view row, view column)."""
-        s, t = (int(x) for x in self.viewer.dims.current_step[:2])
+        first = self._frame_axes
+        s, t = (int(x) for x in self.viewer.dims.current_step[first : first + 2])
         grid = self.session.lightfield.grid_shape
         return min(max(s, 0), grid[0] - 1), min(max(t, 0), grid[1] - 1)
 
@@ -507,11 +621,15 @@ class LightFieldWidget(QWidget):
 
     def show_display(self, name: str) -> None:
         """Show the views (``"views"``) or an EPI (``"epi-row"``, ``"epi-column"``)."""
-        self.viewer.dims.order = L.ORDERS[name]
+        order = L.ORDERS[name]
+        if self.is_video:  # the frame axis stays first (a slider)
+            order = (0, *(axis + 1 for axis in order))
+        self.viewer.dims.order = order
         self.viewer.reset_view()
 
     def save(self, path: str | os.PathLike) -> Path:
-        """Write the session as an lfsam result (prompts included)."""
+        """Write the session as an lfsam result (prompts included); a video's tracked result
+        folder is copied to the folder ``path``."""
         out = self.session.save(path)
         self._set_status(f"saved {out}")
         return out
@@ -521,7 +639,10 @@ class LightFieldWidget(QWidget):
         module = _export_module()
         if module is None:
             raise LfsamError("export is not available in this version; save the result instead")
-        path = module.export_result(self.session.to_result(), out, to=to)
+        if self.is_video:
+            path = module.export_video(iter(self.session.to_result()), out, to=to)
+        else:
+            path = module.export_result(self.session.to_result(), out, to=to)
         self._set_status(f"exported {path} ({to})")
         return path
 
@@ -545,8 +666,9 @@ class LightFieldWidget(QWidget):
         self._show_current(session.current_id, masks=self.masks.mask_of(session.current_id))
         self._refresh_objects()
         refined = session.refined_summary()
+        where = f" of frame {session.frame}" if self.is_video else ""
         self._set_status(
-            f"{len(prediction.masks)} object(s) segmented in every view"
+            f"{len(prediction.masks)} object(s) segmented in every view{where}"
             + ("" if refined is None else f"; {refined}, the others filled from them")
         )
 
@@ -569,7 +691,10 @@ class LightFieldWidget(QWidget):
         self.work.attempt(lambda: self.open_result(result_to_reopen(active, self.layers.values())))
 
     def _save_dialog(self) -> None:
-        path = C.ask_save_file(self, "Save lfsam result", "result.npz", "*.npz")
+        if self.is_video:  # a folder, one file per frame (docs/design.md section 10)
+            path = C.ask_save_file(self, "Save the video result (a new folder)", "result")
+        else:
+            path = C.ask_save_file(self, "Save lfsam result", "result.npz", "*.npz")
         if path:
             self.work.when_idle(lambda: self.save(path))
 

@@ -16,6 +16,8 @@ click is lost.
 
 from __future__ import annotations
 
+import queue
+import threading
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -31,9 +33,11 @@ __all__ = [
     "CoarseMasks",
     "Failed",
     "FinalMasks",
+    "FrameTracked",
     "ModelLoaded",
     "ReferenceMask",
     "TextFound",
+    "Tracked",
     "WorkQueue",
     "WorkerEvent",
     "find_job",
@@ -42,6 +46,8 @@ __all__ = [
     "load_job",
     "predict_all_job",
     "segment_job",
+    "track_job",
+    "video_segment_job",
 ]
 
 
@@ -151,6 +157,38 @@ class TextFound:
     finds: list[dict[str, Any]]
 
 
+@dataclass(frozen=True, eq=False)
+class FrameTracked:
+    """Tracking a video: one frame is finished (docs/design.md section 10).
+
+    Attributes
+    ----------
+    index : int
+        The frame (0-based).
+    total : int
+        The video's number of frames.
+    labels : (S, T, U, V) int ndarray
+        Every object's labels in that frame.
+    """
+
+    index: int
+    total: int
+    labels: np.ndarray
+
+
+@dataclass(frozen=True)
+class Tracked:
+    """Tracking a video is finished.
+
+    Attributes
+    ----------
+    result : VideoResult
+        The result folder, read lazily.
+    """
+
+    result: Any
+
+
 @dataclass(frozen=True)
 class Failed:
     """A job stopped on a user error (:class:`LfsamError`); what was queued after it is dropped.
@@ -166,7 +204,8 @@ class Failed:
 
 #: Everything a job yields.
 WorkerEvent = (
-    ModelLoaded | ReferenceMask | CoarseMasks | FinalMasks | AllMasks | TextFound | Failed
+    ModelLoaded | ReferenceMask | CoarseMasks | FinalMasks | AllMasks | TextFound
+    | FrameTracked | Tracked | Failed
 )
 
 #: A job: a generator function run in the worker thread.
@@ -207,6 +246,44 @@ def segment_job(session: Any, obj_id: int) -> Iterator[WorkerEvent]:
             yield FinalMasks(obj_id, value)
         else:  # the session's code is at fault
             raise ValueError(f"unknown segmentation stage {stage!r}")
+
+
+def video_segment_job(session: Any, obj_id: int, frame: int) -> Iterator[WorkerEvent]:
+    """A video: go to ``frame`` (:meth:`VideoSession.goto_frame`), then :func:`segment_job`."""
+    session.goto_frame(frame)
+    yield from segment_job(session, obj_id)
+
+
+def track_job(session: Any, out: Any = None) -> Iterator[WorkerEvent]:
+    """Track a video's objects (:meth:`VideoSession.track`): one :class:`FrameTracked` per
+    frame as it finishes, then :class:`Tracked`.
+
+    ``track_video`` reports frames through a callback, which cannot yield: it runs in a thread
+    of its own and hands each frame over a queue to this generator (the worker thread).
+    """
+    frames: queue.Queue = queue.Queue()
+    done = object()
+    outcome: dict[str, Any] = {}
+    total = session.video.num_frames
+
+    def run() -> None:
+        try:
+            outcome["result"] = session.track(
+                out, on_frame=lambda i, r: frames.put(FrameTracked(i, total, r.labels))
+            )
+        except BaseException as exc:  # re-raised in the worker thread below
+            outcome["error"] = exc
+        finally:
+            frames.put(done)
+
+    thread = threading.Thread(target=run, name="lfsam-track", daemon=True)
+    thread.start()
+    while (event := frames.get()) is not done:
+        yield event
+    thread.join()
+    if "error" in outcome:
+        raise outcome["error"]
+    yield Tracked(outcome["result"])
 
 
 def predict_all_job(session: Any) -> Iterator[WorkerEvent]:
@@ -340,6 +417,12 @@ class WorkQueue(QObject):
             },
             _start_thread=True,
         )
+
+    def describe(self, text: str) -> None:
+        """Rename the running job in napari's activity dock (e.g. the frame being tracked)."""
+        pbar = getattr(self.worker, "pbar", None)
+        if pbar is not None:
+            pbar.set_description(text)
 
     def drain(self) -> None:
         """Run queued actions in order until one starts a job; then a pending segmentation."""
