@@ -141,9 +141,33 @@ def test_confidence_is_low_at_occlusion_edges_and_without_texture():
 def test_parabola_refinement_recovers_a_quadratic_minimum(true, curvature):
     hypotheses = torch.as_tensor(disparity_hypotheses((-3.0, 3.0), 25), dtype=torch.float32)
     cost = (curvature * (hypotheses - true) ** 2).view(-1, 1, 1).expand(-1, 2, 3).contiguous()
-    disparity, index = subpixel_winner(cost, hypotheses)
+    disparity, index = subpixel_winner(cost, hypotheses, fit="parabola")
     assert torch.allclose(disparity, torch.full_like(disparity, true), atol=1e-4)
     assert int(index[0, 0]) == int((hypotheses - true).abs().argmin())
+
+
+@settings(max_examples=40, deadline=None)
+@given(true=st.floats(-2.8, 2.8, allow_nan=False), slope=st.floats(0.1, 10.0))
+def test_equiangular_refinement_recovers_a_v_shaped_minimum(true, slope):
+    hypotheses = torch.as_tensor(disparity_hypotheses((-3.0, 3.0), 25), dtype=torch.float32)
+    cost = (slope * (hypotheses - true).abs()).view(-1, 1, 1).expand(-1, 2, 3).contiguous()
+    disparity, index = subpixel_winner(cost, hypotheses)  # the default fit
+    assert torch.allclose(disparity, torch.full_like(disparity, true), atol=1e-4)
+    assert int(index[0, 0]) == int((hypotheses - true).abs().argmin())
+
+
+
+def test_parabola_is_biased_on_a_v_shaped_cost():
+    hypotheses = torch.as_tensor(disparity_hypotheses((-3.0, 3.0), 25), dtype=torch.float32)
+    true = float(hypotheses[12]) + 0.25 * float(hypotheses[1] - hypotheses[0])  # a quarter step
+    cost = (hypotheses - true).abs().view(-1, 1, 1).contiguous()
+    equiangular, _ = subpixel_winner(cost, hypotheses)
+    parabola, _ = subpixel_winner(cost, hypotheses, fit="parabola")
+    assert abs(float(equiangular) - true) < 1e-5
+    # x - x / (2 - 2x) steps at x = 1/4: the vertex is pulled towards the hypothesis
+    assert abs(float(parabola) - true) > 0.08 * float(hypotheses[1] - hypotheses[0])
+    with pytest.raises(LfsamError):
+        subpixel_winner(cost, hypotheses, fit="cubic")
 
 
 def test_hypotheses_margin_and_guided_filter():
