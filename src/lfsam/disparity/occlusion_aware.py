@@ -40,8 +40,12 @@ from lfsam.disparity.confidence import (
 from lfsam.disparity.cost_volume import build_cost_volume, view_set
 from lfsam.disparity.estimate import DisparityEstimate
 from lfsam.disparity.filters import guided_filter
+from lfsam.disparity.fusion import fuse_disparities
 from lfsam.disparity.range import estimate_disparity_range
 from lfsam.disparity.refine import refine_disparity
+from lfsam.disparity.structure_tensor import (
+    estimate_disparity as estimate_disparity_structure_tensor,
+)
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 
@@ -156,6 +160,15 @@ def _check_offsets(offsets: np.ndarray) -> list[tuple[int, int]]:
     return chosen
 
 
+def _full_cross(views: LightField | np.ndarray, offsets: np.ndarray) -> bool:
+    """Whether every view of the reference's row and column is present (the structure tensor
+    of a fusion then sees complete EPIs; on a sparse row it is sure and wrong too often)."""
+    s_count, t_count = (views.views if isinstance(views, LightField) else views).shape[:2]
+    in_row = int(np.sum(offsets[:, 0] == 0)) if len(offsets) else 0
+    in_column = int(np.sum(offsets[:, 1] == 0)) if len(offsets) else 0
+    return in_row == t_count - 1 and in_column == s_count - 1
+
+
 def estimate_disparity_occlusion_aware(
     views: LightField | np.ndarray,
     disparity_range: tuple[float, float] | None = None,
@@ -173,6 +186,7 @@ def estimate_disparity_occlusion_aware(
     aggregation_eps: float = 1e-4,
     edge_refinement: bool = False,
     subpixel_fit: str = "equiangular",
+    fusion: bool = True,
 ) -> DisparityEstimate:
     """Estimate a view's disparity from an occlusion-aware cost volume (module docstring).
 
@@ -212,6 +226,12 @@ def estimate_disparity_occlusion_aware(
     subpixel_fit : {"equiangular", "parabola"}
         The sub-pixel fit of :func:`subpixel_winner` (the equiangular one is the more precise
         on every bench scene; docs/performance.md).
+    fusion : bool
+        Fuse with the structure tensor's disparity over the same range
+        (:func:`lfsam.disparity.fusion.fuse_disparities`): its value where this estimate is
+        unsure and the tensor sure (depth edges), the mean where both agree. About 1.6 times the
+        time; the confidence stays this estimator's. Only where the reference's row and column
+        are complete (a sparse partial grid skips it).
 
     Returns
     -------
@@ -253,6 +273,18 @@ def estimate_disparity_occlusion_aware(
             cost, values, disparity, _check_offsets(views_around.offsets), sigma=max(step, 0.1)
         )
         confidence = combine_confidence(margin, agreement)
+        fused = fusion and _full_cross(views, views_around.offsets)
+        if fused:
+            tensor = estimate_disparity_structure_tensor(
+                views, (lo, hi), device=views_around.device, view=reference
+            )
+            disparity = fuse_disparities(
+                disparity,
+                confidence,
+                torch.as_tensor(tensor.disparity, device=disparity.device),
+                torch.as_tensor(tensor.confidence, device=disparity.device),
+                step,
+            )
         if edge_refinement:
             guide = views_around.gray[None]
             disparity = refine_disparity(disparity, confidence, guide)
@@ -273,6 +305,7 @@ def estimate_disparity_occlusion_aware(
         "aggregation_eps": aggregation_eps,
         "edge_refinement": edge_refinement,
         "subpixel_fit": subpixel_fit,
+        "fusion": fused,
         "device": str(views_around.device),
         "seconds": time.perf_counter() - start,
     }
