@@ -1,11 +1,12 @@
 """Fusion of the cost-volume disparity with the structure tensor's (docs/design.md section 3.2).
 
-Step 7 of the default estimator (:mod:`lfsam.disparity.occlusion_aware`). The two estimators fail
-in different places: the cost volume's aggregation windows straddle two surfaces along depth
-edges and take the nearer one for a band of pixels there (low confidence: the left-right check
-fails), while the structure tensor, with its much smaller windows on sheared EPIs, is often right
-at the edge; on its own it fails on dark and weakly textured surfaces, where the cost volume
-holds. And where both agree, their sub-pixel errors are largely independent. Per pixel, with
+The last step of the default estimator (:mod:`lfsam.disparity.occlusion_aware`). The two
+estimators fail in different places: the cost volume's aggregation windows straddle two surfaces
+along depth edges and take the nearer one for a band of pixels there (low confidence: the left-
+right check fails), while the structure tensor, with its much smaller windows on sheared EPIs,
+is often right at the edge; on its own it fails on dark and weakly textured surfaces, where the
+cost volume holds. And where both agree, their sub-pixel errors are largely independent.
+Per pixel, with
 ``d`` and ``c`` the cost volume's disparity and confidence, ``d_s`` and ``c_s`` the structure
 tensor's, and ``step`` the spacing of the hypotheses:
 
