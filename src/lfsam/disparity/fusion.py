@@ -2,13 +2,12 @@
 
 The last step of the default estimator (:mod:`lfsam.disparity.occlusion_aware`). The two
 estimators fail in different places: the cost volume's aggregation windows straddle two surfaces
-along depth edges and take the nearer one for a band of pixels there (low confidence: the left-
-right check fails), while the structure tensor, with its much smaller windows on sheared EPIs,
-is often right at the edge; on its own it fails on dark and weakly textured surfaces, where the
-cost volume holds. And where both agree, their sub-pixel errors are largely independent.
-Per pixel, with
-``d`` and ``c`` the cost volume's disparity and confidence, ``d_s`` and ``c_s`` the structure
-tensor's, and ``step`` the spacing of the hypotheses:
+along depth edges and take the nearer one for a band of pixels there (low confidence: the
+left-right check fails), while the structure tensor, with its much smaller windows on sheared
+EPIs, is often right at the edge; on its own it fails on dark and weakly textured surfaces, where
+the cost volume holds. And where both agree, their sub-pixel errors are largely independent. Per
+pixel, with ``d`` and ``c`` the cost volume's disparity and confidence, ``d_s`` and ``c_s`` the
+structure tensor's, and ``step`` the spacing of the hypotheses:
 
 - ``c < low`` and ``c_s > high``: ``d_s`` (the cost volume is unsure, the tensor is sure);
 - otherwise ``|d - d_s| < agree step``: their mean;
