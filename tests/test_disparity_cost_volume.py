@@ -15,6 +15,7 @@ from scipy import ndimage
 from lfsam.disparity import METHODS, estimate_disparity
 from lfsam.disparity.confidence import margin_confidence
 from lfsam.disparity.filters import guided_filter
+from lfsam.disparity.fusion import fuse_disparities
 from lfsam.disparity.occlusion_aware import disparity_hypotheses, subpixel_winner
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
@@ -114,7 +115,9 @@ def test_occlusion_aware_halves_beat_all_views_at_occlusion_edges():
     edges = (ndimage.maximum_filter(truth, 5) - ndimage.minimum_filter(truth, 5)) > 0.5
     bad, mse = {}, {}
     for aware in (True, False):
-        estimate = estimate_disparity(lf, (-3, 3), device="cpu", occlusion_aware=aware)
+        estimate = estimate_disparity(
+            lf, (-3, 3), device="cpu", occlusion_aware=aware, fusion=False
+        )  # the cost volume's own estimate, without the structure tensor (fusion)
         error = np.abs(estimate.disparity - truth)
         bad[aware] = float(np.mean(error[edges] > 0.07))
         mse[aware] = float(np.mean(error[8:-8, 8:-8] ** 2))
@@ -141,9 +144,42 @@ def test_confidence_is_low_at_occlusion_edges_and_without_texture():
 def test_parabola_refinement_recovers_a_quadratic_minimum(true, curvature):
     hypotheses = torch.as_tensor(disparity_hypotheses((-3.0, 3.0), 25), dtype=torch.float32)
     cost = (curvature * (hypotheses - true) ** 2).view(-1, 1, 1).expand(-1, 2, 3).contiguous()
-    disparity, index = subpixel_winner(cost, hypotheses)
+    disparity, index = subpixel_winner(cost, hypotheses, fit="parabola")
     assert torch.allclose(disparity, torch.full_like(disparity, true), atol=1e-4)
     assert int(index[0, 0]) == int((hypotheses - true).abs().argmin())
+
+
+@settings(max_examples=40, deadline=None)
+@given(true=st.floats(-2.8, 2.8, allow_nan=False), slope=st.floats(0.1, 10.0))
+def test_equiangular_refinement_recovers_a_v_shaped_minimum(true, slope):
+    hypotheses = torch.as_tensor(disparity_hypotheses((-3.0, 3.0), 25), dtype=torch.float32)
+    cost = (slope * (hypotheses - true).abs()).view(-1, 1, 1).expand(-1, 2, 3).contiguous()
+    disparity, index = subpixel_winner(cost, hypotheses)  # the default fit
+    assert torch.allclose(disparity, torch.full_like(disparity, true), atol=1e-4)
+    assert int(index[0, 0]) == int((hypotheses - true).abs().argmin())
+
+
+
+def test_fusion_takes_the_sure_tensor_where_the_volume_is_unsure_and_averages_agreement():
+    disparity = torch.tensor([[1.0, 1.0, 1.0, 1.0]])
+    confidence = torch.tensor([[0.01, 0.01, 0.9, 0.9]])
+    other = torch.tensor([[2.0, 2.0, 1.02, 2.0]])
+    other_confidence = torch.tensor([[0.9, 0.5, 0.9, 0.9]])
+    fused = fuse_disparities(disparity, confidence, other, other_confidence, step=0.2)
+    assert torch.allclose(fused, torch.tensor([[2.0, 1.0, 1.01, 1.0]]))
+
+
+def test_parabola_is_biased_on_a_v_shaped_cost():
+    hypotheses = torch.as_tensor(disparity_hypotheses((-3.0, 3.0), 25), dtype=torch.float32)
+    true = float(hypotheses[12]) + 0.25 * float(hypotheses[1] - hypotheses[0])  # a quarter step
+    cost = (hypotheses - true).abs().view(-1, 1, 1).contiguous()
+    equiangular, _ = subpixel_winner(cost, hypotheses)
+    parabola, _ = subpixel_winner(cost, hypotheses, fit="parabola")
+    assert abs(float(equiangular) - true) < 1e-5
+    # x - x / (2 - 2x) steps at x = 1/4: the vertex is pulled towards the hypothesis
+    assert abs(float(parabola) - true) > 0.08 * float(hypotheses[1] - hypotheses[0])
+    with pytest.raises(LfsamError):
+        subpixel_winner(cost, hypotheses, fit="cubic")
 
 
 def test_hypotheses_margin_and_guided_filter():

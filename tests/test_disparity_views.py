@@ -178,8 +178,13 @@ def test_star_subset_gives_finite_disparity_close_to_the_full_grid():
     rows = epi_stacks(star, device="cpu", view=(0, 0))
     assert [s.present.tolist() for s in rows] == [[True, False, False, False] * 2 + [True]] * 2
     for view in [(0, 0)]:
-        grid_estimate = estimate_disparity(full, device="cpu", view=view).disparity
-        star_estimate = estimate_disparity(star, device="cpu", view=view).disparity
+        # the cost volume alone on both (the star's row of view (0, 0) is sparse, so it is
+        # never fused with the structure tensor; cost volume alone, measured: full grid
+        # 11.0 % / 0.536, star 12.2 % / 0.606)
+        grid_estimate = estimate_disparity(full, device="cpu", view=view, fusion=False).disparity
+        star_result = estimate_disparity(star, device="cpu", view=view)
+        assert star_result.meta["fusion"] is False
+        star_estimate = star_result.disparity
         assert np.isfinite(star_estimate).all()
         grid_bad, grid_mse = _errors(grid_estimate, full.disparity[view])
         star_bad, star_mse = _errors(star_estimate, full.disparity[view])
