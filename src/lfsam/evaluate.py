@@ -12,6 +12,12 @@ and 2).
 
 Files in ``out_dir``: ``<scene>.npz`` (the result), ``<scene>.metrics.json`` (its scores, or its
 error), ``metrics.csv`` and ``table.md``, each written atomically.
+
+A data set may hold light-field videos too (docs/design.md section 10): given ``videos`` (a
+:class:`VideoScenes`, e.g. :class:`lfsam.video.evaluate.VideoTracking`), every scene it
+recognises is tracked into the result folder ``<scene>/`` and scored frame by frame; its row
+holds the means over the frames, the number of frames and the identity switches
+(:data:`lfsam.metrics.VIDEO_METRICS`).
 """
 
 from __future__ import annotations
@@ -27,7 +33,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from tqdm import tqdm
 
@@ -38,6 +44,8 @@ from lfsam.lightfield import LightField
 from lfsam.metrics import (
     OBJECT_METRICS,
     REPORT_METRICS,
+    VIDEO_METRICS,
+    Metric,
     check_ground_truth,
     evaluate_result,
 )
@@ -50,7 +58,9 @@ __all__ = [
     "SceneJob",
     "SceneOutcome",
     "SceneRow",
+    "VideoScenes",
     "compare_runs",
+    "describe_failure",
     "discover_scenes",
     "evaluate_dataset",
     "read_metrics_csv",
@@ -59,7 +69,8 @@ __all__ = [
 SegmentFn = Callable[[LightField], SegmentationResult]
 Reader = Callable[[Path], LightField]
 
-METRIC_KEYS = tuple(m.key for m in REPORT_METRICS)
+METRIC_KEYS = tuple(m.key for m in REPORT_METRICS + VIDEO_METRICS)
+VIDEO_KEYS = tuple(m.key for m in VIDEO_METRICS)
 #: Columns of ``metrics.csv``.
 CSV_COLUMNS = ("scene", "method", *METRIC_KEYS, "num_masks", "seconds", "error")
 MEAN_ROW = "mean"
@@ -130,7 +141,8 @@ class EvaluationTable:
     rows : list of SceneRow
         One per scene, in name order.
     mean : dict
-        Mean of each metric over the scenes that succeeded (NaN-free means; None if none).
+        Mean of each metric over the scenes that succeeded (NaN-free means; None if none);
+        for :data:`lfsam.metrics.VIDEO_METRICS`, the total over the videos.
     skipped : list of (name, reason)
         Entries of the data-set folder that are not light fields.
     ran, resumed : list of str
@@ -152,10 +164,18 @@ class EvaluationTable:
         """Rows of scenes that failed."""
         return [row for row in self.rows if row.error is not None]
 
+    @property
+    def columns(self) -> tuple[Metric, ...]:
+        """The tables' columns: paper Table 1's and :data:`OBJECT_METRICS`, then
+        :data:`VIDEO_METRICS` when a scored scene is a video."""
+        videos = any(row.metrics.get("frames") is not None for row in self.rows
+                     if row.error is None)
+        return REPORT_METRICS + VIDEO_METRICS if videos else REPORT_METRICS
+
     def summary_markdown(self) -> str:
         """One-row table of the mean, in the layout of paper Table 1."""
         return format_metrics_table(
-            [(self.method, self.mean)], mark_best=False, metrics=REPORT_METRICS
+            [(self.method, self.mean)], mark_best=False, metrics=self.columns
         )
 
     def to_markdown(self, title: str | None = None) -> str:
@@ -172,7 +192,7 @@ class EvaluationTable:
         if scored:
             parts.append(
                 format_metrics_table(
-                    scored, first_column="Scene", mark_best=False, metrics=REPORT_METRICS
+                    scored, first_column="Scene", mark_best=False, metrics=self.columns
                 )
             )
         else:
@@ -262,6 +282,7 @@ def evaluate_dataset(
     detect: Callable[[Path], object] | None = None,
     device: str | None = None,
     map_scenes: SceneMapper | None = None,
+    videos: VideoScenes | None = None,
 ) -> EvaluationTable:
     """Segment and score every scene of a data set; write ``metrics.csv`` and ``table.md``.
 
@@ -293,6 +314,11 @@ def evaluate_dataset(
         Runs the job on the scenes still to do and yields their outcomes as they finish, in any
         order; default: one after the other in this process. :func:`lfsam.distributed.ray_mapper`
         spreads them over a Ray cluster; the files written are the same either way.
+    videos : VideoScenes, optional
+        Runs the entries that are light-field videos (:class:`VideoScenes`; e.g.
+        :class:`lfsam.video.evaluate.VideoTracking`): each is tracked into the result folder
+        ``<scene>/`` instead of ``<scene>.npz``. Without it a video is skipped as not a light
+        field.
 
     Returns
     -------
@@ -332,7 +358,7 @@ def evaluate_dataset(
             bar.update(1)
         else:
             pending.append((name, path))
-    job = SceneJob(segment_fn, method_label, out, device, reader, detect)
+    job = SceneJob(segment_fn, method_label, out, device, reader, detect, videos)
     for outcome in (map_scenes or _map_in_order)(job, pending):
         _record_outcome(outcome, out, table)
         bar.set_postfix_str(outcome.name)
@@ -344,6 +370,9 @@ def evaluate_dataset(
 
     ok = [row for row in rows if row.error is None]
     table.mean = {key: _mean([row.metrics.get(key) for row in ok]) for key in METRIC_KEYS}
+    for key in VIDEO_KEYS:  # totals, not means: frames scored and identity switches in all
+        values = [row.metrics.get(key) for row in ok if row.metrics.get(key) is not None]
+        table.mean[key] = sum(values) if values else None
     _write_text(out / "metrics.csv", table.to_csv())
     _write_text(out / "table.md", table.to_markdown(f"{method_label} on {Path(dataset_dir).name}"))
     return table
@@ -371,8 +400,8 @@ def read_metrics_csv(path: str | os.PathLike) -> list[dict[str, Any]]:
         )
     with open(path, newline="", encoding="utf-8") as handle:
         reader = csv.DictReader(handle)
-        # Files written before the object metrics existed lack their columns: read as None.
-        optional = {m.key for m in OBJECT_METRICS}
+        # Files written before the object or video metrics existed lack their columns: None.
+        optional = {m.key for m in OBJECT_METRICS + VIDEO_METRICS}
         missing = set(CSV_COLUMNS) - optional - set(reader.fieldnames or ())
         if missing:
             raise LfsamError(
@@ -464,10 +493,18 @@ class SceneJob:
     device: str | None
     reader: Reader
     detect: Callable[[Path], object]
+    videos: VideoScenes | None = None
 
     def __call__(self, name: str, path: Path, in_memory: bool = False) -> SceneOutcome:
         """Run the scene; with ``in_memory`` the result file comes back as bytes instead of
         being written to the output folder (for a machine that may not see it)."""
+        if self.videos is not None and self.videos.is_video(path):
+            if in_memory:  # a video's result is a folder, written where it runs
+                row = SceneRow(scene=name, method=self.method_label,
+                               error="light-field videos are evaluated without --ray")
+            else:
+                row = self.videos.run(name, path, self.out / name)
+            return SceneOutcome(name=name, row=row, entry=path.name)
         try:
             self.detect(path)
         except LfsamError as exc:
@@ -475,7 +512,7 @@ class SceneJob:
         try:
             lightfield = self.reader(path)
         except Exception as exc:  # an unreadable scene is a failed scene, not the end of the run
-            row = SceneRow(scene=name, method=self.method_label, error=_describe(exc))
+            row = SceneRow(scene=name, method=self.method_label, error=describe_failure(exc))
             return SceneOutcome(name=name, row=row, entry=path.name)
         if not in_memory:
             row = _run_scene(
@@ -492,6 +529,18 @@ class SceneJob:
 
 
 SceneMapper = Callable[[SceneJob, Sequence[tuple[str, Path]]], Iterable[SceneOutcome]]
+
+
+class VideoScenes(Protocol):
+    """How :func:`evaluate_dataset` runs the light-field videos of a data set (docs/design.md
+    section 10); :class:`lfsam.video.evaluate.VideoTracking` is the implementation."""
+
+    def is_video(self, path: Path) -> bool:
+        """Whether the data-set entry ``path`` is a light-field video."""
+
+    def run(self, name: str, path: Path, result_folder: Path) -> SceneRow:
+        """Track, write the result folder ``result_folder`` and score one video; any failure
+        is the row's error."""
 
 
 def _map_in_order(job: SceneJob, scenes: Sequence[tuple[str, Path]]) -> Iterator[SceneOutcome]:
@@ -542,7 +591,7 @@ def _run_scene(
         save_result(result, out / f"{name}.npz")
     except Exception as exc:  # one broken scene must not stop the data set
         row.metrics = {}
-        row.error = _describe(exc)
+        row.error = describe_failure(exc)
     return row
 
 
@@ -551,7 +600,8 @@ def _finished_records(out: Path, names: Sequence[str]) -> dict[str, SceneRow]:
     done = {}
     for name in names:
         record_path = out / f"{name}{_RECORD_SUFFIX}"
-        if not (record_path.is_file() and (out / f"{name}.npz").is_file()):
+        result = out / f"{name}.npz"
+        if not (record_path.is_file() and (result.is_file() or (out / name).is_dir())):
             continue
         try:
             row = SceneRow.from_record(json.loads(record_path.read_text(encoding="utf-8")))
@@ -562,7 +612,7 @@ def _finished_records(out: Path, names: Sequence[str]) -> dict[str, SceneRow]:
     return done
 
 
-def _describe(exc: BaseException) -> str:
+def describe_failure(exc: BaseException) -> str:
     """One line naming an exception: the message of an LfsamError, else type and message."""
     text = str(exc) if isinstance(exc, LfsamError) else f"{type(exc).__name__}: {exc}"
     return " ".join(text.split())

@@ -14,9 +14,11 @@ import math
 from lfsam.devices import DEVICE_HELP
 
 __all__ = [
+    "TRACKING_MODES",
     "HelpFormatter",
     "add_device_argument",
     "add_refine_views_argument",
+    "add_tracking_argument",
     "add_value_range",
     "bounded_int",
     "parse_floats",
@@ -163,4 +165,19 @@ def add_refine_views_argument(parser: argparse.ArgumentParser | argparse._Argume
         help="views encoded and refined with SAM 2: all (the paper), sparse (about one in six: "
         "13 of 9x9, 9 of 5x5, spread over the grid; about 5x faster) or N views; the other "
         "views take the masks of the refined views nearest to them, moved by disparity",
+    )
+
+
+#: ``--tracking`` values and the ``memory`` argument of :func:`lfsam.video.track.track_video`.
+TRACKING_MODES = {"auto": None, "memory": True, "prompts": False}
+
+
+def add_tracking_argument(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """``--tracking auto|memory|prompts`` for light-field videos (docs/design.md section 10)."""
+    parser.add_argument(
+        "--tracking", choices=list(TRACKING_MODES), default="auto",
+        help="light-field videos: how each object's reference mask moves to the next frame: "
+        "memory (SAM 2's video memory over the center views), prompts (constrained prompts "
+        "carried from the previous frame; any model) or auto (memory for SAM 2, prompts for "
+        "the others)",
     )

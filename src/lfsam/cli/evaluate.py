@@ -5,11 +5,26 @@ from __future__ import annotations
 import argparse
 import functools
 import sys
+from typing import TYPE_CHECKING
 
-from lfsam.cli.common import HelpFormatter, add_disparity_argument, add_refine_views_argument
+from lfsam.cli.common import (
+    TRACKING_MODES,
+    HelpFormatter,
+    add_disparity_argument,
+    add_refine_views_argument,
+    add_tracking_argument,
+)
 from lfsam.cli.models import add_model_arguments, model_options_from_args
 from lfsam.cli.text import add_text_arguments, check_text_weights
 from lfsam.errors import LfsamError
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
+    from lfsam.api import SegmentOptions
+    from lfsam.video.evaluate import VideoTracking
+    from lfsam.video.result import VideoResult
+    from lfsam.video.source import LightFieldVideo
 
 DESCRIPTION = """\
 Segment every scene of a data set, score each with the paper's metrics, and tabulate them.
@@ -23,6 +38,13 @@ then object recall and SIoU over center-present masks; see `lfsam metrics --help
 definitions). --references corners|ring|all also generates masks in those views (`lfsam segment
 --help`), to find objects the center view cannot see. --text PHRASE segments, in every scene,
 the instances of each phrase instead of every object (the automatic mode).
+
+Light-field videos (`lfsam synth clip --frames F`, any video `lfsam info` reads) may be scenes
+too, with ground truth in every frame: each is tracked with --method lfsam from the objects the
+automatic mode finds in frame 0 (--tracking as in `lfsam segment`) into the result folder
+OUT/<scene>/, and scored frame by frame as `lfsam metrics` scores it. Its row holds the means
+over the frames (vIoU: over frames and views; vIoU(min): the worst view of any frame), the frames
+(F) and the identity switches (IDsw: a ground-truth object whose best-matching id changes).
 
 Runs resume: scenes whose result and metrics are in OUT are not run again (use --force). A scene
 that fails gets a row with its error; the others still run.
@@ -49,6 +71,8 @@ examples:
   lfsam evaluate UrbanLF_Syn/val --out runs/ours --ray                    # local Ray cluster
   lfsam evaluate UrbanLF_Syn/val --out runs/ours --ray auto --gpus-per-task 0.5
   lfsam evaluate scenes --model oracle --disparity gt --text disc --out runs/discs
+  lfsam evaluate clips --model oracle --disparity gt --out runs/clips     # light-field videos
+  lfsam evaluate clips --tracking prompts --out runs/clips_prompts        # SAM 2 without memory
 """
 
 
@@ -75,6 +99,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="row of paper Table 2: no refinement or occluding, refinement only, or both",
     )
     add_refine_views_argument(parser)
+    add_tracking_argument(parser)
     parser.add_argument(
         "--references",
         default="center",
@@ -145,6 +170,9 @@ def run(args: argparse.Namespace) -> int:
     if args.text and args.method != "lfsam":
         raise LfsamError("text prompts need --method lfsam (the video baseline takes clicks)")
     check_text_weights(args)
+    if args.tracking == "memory" and args.model == "oracle":
+        raise LfsamError("--tracking memory needs a SAM 2 --model (the oracle has no video "
+                         "memory); use --tracking prompts or auto")
     try:
         from lfsam.api import RunOptions, SegmentOptions, segment
         from lfsam.pipeline import PipelineConfig
@@ -173,10 +201,12 @@ def run(args: argparse.Namespace) -> int:
             None if args.ray == "local" else args.ray, device=args.device,
             num_gpus=args.gpus_per_task, num_cpus=args.cpus_per_task,
         )
+    label = method_label(args)
     table = evaluate_dataset(
-        args.dataset, args.out, segment_fn, method_label=method_label(args), force=args.force,
+        args.dataset, args.out, segment_fn, method_label=label, force=args.force,
         device=args.device,
         map_scenes=mapper,
+        videos=_video_tracking(args, options, label),
     )
     print(table.summary_markdown(), end="")
     ok = len(table.rows) - len(table.failed)
@@ -187,3 +217,23 @@ def run(args: argparse.Namespace) -> int:
         file=sys.stderr,
     )
     return 1 if table.failed else 0
+
+
+def _video_tracking(args: argparse.Namespace, options: SegmentOptions,
+                    label: str) -> VideoTracking | None:
+    """How the data set's light-field videos are tracked (docs/design.md section 10): from the
+    automatic mode's objects of frame 0, with the run's options; None for the video baseline
+    (single light fields only: videos are then skipped)."""
+    if args.method != "lfsam":
+        return None
+    from lfsam.video.evaluate import VideoTracking
+    from lfsam.video.track import track_video
+
+    def track(video: LightFieldVideo, folder: Path) -> VideoResult:
+        if args.text:
+            raise LfsamError("text prompts are not tracked through light-field videos; "
+                             "evaluate videos without --text")
+        return track_video(video, None, folder, disparity=args.disparity, options=options,
+                           memory=TRACKING_MODES[args.tracking])
+
+    return VideoTracking(track, label, device=args.device)

@@ -10,6 +10,7 @@ from lfsam.cli.common import (
     HelpFormatter,
     add_disparity_argument,
     add_refine_views_argument,
+    add_tracking_argument,
     add_value_range,
     bounded_int,
     unit_interval,
@@ -87,6 +88,7 @@ examples:
   lfsam segment scene --text "red cup" --text plate@0,0 --point 60,40 --out mixed.npz
   lfsam segment scene --text cup --text-checkpoint ~/models/sam3 --out cups.npz
   lfsam segment clip --point 30,20 --point 50,40#3 --model oracle --disparity gt --out tracked
+  lfsam segment clip --point 30,20 --tracking prompts --out tracked   # SAM 2 without its memory
 """
 
 
@@ -135,6 +137,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--no-refine", action="store_true", help="skip refinement (keep the propagated masks)"
     )
     add_refine_views_argument(method)
+    add_tracking_argument(method)
     method.add_argument(
         "--occlusion", choices=["semantic", "geometric", "both", "none"], default="semantic",
         help="occluding: SAM 2 feature similarity (paper), z-buffer of the center disparity, "
@@ -196,6 +199,9 @@ def run(args: argparse.Namespace) -> int:
     )
     if args.input_format is None and is_video(args.path):  # issue 25: track through frames
         return run_video(args, config, has_prompts)
+    if args.tracking != "auto":
+        raise LfsamError(f"--tracking {args.tracking} applies to light-field videos; "
+                         f"{args.path} is a single light field")
     check_output_path(args.out)
     if args.cache is not None:
         check_cache_dir(args.cache)

@@ -8,6 +8,7 @@ import json
 import sys
 from typing import Any
 
+from lfsam.cli.common import TRACKING_MODES
 from lfsam.cli.models import model_options_from_args
 from lfsam.cli.prompts import objects_from_items
 from lfsam.fileutil import check_cache_dir
@@ -43,7 +44,7 @@ def run_video(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
             first = max((o.obj_id for o in objects), default=0) + 1
             objects += objects_from_items(args.prompt_items, first_id=first)
         result = track_video(video, objects, args.out, disparity=args.disparity,
-                             options=options)
+                             options=options, memory=TRACKING_MODES[args.tracking])
     if not args.quiet:
         summary = {
             "out": args.out,

@@ -38,6 +38,7 @@ __all__ = [
     "METRICS",
     "OBJECT_METRICS",
     "REPORT_METRICS",
+    "VIDEO_METRICS",
     "ConsistencyScores",
     "Metric",
     "achievable_accuracy",
@@ -96,6 +97,14 @@ OBJECT_METRICS: tuple[Metric, ...] = (
 
 #: Every reported column: paper Table 1's, then :data:`OBJECT_METRICS`.
 REPORT_METRICS: tuple[Metric, ...] = METRICS + OBJECT_METRICS
+
+#: Columns of a light-field video's row in ``lfsam evaluate`` (docs/design.md section 10): its
+#: frames and its identity switches (:mod:`lfsam.metrics.temporal`); the other columns are then
+#: means over the frames.
+VIDEO_METRICS: tuple[Metric, ...] = (
+    Metric("frames", "F", True, digits=0),
+    Metric("identity_switches", "IDsw↓", False, digits=0),
+)
 
 
 def check_ground_truth(shape: tuple[int, ...], gt: LightField) -> None:
