@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
@@ -22,39 +21,14 @@ from lfsam.errors import LfsamError
 from lfsam.synth import generate_scene
 from lfsam.viewer import layers as L
 from lfsam.viewer.widget import LightFieldWidget
+from napari_events import MouseEvent, register_plugin
 
 VIEW = (0, 2)  # a corner view: prompts work in any view, not just the center
 OBJ, NEIGHBOUR = 3, 2  # in VIEW of the scene below, object 3 touches only object 2
 TIMEOUT = 60_000
 
 
-def _register_plugin() -> None:
-    """Our npe2 manifest, as its entry point registers it in an installed package."""
-    import npe2
-
-    manager = npe2.PluginManager.instance()
-    manager.discover()
-    if "lfsam" not in manager._manifests:
-        from importlib.resources import files
-
-        manager.register(npe2.PluginManifest.from_file(files("lfsam.viewer") / "napari.yaml"))
-
-
-_register_plugin()
-
-
-@dataclass
-class _MouseEvent:
-    """The fields napari's mouse callbacks read from a vispy mouse event."""
-
-    type: str
-    position: tuple
-    modifiers: list = field(default_factory=list)
-    is_dragging: bool = False
-    pos: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    view_direction: list | None = None
-    up_direction: list | None = None
-    dims_displayed: list = field(default_factory=lambda: [2, 3])
+register_plugin()
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +49,7 @@ def _click(viewer, layer, view, pixel, modifiers=()):
     position = (*view, *pixel)
     for kind, dispatch in (("mouse_press", mouse_press_callbacks),
                            ("mouse_release", mouse_release_callbacks)):
-        event = _MouseEvent(kind, position, list(modifiers))
+        event = MouseEvent(kind, position, list(modifiers))
         dispatch(layer, ReadOnlyWrapper(event, exceptions=("handled",)))
 
 

@@ -24,21 +24,12 @@ import pytest
 
 from lfsam.io import write_lightfield
 from lfsam.synth import generate_scene
+from napari_events import WAIT_PRELUDE
 
 TIMEOUT_S = 240
 
 #: What every child runs first: wait for a condition while Qt processes events (draws included).
-PRELUDE = """
-import json, sys, time
-from qtpy.QtWidgets import QApplication
-
-def wait(condition, what, timeout=200):
-    end = time.monotonic() + timeout
-    while not condition():
-        QApplication.processEvents()
-        time.sleep(0.01)
-        if time.monotonic() > end:
-            sys.exit(f"timed out waiting for {what}")
+PRELUDE = WAIT_PRELUDE + """
 
 def click_and_wait(widget, view):
     from lfsam.viewer import layers as L

@@ -9,8 +9,6 @@ with the oracle and ground-truth disparity, whose answers are exact. Needs a dis
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 import pytest
 from napari.utils._proxies import ReadOnlyWrapper
@@ -25,39 +23,14 @@ from lfsam.viewer import layers as L
 from lfsam.viewer.plugin_io import get_reader, read_path
 from lfsam.viewer.video import FrameStore, VideoFrames
 from lfsam.viewer.widget import LightFieldWidget
+from napari_events import WAIT_PRELUDE, MouseEvent, register_plugin
 
 TIMEOUT = 60_000
 CENTER = (1, 1)
 FIRST, LATER = 2, 3  # ground-truth labels: clicked at frame 0, and only at frame 1
 
 
-def _register_plugin() -> None:
-    """Our npe2 manifest, as its entry point registers it in an installed package."""
-    import npe2
-
-    manager = npe2.PluginManager.instance()
-    manager.discover()
-    if "lfsam" not in manager._manifests:
-        from importlib.resources import files
-
-        manager.register(npe2.PluginManifest.from_file(files("lfsam.viewer") / "napari.yaml"))
-
-
-_register_plugin()
-
-
-@dataclass
-class _MouseEvent:
-    """The fields napari's mouse callbacks read from a vispy mouse event."""
-
-    type: str
-    position: tuple
-    modifiers: list = field(default_factory=list)
-    is_dragging: bool = False
-    pos: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    view_direction: list | None = None
-    up_direction: list | None = None
-    dims_displayed: list = field(default_factory=lambda: [3, 4])
+register_plugin()
 
 
 @pytest.fixture(scope="module")
@@ -80,7 +53,8 @@ def _click(viewer, layer, frame, view, pixel):
     position = (frame, *view, *pixel)
     for kind, dispatch in (("mouse_press", mouse_press_callbacks),
                            ("mouse_release", mouse_release_callbacks)):
-        dispatch(layer, ReadOnlyWrapper(_MouseEvent(kind, position), exceptions=("handled",)))
+        event = MouseEvent(kind, position, dims_displayed=[3, 4])
+        dispatch(layer, ReadOnlyWrapper(event, exceptions=("handled",)))
 
 
 def _idle(qtbot, widget):
@@ -225,20 +199,10 @@ def test_lfsam_view_video_tracks_with_sam2_in_a_fresh_process(clip, tmp_path):
     import textwrap
 
     out = tmp_path / "saved"
-    script = textwrap.dedent(f"""
-        import json, sys, time
-        from qtpy.QtWidgets import QApplication
+    script = WAIT_PRELUDE + textwrap.dedent(f"""
         from lfsam.cli.main import build_parser
         from lfsam.cli.view import open_viewer
         from lfsam.viewer import layers as L
-
-        def wait(condition, what, timeout=200):
-            end = time.monotonic() + timeout
-            while not condition():
-                QApplication.processEvents()
-                time.sleep(0.01)
-                if time.monotonic() > end:
-                    sys.exit(f"timed out waiting for {{what}}")
 
         args = build_parser().parse_args(
             ["view", {str(clip)!r}, "--model", "sam2-tiny-test", "--random-weights",
