@@ -6,7 +6,8 @@ the interactive predictor through :class:`~lfsam.disparity.views.ViewDisparities
 source the same way and asks for the view it needs:
 
 - ``"estimate"``: the default estimator (:data:`lfsam.disparity.methods.DEFAULT_METHOD`, the
-  occlusion-aware cost volume) run for that view;
+  occlusion-aware cost volume, without its fusion with the structure tensor:
+  :data:`CARRYING_OPTIONS`) run for that view;
 - ``"gt"``: the light field's ground truth of that view; with a center-only ground truth, the
   center map forward-warped into the view
   (:func:`~lfsam.disparity.center_warp.warp_center_disparity`);
@@ -28,6 +29,15 @@ from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 
 __all__ = ["load_disparity_spec", "resolve_disparity", "resolve_view_disparity"]
+
+#: Options of the default estimator when its map carries masks (``--disparity estimate`` of the
+#: segmentation commands): the occlusion-aware cost volume without its fusion with the structure
+#: tensor. The fusion lowers the depth errors of ``lfsam disparity`` (docs/performance.md,
+#: "Disparity estimation") but the masks carried with it are worse: on 9x9 synthetic scenes
+#: (oracle, estimated disparity) 13% more wrong pixels in the views filled by
+#: ``--refine-views sparse`` and a lower SIoU with every view refined (docs/design.md
+#: section 3.2).
+CARRYING_OPTIONS: dict[str, bool] = {"fusion": False}
 
 DisparitySpec = str | os.PathLike | np.ndarray
 
@@ -136,7 +146,8 @@ def resolve_view_disparity(
     if isinstance(spec, np.ndarray):
         return _from_map(spec, lightfield, view, name or "array", device)
     if spec == "estimate":
-        estimate = estimate_disparity(lightfield, device=device, view=view)
+        estimate = estimate_disparity(lightfield, device=device, view=view,
+                                      **CARRYING_OPTIONS)
         low, high = estimate.disparity_range
         where = "" if view == lightfield.center else f" view ({view[0]}, {view[1]})"
         return (
