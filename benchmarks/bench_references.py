@@ -29,7 +29,7 @@ Two parts, each printing its table:
 Usage::
 
     python benchmarks/bench_references.py [--parts speed,quality] [--answers random,oracle]
-        [--grid 5x5] [--size 240x320]
+        [--grid 5x5] [--size 240x320] [--points-per-side N]
 """
 
 from __future__ import annotations
@@ -105,8 +105,9 @@ def _count_generator_points(segmenter) -> list[int | None]:
 def speed(args: argparse.Namespace, answers: str) -> None:
     lf = generate_scene(grid=args.grid, size=args.size, seed=args.seed, num_objects=args.objects)
     # batch runs: no decoder state kept with the embeddings (each view is decoded once)
+    amg = {"points_per_side": args.points_per_side} if args.points_per_side else None
     segmenter = load_segmenter(args.model, random_weights=True, device=args.device,
-                               keep_decoder_state=False)
+                               keep_decoder_state=False, amg_options=amg)
     if answers == "oracle":
         sam2 = segmenter
         segmenter = Sam2CostOracleAnswers(sam2.model, amg_options=sam2.amg_options,
@@ -213,6 +214,8 @@ def main() -> None:
     parser.add_argument("--grid", type=_pair, default=(5, 5), help="speed part")
     parser.add_argument("--size", type=_pair, default=(240, 320), help="speed part")
     parser.add_argument("--objects", type=int, default=6, help="speed part")
+    parser.add_argument("--points-per-side", type=int, default=None,
+                        help="speed part: the generator's grid (default: the model's own)")
     parser.add_argument("--model", default="sam2.1-hiera-small")
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--seed", type=int, default=0)

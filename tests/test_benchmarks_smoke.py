@@ -60,8 +60,9 @@ CASES = {
         "peak RSS growth",
     ),
     "bench_references.py": (
-        ["--model", "sam2-tiny-test", "--grid", "3x3", "--size", "48x64", "--modes", "corners",
-         "--rounds", "1", "--quality-size", "64x96", "--quality-seeds", "0", "--hidden", "1"],
+        ["--model", "sam2-tiny-test", "--answers", "oracle", "--points-per-side", "16",
+         "--grid", "3x3", "--size", "48x64", "--modes", "corners", "--rounds", "1",
+         "--quality-size", "64x96", "--quality-seeds", "0", "--hidden", "1"],
         "| corners |",
     ),
 }
