@@ -282,3 +282,45 @@ def test_lfsam_view_video_with_its_result_folder(qtbot, clip, tmp_path):
     bad = argparse.Namespace(**{**vars(args), "result": str(tmp_path / "x.npz")})
     with pytest.raises(LfsamError, match="result folder"):
         open_viewer(bad, show=False)
+
+
+def test_stop_tracking_after_the_frame_being_tracked_keeps_nothing(
+        make_napari_viewer, qtbot, clip, tmp_path):
+    viewer, widget = _open(make_napari_viewer, qtbot, clip)
+    video = read_video(clip)
+    _click(viewer, widget.layers[L.POINTS], 0, CENTER,
+           _interior(video.frame(0).labels[CENTER], FIRST))
+    _idle(qtbot, widget)  # the model is loaded: Track starts at once
+    stop = widget.controls.stop_track_button
+    assert stop.isVisibleTo(widget)  # shown for videos
+    assert not stop.isEnabled()
+    statuses = []
+    widget.status_changed.connect(statuses.append)
+    shown = []
+    original = widget.masks.show_frame
+    widget.masks.show_frame = lambda i, labels: (shown.append(i), original(i, labels))
+    widget.track(tmp_path / "stopped")
+    assert stop.isEnabled()
+    stop.click()  # before the first frame finishes: the track ends after it
+    _idle(qtbot, widget)
+    assert shown == [0]
+    assert "tracking stopped after frame 1 of 3" in " ".join(statuses)
+    assert not (tmp_path / "stopped").exists()  # nothing of the stopped track is left
+    assert widget.session.tracked is None and not stop.isEnabled()
+    with pytest.raises(LfsamError, match="nothing to save"):
+        widget.save(tmp_path / "saved")
+    # a full track afterwards; then a stopped one shows it again and Save still writes it
+    widget.track(tmp_path / "full")
+    _idle(qtbot, widget)
+    full = widget.session.tracked
+    assert full is not None and len(full) == 3
+    widget.track(tmp_path / "again")
+    widget.stop_tracking()
+    _idle(qtbot, widget)
+    assert widget.session.tracked is full and not (tmp_path / "again").exists()
+    assert "previous track is shown again" in statuses[-1]
+    layer = widget.layers[L.COMMITTED].data
+    for f in range(3):
+        np.testing.assert_array_equal(layer[f], full.labels[f])
+    saved = lfsam.load_result(widget.save(tmp_path / "saved"))
+    np.testing.assert_array_equal(saved.labels[2], full.labels[2])

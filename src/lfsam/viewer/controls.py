@@ -153,6 +153,13 @@ class DockControls:
             "frame's labels show as it finishes"
         )
         self.track_button.setVisible(False)
+        self.stop_track_button = QPushButton("Stop tracking")
+        self.stop_track_button.setToolTip(
+            "Stop the track after the frame being tracked; nothing of the stopped track is "
+            "saved (the previous track, if any, is shown again)"
+        )
+        self.stop_track_button.setVisible(False)
+        self.stop_track_button.setEnabled(False)
         self.save_button = QPushButton("Save result…")
         self.export_button = QPushButton("Export…")
         self.progress = QProgressBar()
@@ -192,7 +199,7 @@ class DockControls:
         layout.addLayout(_row([self.edit_button, self.remove_button]))
         layout.addWidget(self.open_labels_button)
         layout.addLayout(_row(self.view_buttons.values()))
-        layout.addWidget(self.track_button)
+        layout.addLayout(_row([self.track_button, self.stop_track_button]))
         layout.addLayout(_row([self.save_button, self.export_button]))
         layout.addWidget(self.progress)
         layout.addWidget(self.status)

@@ -26,6 +26,7 @@ runs :func:`lfsam.video.track.track_video` in the worker and shows each frame as
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Callable
 from functools import partial
 from pathlib import Path
@@ -113,6 +114,8 @@ class LightFieldWidget(QWidget):
 
         self.viewer = napari_viewer
         self.session: ViewerSession | None = None
+        #: Set to stop the running track (:meth:`stop_tracking`); None when not tracking.
+        self._stop_track: threading.Event | None = None
         self.stages: list[str] = []  # stages shown by the last segmentation, in order
         self._options = dict(segmenter_options or {})
         self._text_options = dict(text_options or {})
@@ -175,7 +178,7 @@ class LightFieldWidget(QWidget):
             (c.remove_button, lambda: self._on_selected(self.remove_object)),
             (c.open_labels_button, self._open_selected_labels),
             (c.save_button, self._save_dialog), (c.export_button, self._export_dialog),
-            (c.track_button, self.track),
+            (c.track_button, self.track), (c.stop_track_button, self.stop_tracking),
         ):
             button.clicked.connect(lambda _=False, a=action: a())
         c.find_edit.returnPressed.connect(lambda: self.find())
@@ -210,6 +213,7 @@ class LightFieldWidget(QWidget):
         the prompt and mask layers, all with the frame axis (docs/design.md section 10)."""
         self._start_session(VideoSession, video, video.frame(0), layer, video=video)
         self.controls.track_button.setVisible(True)
+        self.controls.stop_track_button.setVisible(True)
 
     def _start_session(self, kind: type, shown: Any, lightfield: LightField, layer: Any,
                        **extra: Any) -> None:
@@ -315,6 +319,16 @@ class LightFieldWidget(QWidget):
                 self._set_status(f"tracking frame {index + 1} of {total}: {found} object(s)")
                 if index + 1 < total:
                     self.work.describe(f"tracking frame {index + 2} of {total}")
+            case W.TrackStopped(index=index, total=total):
+                previous = self.session.tracked
+                if previous is not None:
+                    self.layers[L.COMMITTED].data.attach_result(previous)
+                    self.layers[L.COMMITTED].refresh()
+                self._set_status(
+                    f"tracking stopped after frame {index + 1} of {total}; nothing of it was "
+                    + ("saved (the previous track is shown again)" if previous is not None
+                       else "saved: Track again to track the whole video")
+                )
             case W.Tracked(result=result):
                 self.layers[L.COMMITTED].data.attach_result(result)
                 self.layers[L.CURRENT].data.clear()
@@ -333,6 +347,8 @@ class LightFieldWidget(QWidget):
                     )
 
     def _on_work_finished(self) -> None:
+        self._stop_track = None
+        self.controls.stop_track_button.setEnabled(False)
         self._refresh_objects()
         if not self.keeper.closing:  # the light field's layer is gone, or the dock
             self.work.drain()
@@ -523,11 +539,22 @@ class LightFieldWidget(QWidget):
                                  "video (a folder of frames or an [F, S, T, U, V, 3] array)")
             self.session.sync_current()
             total = self.session.video.num_frames
-            self.work.start(partial(W.track_job, self.session, out), total + 1,
-                            f"tracking frame 1 of {total}")
+            self._stop_track = threading.Event()
+            self.work.start(partial(W.track_job, self.session, out, self._stop_track),
+                            total + 1, f"tracking frame 1 of {total}")
+            self.controls.stop_track_button.setEnabled(True)
 
         if self.session is not None:
             self.work.when_idle(lambda: self._when_loaded(run))
+
+    def stop_tracking(self) -> None:
+        """"Stop tracking": end the running track after the frame being tracked (the worker
+        never stops mid-frame). Nothing of the stopped track is saved; the previous track, if
+        any, is shown again (docs/design.md section 10)."""
+        if self._stop_track is not None and not self._stop_track.is_set():
+            self._stop_track.set()
+            self.controls.stop_track_button.setEnabled(False)
+            self._set_status("stopping after the frame being tracked…")
 
     def show_tracked(self, result: Any) -> None:
         """Show a video result folder's labels (``lfsam view VIDEO --result FOLDER``) in the

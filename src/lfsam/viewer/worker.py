@@ -37,6 +37,7 @@ __all__ = [
     "ModelLoaded",
     "ReferenceMask",
     "TextFound",
+    "TrackStopped",
     "Tracked",
     "WorkQueue",
     "WorkerEvent",
@@ -190,6 +191,23 @@ class Tracked:
 
 
 @dataclass(frozen=True)
+class TrackStopped:
+    """Tracking a video was stopped by the user after frame ``index`` (docs/design.md
+    section 10); nothing was written (the result folder of the stopped track is removed).
+
+    Attributes
+    ----------
+    index : int
+        The last frame tracked (0-based).
+    total : int
+        The video's number of frames.
+    """
+
+    index: int
+    total: int
+
+
+@dataclass(frozen=True)
 class Failed:
     """A job stopped on a user error (:class:`LfsamError`); what was queued after it is dropped.
 
@@ -205,7 +223,7 @@ class Failed:
 #: Everything a job yields.
 WorkerEvent = (
     ModelLoaded | ReferenceMask | CoarseMasks | FinalMasks | AllMasks | TextFound
-    | FrameTracked | Tracked | Failed
+    | FrameTracked | Tracked | TrackStopped | Failed
 )
 
 #: A job: a generator function run in the worker thread.
@@ -254,9 +272,17 @@ def video_segment_job(session: Any, obj_id: int, frame: int) -> Iterator[WorkerE
     yield from segment_job(session, obj_id)
 
 
-def track_job(session: Any, out: Any = None) -> Iterator[WorkerEvent]:
+class _StopTracking(Exception):
+    """Raised from the frame callback to end a track the user stopped."""
+
+
+def track_job(
+    session: Any, out: Any = None, stop: threading.Event | None = None
+) -> Iterator[WorkerEvent]:
     """Track a video's objects (:meth:`VideoSession.track`): one :class:`FrameTracked` per
-    frame as it finishes, then :class:`Tracked`.
+    frame as it finishes, then :class:`Tracked`; :class:`TrackStopped` instead once ``stop``
+    is set (checked as each frame finishes: the frame being tracked is finished first, and
+    :func:`lfsam.video.track_video` leaves nothing at ``out``).
 
     ``track_video`` reports frames through a callback, which cannot yield: it runs in a thread
     of its own and hands each frame over a queue to this generator (the worker thread).
@@ -266,11 +292,17 @@ def track_job(session: Any, out: Any = None) -> Iterator[WorkerEvent]:
     outcome: dict[str, Any] = {}
     total = session.video.num_frames
 
+    def on_frame(index: int, result: Any) -> None:
+        frames.put(FrameTracked(index, total, result.labels))
+        if stop is not None and stop.is_set() and index + 1 < total:
+            outcome["stopped"] = index
+            raise _StopTracking
+
     def run() -> None:
         try:
-            outcome["result"] = session.track(
-                out, on_frame=lambda i, r: frames.put(FrameTracked(i, total, r.labels))
-            )
+            outcome["result"] = session.track(out, on_frame=on_frame)
+        except _StopTracking:
+            pass
         except BaseException as exc:  # re-raised in the worker thread below
             outcome["error"] = exc
         finally:
@@ -283,7 +315,10 @@ def track_job(session: Any, out: Any = None) -> Iterator[WorkerEvent]:
     thread.join()
     if "error" in outcome:
         raise outcome["error"]
-    yield Tracked(outcome["result"])
+    if "stopped" in outcome:
+        yield TrackStopped(outcome["stopped"], total)
+    else:
+        yield Tracked(outcome["result"])
 
 
 def predict_all_job(session: Any) -> Iterator[WorkerEvent]:
