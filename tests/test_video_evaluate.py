@@ -150,3 +150,19 @@ def test_segment_tracking_switch(clips, tmp_path, capsys):
     assert code != 0
     assert "applies to light-field videos" in capsys.readouterr().err
     assert not (tmp_path / "x.npz").exists()
+
+
+def test_a_scoring_failure_leaves_no_result_folder(clips, tmp_path, monkeypatch):
+    import lfsam.video.evaluate as video_evaluate
+
+    def broken_scores(pairs, device=None):
+        raise ValueError("scores went wrong")
+
+    monkeypatch.setattr(video_evaluate, "evaluate_frames", broken_scores)
+    videos = VideoTracking(
+        lambda video, folder: track_video(video, None, folder, model="oracle", disparity="gt"),
+        "oracle video",
+    )
+    row = videos.run("clip_a", clips / "clip_a", tmp_path / "clip_a")
+    assert row.error == "ValueError: scores went wrong"
+    assert not (tmp_path / "clip_a").exists()  # a resumed run tracks it again

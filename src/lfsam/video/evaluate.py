@@ -11,6 +11,7 @@ per-view IoU, the worst view of any frame, the number of frames and the identity
 
 from __future__ import annotations
 
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -53,9 +54,9 @@ class VideoTracking:
     Attributes
     ----------
     track : callable(LightFieldVideo, Path) -> VideoResult
-        The method, e.g. ``functools.partial(track_video, None, model="oracle",
-        disparity="gt")`` with the prompts and result folder left to the call
-        (``track(video, result_folder)``).
+        The method, called as ``track(video, result_folder)``, e.g. ``lambda video, folder:
+        track_video(video, None, folder, model="oracle", disparity="gt")`` (the automatic
+        mode's objects of frame 0).
     method_label : str
         The method's name in the tables.
     device : str, optional
@@ -75,8 +76,10 @@ class VideoTracking:
 
     def run(self, name: str, path: Path, result_folder: Path) -> SceneRow:
         """Track ``path`` into ``result_folder`` and score it; any failure is the row's error
-        (nothing is left at ``result_folder`` then: the result is written atomically)."""
+        and leaves nothing at ``result_folder`` (the track writes it atomically; a scoring
+        failure removes it, so that a resumed run tracks the video again)."""
         row = SceneRow(scene=name, method=self.method_label)
+        result = None
         try:
             with read_video(path, value_range=self.value_range) as video:
                 first = video.frame(0)
@@ -87,6 +90,8 @@ class VideoTracking:
                 pairs = ((result.frame(f), video.frame(f)) for f in range(len(result)))
                 scores = evaluate_frames(pairs, device=self.device)
         except Exception as exc:  # one broken video must not stop the data set
+            if result is not None:
+                shutil.rmtree(result_folder, ignore_errors=True)
             row.error = describe_failure(exc)
             return row
         row.metrics = video_row_metrics(scores["summary"])
