@@ -53,7 +53,7 @@ class ViewDisparities:
         # a file becomes its (checked) array once; "estimate" and "gt" stay as they are
         self._spec, self._name = load_disparity_spec(spec, lightfield)
         self._cache: dict[tuple[int, int], tuple[np.ndarray, str, np.ndarray | None]] = {}
-        self._carried: dict[tuple[int, int], np.ndarray] = {}
+        self._carried: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
 
     def _resolve(self, view: tuple[int, int] | None) -> tuple[np.ndarray, str, np.ndarray | None]:
         key = resolve_view(self.lightfield.grid_shape, view)
@@ -101,15 +101,29 @@ class ViewDisparities:
         key = resolve_view(self.lightfield.grid_shape, view)
         if not self.warps_center(key):
             return self.get(key)
+        return self._warped_center(key)[0]
+
+    def carried_holes(self, view: tuple[int, int]) -> np.ndarray | None:
+        """Pixels of :meth:`carried` that no center pixel landed on (filled from their
+        neighbours, docs/design.md section 3.7), ``(U, V)`` bool, read-only; None where
+        :meth:`carried` is :meth:`get` (every pixel known)."""
+        key = resolve_view(self.lightfield.grid_shape, view)
+        if not self.warps_center(key):
+            return None
+        return self._warped_center(key)[1]
+
+    def _warped_center(self, key: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
         if key not in self._carried:
             center = self.lightfield.center
             offset = (key[0] - center[0], key[1] - center[1])
-            disparity, _ = warp_center_disparity(
+            disparity, holes = warp_center_disparity(
                 self.get(center).copy(), offset, device=self.device  # a writable copy for torch
             )
             disparity = np.array(disparity, dtype=np.float32)
+            holes = np.array(holes, dtype=bool)
             disparity.flags.writeable = False
-            self._carried[key] = disparity
+            holes.flags.writeable = False
+            self._carried[key] = (disparity, holes)
         return self._carried[key]
 
     @property

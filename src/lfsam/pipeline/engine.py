@@ -28,6 +28,7 @@ from lfsam.pipeline.config import PipelineConfig
 from lfsam.pipeline.fill import fill_from_sources
 from lfsam.pipeline.fusion import fuse_labels
 from lfsam.pipeline.initial import initial_segmentation
+from lfsam.pipeline.mask_disparity import matched_disparity, unseen_by_estimate
 from lfsam.pipeline.objects import (
     Clicks,
     ObjectViews,
@@ -100,10 +101,14 @@ class StreamingEngine:
             segmenter, lightfield.views, cache_dir=cache_dir, memory_budget_mb=memory_budget_mb
         )
         self._disp_tensors: dict[tuple[View, bool], torch.Tensor] = {}
+        self._holes: dict[View, torch.Tensor] = {}
         self._warps: OrderedDict[tuple[View, View, bool], ForwardWarp] = OrderedDict()
         self._base: frozenset[View] | None = None
         # refined masks of fill sources, unpacked, within one pass (:meth:`run`, :meth:`_fill`)
         self._sources: dict[tuple[View, tuple[int, ...]], torch.Tensor] = {}
+        # disparities matched from the masks of objects the estimate does not see, per
+        # (object, its fill sources), within one pass (:meth:`_own_disparity`)
+        self._own: dict[tuple[int, tuple[View, ...]], float | None] = {}
         self._base_key: tuple[bool, str | int] | None = None
         self._warp_bytes = 0
 
@@ -358,12 +363,12 @@ class StreamingEngine:
                     objects, view, ids, embeddings.get(view), refine, out, coarse_out,
                     stage="refine",
                 ))
-        self._sources.clear()
+        self._clear_sources()
         for view in filled_here:
             done(view, self.view_step(
                 objects, view, ids, None, refine, out, coarse_out, stage="fill"
             ))
-        self._sources.clear()
+        self._clear_sources()
         bar.close()
         for i in ids:
             obj = objects[i]
@@ -486,7 +491,9 @@ class StreamingEngine:
     ) -> torch.Tensor:
         """The final masks in ``view`` of objects with reference view ``ref_view`` that are
         not refined there: carried from their refined sources (:mod:`lfsam.pipeline.fill`),
-        whose masks ``out`` holds; ``coarse`` where no source sees a pixel."""
+        whose masks ``out`` holds; ``coarse`` where no source sees a pixel. An object the
+        center's estimate does not see is carried with its own disparity, matched from its
+        masks in the sources (:meth:`_own_disparity`), and filled alone."""
         height, width = self.lightfield.view_shape
         sources = self.fill_sources(view, ref_view)
         with self.timer("fill"):
@@ -503,10 +510,62 @@ class StreamingEngine:
             disparities = [self.disparity(source, carried=True) for source in sources]
             warps = [self.warp(source, view, carried=True) for source in sources]
             distances = [math.hypot(s - view[0], t - view[1]) for s, t in sources]
-            return fill_from_sources(
-                masks, disparities, warps, distances, coarse, self.config.zbuffer_tolerance,
-                guide=self.gray(view),
+            tolerance = self.config.zbuffer_tolerance
+            guide = self.gray(view)
+            filled = fill_from_sources(
+                masks, disparities, warps, distances, coarse, tolerance, guide=guide
             ).masks
+            for n, i in enumerate(members):
+                own = self._own_disparity(i, sources, [m[n] for m in masks])
+                if own is None:
+                    continue
+                # this object's pixels carried with its own disparity, the rest as they are
+                carried = [torch.where(m[n], torch.full_like(d, own), d)
+                           for m, d in zip(masks, disparities, strict=True)]
+                own_warps = [forward_warp(d, view[0] - s, view[1] - t)
+                             for d, (s, t) in zip(carried, sources, strict=True)]
+                filled[n] = fill_from_sources(
+                    [m[n:n + 1] for m in masks], carried, own_warps, distances,
+                    coarse[n:n + 1], tolerance, guide=guide,
+                ).masks[0]
+            return filled
+
+    def _own_disparity(
+        self, object_id: int, sources: list[View], masks: list[torch.Tensor]
+    ) -> float | None:
+        """The disparity an object is carried with out of its fill ``sources`` when the
+        center's estimate does not see it (:func:`lfsam.pipeline.mask_disparity.
+        unseen_by_estimate` over the sources whose carried disparity is that estimate warped):
+        matched from its refined ``masks`` there (:func:`lfsam.pipeline.mask_disparity.
+        matched_disparity`); None to carry it with the sources' disparity (docs/design.md
+        section 3.7)."""
+        key = (object_id, tuple(sources))
+        if key not in self._own:
+            warped = [k for k, source in enumerate(sources)
+                      if self.disparities.warps_center(source)]
+            holes = [self._carried_holes(sources[k]) for k in warped]
+            own = None
+            if warped and unseen_by_estimate([masks[k] for k in warped], holes):
+                own = matched_disparity(
+                    masks, [self.disparity(source, carried=True) for source in sources],
+                    sources, self.config.zbuffer_tolerance,
+                )
+            self._own[key] = own
+        return self._own[key]
+
+    def _carried_holes(self, view: View) -> torch.Tensor:
+        """:meth:`lfsam.disparity.views.ViewDisparities.carried_holes` on the device (cached
+        with the carried disparities)."""
+        if view not in self._holes:
+            self._holes[view] = torch.tensor(
+                self.disparities.carried_holes(view), device=self.device
+            )
+        return self._holes[view]
+
+    def _clear_sources(self) -> None:
+        """Forget the fill sources' masks (and what was matched from them)."""
+        self._sources.clear()
+        self._own.clear()
 
     def gray(self, view: View) -> torch.Tensor:
         """The view's gray image in [0, 1] on the device (the fill's guide)."""
@@ -536,9 +595,9 @@ class StreamingEngine:
                 for source in self.fill_sources(view, ref_view):
                     embedding = self.embedding(source) if source != ref_view else None
                     self.view_step(objects, source, members, embedding, True, out, coarse)
-            self._sources.clear()
+            self._clear_sources()
             self.view_step(objects, view, ids, None, refine, out, coarse, stage="fill")
-            self._sources.clear()
+            self._clear_sources()
         if any(self.refines(view, r) for r in references):
             embedding = (
                 self.embedding(view)
