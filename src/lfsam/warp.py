@@ -14,7 +14,8 @@ disparity is known, not only the center) is warped into a *target* view at offse
   :meth:`ForwardWarp.hides`), hole filling (:meth:`ForwardWarp.fill_holes`) and which target
   pixels the source sees at all (:meth:`ForwardWarp.seen`, :meth:`ForwardWarp.frame_runs`);
 * :func:`shift_masks` — the whole-mask alternative: each mask translated by one sub-pixel shift,
-  optionally carrying its own disparity along (:func:`shift_masks_with_disparity`).
+  optionally carrying its own disparity along (:func:`shift_masks_with_disparity`);
+* :func:`shift_whole_pixels` — one plane translated by whole pixels (exact, by slicing).
 
 Rounding to the nearest pixel is explicit (``halves``): the pipeline rounds exact halves to even
 (``torch.round``), the metrics round them up (``floor(x + 0.5)``, which keeps a constant
@@ -40,6 +41,7 @@ __all__ = [
     "landing_pixels",
     "shift_masks",
     "shift_masks_with_disparity",
+    "shift_whole_pixels",
     "splat_masks",
 ]
 
@@ -490,3 +492,33 @@ def shift_masks_with_disparity(
     shifted = sampled[:, 0] >= 0.5
     values = sampled[:, 1] / sampled[:, 0].clamp(min=1e-6)
     return shifted, torch.where(shifted, values, torch.full_like(values, float("-inf")))
+
+
+def shift_whole_pixels(plane: torch.Tensor, su: int, sv: int) -> torch.Tensor:
+    """``plane`` translated by ``(su, sv)`` whole pixels: ``out[u + su, v + sv] = plane[u, v]``
+    (the direction of :func:`shift_masks`); what enters from outside the view is zero (False).
+
+    Parameters
+    ----------
+    plane : (U, V) tensor, any dtype
+    su, sv : int
+        Row and column shift.
+
+    Returns
+    -------
+    (U, V) tensor
+
+    Examples
+    --------
+    >>> import torch
+    >>> shift_whole_pixels(torch.tensor([[1, 2, 3, 4]]), 0, -1).tolist()
+    [[2, 3, 4, 0]]
+    """
+    height, width = plane.shape
+    out = torch.zeros_like(plane)
+    if abs(su) >= height or abs(sv) >= width:
+        return out
+    out[max(su, 0):height + min(su, 0), max(sv, 0):width + min(sv, 0)] = plane[
+        max(-su, 0):height + min(-su, 0), max(-sv, 0):width + min(-sv, 0)
+    ]
+    return out

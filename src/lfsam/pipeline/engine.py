@@ -516,7 +516,7 @@ class StreamingEngine:
                 masks, disparities, warps, distances, coarse, tolerance, guide=guide
             ).masks
             for n, i in enumerate(members):
-                own = self._own_disparity(i, sources, [m[n] for m in masks])
+                own = self._own_disparity(i, sources, [m[n] for m in masks], disparities)
                 if own is None:
                     continue
                 # this object's pixels carried with its own disparity, the rest as they are
@@ -531,14 +531,18 @@ class StreamingEngine:
             return filled
 
     def _own_disparity(
-        self, object_id: int, sources: list[View], masks: list[torch.Tensor]
+        self,
+        object_id: int,
+        sources: list[View],
+        masks: list[torch.Tensor],
+        disparities: list[torch.Tensor],
     ) -> float | None:
         """The disparity an object is carried with out of its fill ``sources`` when the
         center's estimate does not see it (:func:`lfsam.pipeline.mask_disparity.
         unseen_by_estimate` over the sources whose carried disparity is that estimate warped):
-        matched from its refined ``masks`` there (:func:`lfsam.pipeline.mask_disparity.
-        matched_disparity`); None to carry it with the sources' disparity (docs/design.md
-        section 3.7)."""
+        matched from its refined ``masks`` there and the sources' carried ``disparities``
+        (:func:`lfsam.pipeline.mask_disparity.matched_disparity`); None to carry it with the
+        sources' disparity (docs/design.md section 3.7)."""
         key = (object_id, tuple(sources))
         if key not in self._own:
             warped = [k for k, source in enumerate(sources)
@@ -547,8 +551,7 @@ class StreamingEngine:
             own = None
             if warped and unseen_by_estimate([masks[k] for k in warped], holes):
                 own = matched_disparity(
-                    masks, [self.disparity(source, carried=True) for source in sources],
-                    sources, self.config.zbuffer_tolerance,
+                    masks, disparities, sources, self.config.zbuffer_tolerance
                 )
             self._own[key] = own
         return self._own[key]

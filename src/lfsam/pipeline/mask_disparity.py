@@ -25,6 +25,8 @@ from collections.abc import Sequence
 
 import torch
 
+from lfsam.warp import shift_whole_pixels
+
 __all__ = ["MATCH_STEP", "UNSEEN_SHARE", "matched_disparity", "unseen_by_estimate"]
 
 #: Spacing of the disparities tried by :func:`matched_disparity`, pixels per view step.
@@ -149,9 +151,9 @@ def matched_disparity(
             shifts = torch.stack([-torch.round(candidates * ds), -torch.round(candidates * dt)], 1)
             for su, sv in torch.unique(shifts, dim=0).long().tolist():
                 which = (shifts[:, 0] == su) & (shifts[:, 1] == sv)
-                moved = _shifted(mask_a, su, sv)
-                inside = _shifted(torch.ones_like(mask_a), su, sv)
-                closer_a = _shifted(disp_a, su, sv)
+                moved = shift_whole_pixels(mask_a, su, sv)
+                inside = shift_whole_pixels(torch.ones_like(mask_a), su, sv)
+                closer_a = shift_whole_pixels(disp_a, su, sv)
                 level = candidates[which].to(disp_b.dtype)[:, None, None] + tolerance
                 keep = inside & (disp_b <= level) & (closer_a <= level)
                 agree[which] += (keep & moved & mask_b).sum(dim=(1, 2)).to(agree)
@@ -162,15 +164,3 @@ def matched_disparity(
     longest = max(runs, key=len)
     return float(candidates[longest].mean())
 
-
-def _shifted(plane: torch.Tensor, su: int, sv: int) -> torch.Tensor:
-    """``plane`` moved by ``(su, sv)`` whole pixels (``out[u + su, v + sv] = plane[u, v]``);
-    what enters from outside is zero (False)."""
-    height, width = plane.shape
-    out = torch.zeros_like(plane)
-    if abs(su) >= height or abs(sv) >= width:
-        return out
-    out[max(su, 0):height + min(su, 0), max(sv, 0):width + min(sv, 0)] = plane[
-        max(-su, 0):height + min(-su, 0), max(-sv, 0):width + min(-sv, 0)
-    ]
-    return out
