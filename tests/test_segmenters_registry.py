@@ -13,6 +13,8 @@ from lfsam.segmenters.registry import (
     MODELS,
     ORACLE,
     TINY_TEST_MODEL,
+    TRANSFORMERS_FOLDER,
+    TRANSFORMERS_MODELS,
     get_model_spec,
 )
 from lfsam.segmenters.sam2_build import build_sam2
@@ -34,7 +36,7 @@ def test_default_is_the_papers_model_and_names_are_listed():
     assert get_model_spec(DEFAULT_MODEL).hub_id == "facebook/sam2.1-hiera-small"
     names = available_models()
     assert names[-1] == ORACLE
-    assert set(names[:-1]) == set(MODELS)
+    assert set(names[:-1]) == {*MODELS, *TRANSFORMERS_MODELS, TRANSFORMERS_FOLDER}
     assert TINY_TEST_MODEL in names
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from lfsam.cli.common import HelpFormatter
-from lfsam.cli.models import add_model_arguments
+from lfsam.cli.models import add_model_arguments, model_name_from_args
 
 DESCRIPTION = """\
 Run lfsam end to end on the bundled synthetic light field (9x9 views of 240x320 with exact
@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
 
     report = run_demo(
         args.out,
-        model=args.model,
+        model=model_name_from_args(args),
         checkpoint=args.checkpoint,
         random_weights=args.random_weights,
         amg_options=dict(args.amg) or None,

@@ -14,7 +14,7 @@ from lfsam.cli.common import (
     add_refine_views_argument,
     add_tracking_argument,
 )
-from lfsam.cli.models import add_model_arguments, model_options_from_args
+from lfsam.cli.models import add_model_arguments, model_name_from_args, model_options_from_args
 from lfsam.cli.text import add_text_arguments, check_text_weights
 from lfsam.errors import LfsamError
 
@@ -134,7 +134,7 @@ def method_label(args: argparse.Namespace) -> str:
     if args.label:
         return args.label
     head = "lfsam " + args.ablation if args.method == "lfsam" else args.method
-    details = [args.model]
+    details = [model_name_from_args(args)]
     if args.method == "lfsam" and args.disparity == "gt":
         details.append("gt disparity")
     if args.random_weights:

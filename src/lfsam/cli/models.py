@@ -19,12 +19,19 @@ from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.segmenters.base import Segmenter
 from lfsam.segmenters.factory import available_models
-from lfsam.segmenters.registry import DEFAULT_MODEL, MODELS, ORACLE
+from lfsam.segmenters.registry import (
+    DEFAULT_MODEL,
+    MODELS,
+    ORACLE,
+    TRANSFORMERS_FOLDER,
+    TRANSFORMERS_MODELS,
+)
 from lfsam.segmenters.text.registry import TEXT_MODELS, TINY_SAM3_SIZES
 
 __all__ = [
     "add_model_arguments",
     "list_models",
+    "model_name_from_args",
     "parse_option",
     "register",
     "run",
@@ -33,12 +40,15 @@ __all__ = [
 
 DESCRIPTION = """\
 List the segmenters lfsam can use with --model: the SAM 2 image models (SAM 2.1 and 2.0 in four
-sizes; the paper uses sam2.1-hiera-small, the default), the tiny random-weight model for tests,
+sizes; the paper uses sam2.1-hiera-small, the default), EdgeTAM (SAM 2 for devices: a 4x faster
+image encoder, run through Hugging Face transformers), the tiny random-weight models for tests,
 and the ground-truth oracle; and the text detectors of --text-model: SAM 3 (facebook/sam3, gated
 weights) and its tiny random-weight test model. For each model: its parameter count, the size
 of its float32 weights, and whether the weights are already in the Hugging Face cache (looked
 up on disk, no network). Weights not cached are downloaded on first use; without network,
-download the .pt file from the model hub by hand and pass it with --checkpoint FILE.
+download the .pt file from the model hub by hand and pass it with --checkpoint FILE (EdgeTAM:
+the repository's folder, --checkpoint DIR). Any transformers-format SAM 2 or EdgeTAM folder
+(config.json + *.safetensors) works with --checkpoint DIR; its config.json names the model.
 """
 
 EPILOG = """\
@@ -46,7 +56,14 @@ examples:
   lfsam models                                  # table of models, cache state and device
   lfsam models --json                           # the same as JSON
   lfsam models --download sam2.1-hiera-small    # fetch the paper's weights into the cache now
+  lfsam models --download edgetam               # fetch EdgeTAM (yonigozlan/EdgeTAM-hf)
 """
+
+
+class ModelNotGiven(str):
+    """The ``--model`` default as parsed: equal to the default name, but marks that the user
+    did not name a model (a transformers folder given with ``--checkpoint DIR`` then names it)."""
+
 
 
 def parse_option(text: str) -> tuple[str, Any]:
@@ -73,15 +90,18 @@ def add_model_arguments(
     group = parser.add_argument_group("segmenter")
     group.add_argument(
         "--model",
-        default=default,
+        default=None if default is None else ModelNotGiven(default),
         choices=available_models(),
         metavar="NAME",
-        help="SAM 2 model or 'oracle' (ground-truth labels); see `lfsam models`" + model_help,
+        help="SAM 2 model, 'edgetam' (fast, on-device SAM 2) or 'oracle' (ground-truth labels); "
+        "see `lfsam models`" + model_help,
     )
     group.add_argument(
         "--checkpoint",
-        metavar="FILE",
-        help="SAM 2 weights file (.pt); default: the Hugging Face cache, downloaded once",
+        metavar="PATH",
+        help="SAM 2 weights file (.pt), or a transformers-format folder (config.json + "
+        "*.safetensors of a SAM 2 or EdgeTAM model; its config names the model, so --model may "
+        "be left out); default: the Hugging Face cache, downloaded once",
     )
     group.add_argument(
         "--random-weights",
@@ -123,12 +143,25 @@ def oracle_options_from_args(args: argparse.Namespace) -> dict[str, Any] | None:
     return options if any(options.values()) else None
 
 
+def model_name_from_args(args: argparse.Namespace) -> str | None:
+    """The model the options name: ``--model``; without it, ``transformers`` for a folder
+    given with ``--checkpoint DIR`` (docs/design.md section 3.8), else the command's default
+    (None where the command chooses itself, as ``lfsam demo`` does)."""
+    from lfsam.segmenters.hf_build import is_transformers_folder
+
+    name = getattr(args, "model", None)
+    given = name is not None and not isinstance(name, ModelNotGiven)
+    if not given and is_transformers_folder(getattr(args, "checkpoint", None)):
+        return TRANSFORMERS_FOLDER
+    return None if name is None else str(name)
+
+
 def model_options_from_args(args: argparse.Namespace) -> Any:
     """:class:`lfsam.api.ModelOptions` from the options of :func:`add_model_arguments`."""
     from lfsam.api import ModelOptions
 
     return ModelOptions(
-        name=getattr(args, "model", DEFAULT_MODEL),
+        name=model_name_from_args(args) or DEFAULT_MODEL,
         checkpoint=getattr(args, "checkpoint", None),
         random_weights=bool(getattr(args, "random_weights", False)),
         device=getattr(args, "device", None),
@@ -156,6 +189,7 @@ def segmenter_from_args(
 
 def list_models() -> dict[str, Any]:
     """What ``lfsam models`` shows, as a JSON-ready dict (no network, no model built)."""
+    from lfsam.segmenters.hub_folder import cached_hub_folder
     from lfsam.segmenters.sam2_build import autocast_dtype, cached_checkpoint, hub_cache_dir
     from lfsam.segmenters.text.weights import cached_text_weights
 
@@ -178,6 +212,25 @@ def list_models() -> dict[str, Any]:
                 if spec.random_only
                 else ("cached" if cached else "not cached"),
                 "kind": "sam2",
+            }
+        )
+    for hf_spec in TRANSFORMERS_MODELS.values():  # EdgeTAM (docs/design.md section 3.8)
+        folder = None if hf_spec.hub_id is None else cached_hub_folder(hf_spec.hub_id)
+        rows.append(
+            {
+                "name": hf_spec.name,
+                "default": False,
+                "description": hf_spec.description,
+                "params": hf_spec.params,
+                "size_mb": round(hf_spec.params * 4 / 1e6, 1),
+                "image_size": hf_spec.image_size,
+                "hub_id": hf_spec.hub_id,
+                "checkpoint_file": None,
+                "cached": None if folder is None else str(folder),
+                "weights": "random only"
+                if hf_spec.random_only
+                else ("cached" if folder else "not cached"),
+                "kind": "transformers",
             }
         )
     for text_spec in TEXT_MODELS.values():  # --text-model (docs/design.md section 9)
@@ -237,7 +290,9 @@ def _table(info: dict[str, Any]) -> str:
         f"Hugging Face cache: {info['cache']} (--json shows each cached file).",
         "Weights not cached download on first use or with `lfsam models --download NAME`;",
         "offline, fetch the .pt file from https://huggingface.co/facebook/NAME and pass "
-        "--checkpoint FILE.",
+        "--checkpoint FILE;",
+        "edgetam: fetch https://huggingface.co/yonigozlan/EdgeTAM-hf and pass the folder with "
+        "--checkpoint DIR.",
         "sam3 (--text-model) is gated: request access on https://huggingface.co/facebook/sam3",
         "and `hf auth login`, or pass a local copy with --text-checkpoint DIR.",
     ]
@@ -251,6 +306,14 @@ def run(args: argparse.Namespace) -> int:
 
         if args.download == ORACLE:
             raise LfsamError("the oracle has no weights; choose a SAM 2 model to download")
+        if args.download in TRANSFORMERS_MODELS:
+            from lfsam.segmenters.hf_build import how_to_provide
+            from lfsam.segmenters.hub_folder import download_hub_folder
+
+            spec = TRANSFORMERS_MODELS[args.download]
+            folder = download_hub_folder(spec.hub_id, f"model {spec.name}", how_to_provide(spec))
+            print(f"{args.download}: {folder}")
+            return 0
         if args.download in TEXT_MODELS:
             from lfsam.segmenters.text.weights import resolve_text_weights
 
@@ -279,6 +342,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="NAME",
         choices=[
             *(name for name, spec in MODELS.items() if not spec.random_only),
+            *(name for name, spec in TRANSFORMERS_MODELS.items() if not spec.random_only),
             *(name for name, spec in TEXT_MODELS.items() if not spec.random_only),
         ],
         help="download the weights of model NAME into the Hugging Face cache and print the path",

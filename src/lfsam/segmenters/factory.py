@@ -1,8 +1,11 @@
 """One entry point for every backend: ``load_segmenter(model=...)`` (the CLI's ``--model``).
 
 SAM 2 models are built by :mod:`lfsam.segmenters.sam2_build` and wrapped by
-:class:`~lfsam.segmenters.sam2_backend.Sam2Segmenter`; ``"oracle"`` gives an
-:class:`~lfsam.segmenters.oracle.OracleSegmenter` on a light field's ground-truth labels.
+:class:`~lfsam.segmenters.sam2_backend.Sam2Segmenter`; EdgeTAM and any transformers-format folder
+(``checkpoint`` a directory) by :mod:`lfsam.segmenters.hf_build` and wrapped by
+:class:`~lfsam.segmenters.hf_backend.TransformersSegmenter` (docs/design.md section 3.8);
+``"oracle"`` gives an :class:`~lfsam.segmenters.oracle.OracleSegmenter` on a light field's
+ground-truth labels.
 """
 
 from __future__ import annotations
@@ -15,14 +18,22 @@ import torch
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.segmenters.base import Segmenter
-from lfsam.segmenters.registry import DEFAULT_MODEL, MODELS, ORACLE, get_model_spec
+from lfsam.segmenters.registry import (
+    DEFAULT_MODEL,
+    MODELS,
+    ORACLE,
+    TRANSFORMERS_FOLDER,
+    TRANSFORMERS_MODELS,
+    get_model_spec,
+)
 
 __all__ = ["available_models", "load_segmenter"]
 
 
 def available_models() -> list[str]:
-    """Every name ``load_segmenter`` accepts: the SAM 2 models, then ``"oracle"``."""
-    return [*MODELS, ORACLE]
+    """Every name ``load_segmenter`` accepts: the SAM 2 models, the transformers models
+    (EdgeTAM), ``"transformers"`` (a folder given as ``checkpoint``), then ``"oracle"``."""
+    return [*MODELS, *TRANSFORMERS_MODELS, TRANSFORMERS_FOLDER, ORACLE]
 
 
 def load_segmenter(
@@ -43,10 +54,14 @@ def load_segmenter(
     Parameters
     ----------
     model : str
-        A SAM 2 model name (default the paper's ``sam2.1-hiera-small``) or ``"oracle"``; see
+        A SAM 2 model name (default the paper's ``sam2.1-hiera-small``), ``"edgetam"``,
+        ``"transformers"`` (the folder given as ``checkpoint``) or ``"oracle"``; see
         :func:`available_models`.
     checkpoint : path, optional
-        SAM 2 weights file; default: the hub cache, downloaded once.
+        SAM 2 weights file (``.pt``), or a transformers-format folder (``config.json`` +
+        ``*.safetensors`` of model type ``sam2`` or ``edgetam``: loaded by the transformers
+        backend whatever ``model`` says, which only has to be of the same family); default: the
+        hub cache, downloaded once.
     random_weights : bool
         SAM 2 architecture without trained weights (tests and speed measurements only).
     device : str or torch.device, optional
@@ -88,9 +103,28 @@ def load_segmenter(
         from lfsam.segmenters.oracle import OracleSegmenter
 
         return OracleSegmenter(lightfield, seed=seed, device=device, **(oracle_options or {}))
-    get_model_spec(model)  # unknown names fail before anything is imported or downloaded
     if oracle_options:
         raise LfsamError("oracle options apply only to --model oracle; drop them")
+    from lfsam.segmenters.hf_build import is_transformers_folder
+
+    if model in TRANSFORMERS_MODELS or model == TRANSFORMERS_FOLDER or is_transformers_folder(
+        checkpoint
+    ):
+        if model not in TRANSFORMERS_MODELS and model != TRANSFORMERS_FOLDER:
+            get_model_spec(model)  # unknown names fail before anything is imported
+        from lfsam.segmenters.hf_backend import TransformersSegmenter
+
+        return TransformersSegmenter.from_name(
+            model,
+            checkpoint=checkpoint,
+            random_weights=random_weights,
+            device=device,
+            seed=seed,
+            amg_options=amg_options,
+            keep_decoder_state=keep_decoder_state,
+            **sam2_options,
+        )
+    get_model_spec(model)  # unknown names fail before anything is imported or downloaded
     from lfsam.segmenters.sam2_backend import Sam2Segmenter
 
     return Sam2Segmenter.from_name(

@@ -10,6 +10,15 @@ default.
 about 0.9 M parameters and a 256-pixel input (docs/design.md section 6). It has no published
 weights: it runs with random weights (or a checkpoint the tests write) so the whole SAM 2 code path
 can be exercised in tests on a CPU.
+
+:data:`TRANSFORMERS_MODELS` are the models lfsam runs from Hugging Face ``transformers``
+checkpoints (:mod:`lfsam.segmenters.hf_backend`; docs/design.md section 3.8): EdgeTAM (Zhou et al.
+2025, "EdgeTAM: On-Device Track Anything Model", CVPR 2025), SAM 2's on-device variant with a
+RepViT image encoder, from the hub's transformers-format copy ``yonigozlan/EdgeTAM-hf`` (the
+checkpoint ``transformers``' own EdgeTAM documentation uses), and ``edgetam-tiny-test``, the same
+classes at a tiny size. :data:`TRANSFORMERS_FOLDER` (``--model transformers``) is any local
+transformers-format folder given with ``--checkpoint DIR`` (its ``config.json`` names the model
+type).
 """
 
 from __future__ import annotations
@@ -22,9 +31,14 @@ __all__ = [
     "DEFAULT_MODEL",
     "MODELS",
     "ORACLE",
+    "TINY_EDGETAM_TEST_MODEL",
     "TINY_TEST_MODEL",
+    "TRANSFORMERS_FOLDER",
+    "TRANSFORMERS_MODELS",
     "ModelSpec",
+    "TransformersModelSpec",
     "get_model_spec",
+    "model_family",
 ]
 
 DEFAULT_MODEL = "sam2.1-hiera-small"
@@ -150,6 +164,81 @@ MODELS: dict[str, ModelSpec] = {
 """Every SAM 2 model by name, in the order ``lfsam models`` lists them."""
 
 
+TINY_EDGETAM_TEST_MODEL = "edgetam-tiny-test"
+"""A 0.1 M-parameter EdgeTAM for tests (random weights)."""
+
+TRANSFORMERS_FOLDER = "transformers"
+"""``--model`` for a transformers-format folder given with ``--checkpoint DIR`` (the default
+when such a folder is given without ``--model``)."""
+
+
+@dataclass(frozen=True)
+class TransformersModelSpec:
+    """One model lfsam runs from a ``transformers`` checkpoint (docs/design.md section 3.8).
+
+    Parameters
+    ----------
+    name : str
+        ``--model`` name.
+    model_type : str
+        ``config.json``'s ``model_type`` family: ``"edgetam"`` or ``"sam2"``.
+    hub_id : str or None
+        Model-hub repository in transformers format, or None (random weights only).
+    params : int
+        Parameters of the image model (encoder and SAM heads; checked against a real build in
+        ``tests/test_segmenters_transformers.py``).
+    image_size : int
+        Side of the square model input.
+    description : str
+        One line for ``lfsam models``.
+    """
+
+    name: str
+    model_type: str
+    hub_id: str | None
+    params: int
+    image_size: int = 1024
+    description: str = ""
+
+    @property
+    def random_only(self) -> bool:
+        """True if no published weights exist."""
+        return self.hub_id is None
+
+
+TRANSFORMERS_MODELS: dict[str, TransformersModelSpec] = {
+    spec.name: spec
+    for spec in (
+        TransformersModelSpec(
+            name="edgetam",
+            model_type="edgetam",
+            hub_id="yonigozlan/EdgeTAM-hf",
+            params=9_120_641,
+            description="EdgeTAM: on-device SAM 2, RepViT encoder (the fast one)",
+        ),
+        TransformersModelSpec(
+            name=TINY_EDGETAM_TEST_MODEL,
+            model_type="edgetam",
+            hub_id=None,
+            params=108_133,
+            image_size=256,
+            description="tiny EdgeTAM for tests (random weights: no useful masks)",
+        ),
+    )
+}
+"""Models run from ``transformers`` checkpoints, in the order ``lfsam models`` lists them."""
+
+
+def model_family(name: str) -> str | None:
+    """The architecture family of a model name: ``"sam2"`` (Meta's SAM 2 models), ``"edgetam"``,
+    or None (the oracle, :data:`TRANSFORMERS_FOLDER`: any family)."""
+    if name in MODELS:
+        return "sam2"
+    if name in TRANSFORMERS_MODELS:
+        return TRANSFORMERS_MODELS[name].model_type
+    return None
+
+
 def get_model_spec(name: str) -> ModelSpec:
     """The :class:`ModelSpec` of a SAM 2 model name.
 
@@ -161,7 +250,7 @@ def get_model_spec(name: str) -> ModelSpec:
     try:
         return MODELS[name]
     except KeyError:
-        known = ", ".join([*MODELS, ORACLE])
+        known = ", ".join([*MODELS, *TRANSFORMERS_MODELS, TRANSFORMERS_FOLDER, ORACLE])
         raise LfsamError(
             f"unknown model {name!r}; choose one of: {known} (see `lfsam models`)"
         ) from None

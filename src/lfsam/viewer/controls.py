@@ -30,28 +30,35 @@ from qtpy.QtWidgets import (
 
 __all__ = [
     "FILE_ITEM",
+    "FOLDER_ITEM",
     "HUB_WEIGHTS",
     "RANDOM_WEIGHTS",
     "DockControls",
     "ask_export",
     "ask_open_file",
+    "ask_open_folder",
     "ask_save_file",
     "item_id",
 ]
 
-#: The last item of the weights and disparity boxes: asks for a file.
+#: The last item of the disparity box and the weights box's second last: asks for a file.
 FILE_ITEM = "file…"
-#: The weights box: the model hub's trained weights (cached), untrained ones, or a .pt file.
+#: The weights box's last item: asks for a transformers-format model folder (docs/design.md
+#: section 3.8; EdgeTAM or SAM 2 with config.json + *.safetensors).
+FOLDER_ITEM = "folder…"
+#: The weights box: the model hub's trained weights (cached), untrained ones, a .pt file or a
+#: transformers-format folder.
 HUB_WEIGHTS = "trained (hub cache)"
 RANDOM_WEIGHTS = "random (tests only)"
 
 _USER_ROLE = 256  # Qt.UserRole: the object id behind a row of the object list
 
 
-def _choose_item(box: QComboBox, text: str) -> None:
-    """Select ``text`` in ``box``, inserting it before the last item ("file…") if it is new."""
+def _choose_item(box: QComboBox, text: str, trailing: int = 1) -> None:
+    """Select ``text`` in ``box``, inserting it before the ``trailing`` last items ("file…",
+    "folder…") if it is new."""
     if box.findText(text) < 0:
-        box.insertItem(box.count() - 1, text)
+        box.insertItem(box.count() - trailing, text)
     box.setCurrentText(text)
 
 
@@ -94,10 +101,12 @@ class DockControls:
         self.model_box.addItems(list(models))
         self.model_box.setCurrentText(model)
         self.weights_box = QComboBox()
-        self.weights_box.addItems([HUB_WEIGHTS, RANDOM_WEIGHTS, FILE_ITEM])
+        self.weights_box.addItems([HUB_WEIGHTS, RANDOM_WEIGHTS, FILE_ITEM, FOLDER_ITEM])
         self.weights_box.setToolTip(
             "SAM 2 weights: the model hub's (downloaded once into the cache), untrained ones "
-            "of the same architecture, or a checkpoint file (Meta's .pt) of the chosen model"
+            "of the same architecture, a checkpoint file (Meta's .pt) of the chosen model, or "
+            "a transformers-format folder (EdgeTAM, SAM 2: config.json + *.safetensors; choose "
+            "the model 'transformers' to take whatever it holds)"
         )
         self.show_weights(checkpoint, random_weights)
         self.disparity_box = QComboBox()
@@ -210,7 +219,7 @@ class DockControls:
     def show_weights(self, checkpoint: str | None, random_weights: bool) -> None:
         """Select a checkpoint file (added as an item), the untrained or the hub's weights."""
         if checkpoint:
-            _choose_item(self.weights_box, str(checkpoint))
+            _choose_item(self.weights_box, str(checkpoint), trailing=2)
         else:
             self.weights_box.setCurrentText(RANDOM_WEIGHTS if random_weights else HUB_WEIGHTS)
 
@@ -224,10 +233,14 @@ class DockControls:
     def pick_weights(
         self, parent: QWidget, in_use: tuple[str | None, bool]
     ) -> tuple[str | None, bool] | None:
-        """The weights chosen, ``(checkpoint, random_weights)``; on "file…" a dialog asks for
-        the checkpoint. None when it is cancelled (the weights ``in_use`` are shown again)."""
-        if self.weights_box.currentText() == FILE_ITEM:
-            path = ask_open_file(parent, "SAM 2 checkpoint (.pt)", "*.pt *.pth")
+        """The weights chosen, ``(checkpoint, random_weights)``; on "file…" (a .pt file) or
+        "folder…" (a transformers-format folder) a dialog asks for the checkpoint. None when it
+        is cancelled (the weights ``in_use`` are shown again)."""
+        choice = self.weights_box.currentText()
+        if choice in (FILE_ITEM, FOLDER_ITEM):
+            path = (ask_open_file(parent, "SAM 2 checkpoint (.pt)", "*.pt *.pth")
+                    if choice == FILE_ITEM
+                    else ask_open_folder(parent, "Transformers model folder (config.json)"))
             self.show_weights(*((path, False) if path else in_use))
             if path is None:
                 return None
@@ -283,6 +296,12 @@ def _row(widgets: Iterable[QWidget]) -> QHBoxLayout:
 def ask_open_file(parent: QWidget, title: str, pattern: str) -> str | None:
     """Ask for an existing file; None when cancelled."""
     path, _ = QFileDialog.getOpenFileName(parent, title, "", pattern)
+    return path or None
+
+
+def ask_open_folder(parent: QWidget, title: str) -> str | None:
+    """Ask for an existing folder; None when cancelled."""
+    path = QFileDialog.getExistingDirectory(parent, title, "")
     return path or None
 
 

@@ -14,12 +14,11 @@ import os
 from pathlib import Path
 
 from lfsam.errors import LfsamError
-from lfsam.segmenters.sam2_build import HUB_TIMEOUT_S, hub_cache_dir, hub_offline, hub_reachable
+from lfsam.segmenters.hub_folder import cached_hub_folder, download_hub_folder, is_weights_folder
+from lfsam.segmenters.sam2_build import HUB_TIMEOUT_S
 from lfsam.segmenters.text.registry import TextModelSpec, get_text_model_spec
 
 __all__ = ["cached_text_weights", "how_to_get", "resolve_text_weights"]
-
-_PATTERNS = ["*.json", "*.safetensors", "*.txt", "*.model"]
 
 
 def how_to_get(spec: TextModelSpec) -> str:
@@ -32,22 +31,10 @@ def how_to_get(spec: TextModelSpec) -> str:
     )
 
 
-def _is_weights_folder(folder: Path) -> bool:
-    return (folder / "config.json").is_file() and any(folder.glob("*.safetensors"))
-
-
 def cached_text_weights(name: str) -> Path | None:
     """The cached snapshot folder of text model ``name``, or None (never uses the network)."""
     spec = get_text_model_spec(name)
-    if spec.hub_id is None:
-        return None
-    from huggingface_hub import try_to_load_from_cache
-
-    found = try_to_load_from_cache(spec.hub_id, "config.json", cache_dir=str(hub_cache_dir()))
-    if not isinstance(found, str):
-        return None
-    folder = Path(found).parent
-    return folder if _is_weights_folder(folder) else None
+    return None if spec.hub_id is None else cached_hub_folder(spec.hub_id)
 
 
 def resolve_text_weights(
@@ -65,7 +52,7 @@ def resolve_text_weights(
     spec = get_text_model_spec(name)
     if checkpoint is not None:
         folder = Path(checkpoint).expanduser()
-        if not _is_weights_folder(folder):
+        if not is_weights_folder(folder):
             raise LfsamError(
                 f"--text-checkpoint {str(folder)!r} is not a folder with config.json and "
                 f"*.safetensors weights; pass a local copy of "
@@ -77,29 +64,6 @@ def resolve_text_weights(
             f"text model {name} has no published weights; add --random-weights (tests and speed "
             "checks only) or pass --text-checkpoint DIR"
         )
-    cached = cached_text_weights(name)
-    if cached is not None:
-        return cached
-    if hub_offline():
-        raise LfsamError(
-            f"no cached weights for text model {name} and downloads are off (HF_HUB_OFFLINE is "
-            "set); " + how_to_get(spec)
-        )
-    if not hub_reachable(timeout):
-        raise LfsamError(
-            f"no cached weights for text model {name} and the model hub cannot be reached; "
-            + how_to_get(spec)
-        )
-    from huggingface_hub import snapshot_download
-
-    try:
-        found = snapshot_download(
-            spec.hub_id, cache_dir=str(hub_cache_dir()), allow_patterns=_PATTERNS,
-            etag_timeout=timeout,
-        )
-    except Exception as exc:  # gated, unauthorised or a network failure: the user's environment
-        reason = " ".join(str(exc).split())[:160] or type(exc).__name__
-        raise LfsamError(
-            f"downloading the weights of text model {name} failed ({reason}); " + how_to_get(spec)
-        ) from None
-    return Path(found)
+    return download_hub_folder(
+        spec.hub_id, f"text model {name}", how_to_get(spec), timeout=timeout
+    )

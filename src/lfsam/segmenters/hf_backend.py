@@ -1,0 +1,132 @@
+"""The ``transformers`` backend: EdgeTAM and transformers-format SAM 2 checkpoints behind lfsam's
+:class:`~lfsam.segmenters.base.Segmenter` interface (docs/design.md section 3.8).
+
+:class:`TransformersSegmenter` is :class:`~lfsam.segmenters.sam2_backend.Sam2Segmenter` with
+another image encoder: a view is encoded once as ``transformers`` encodes it (its image
+processor's resize of the uint8 view, ImageNet normalisation, ``get_image_embeddings``), and the
+embedding then serves every prompt batch, automatic generation and semantic occluding through
+SAM 2's heads in Meta's modules (:class:`~lfsam.segmenters.hf_model.TransformersImageModel`) and
+lfsam's batched decoder, which shares a view's image side across its prompts. The masks are those
+of ``transformers``' own processor + model call for the same view and prompt
+(``tests/test_segmenters_transformers.py``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import Any
+
+import numpy as np
+import torch
+
+from lfsam.segmenters.hf_build import build_transformers_sam
+from lfsam.segmenters.registry import TRANSFORMERS_FOLDER
+from lfsam.segmenters.sam2_backend import Sam2Features, Sam2Segmenter
+from lfsam.segmenters.sam2_build import inference_context
+
+__all__ = ["IMAGENET_MEAN", "IMAGENET_STD", "TransformersSegmenter", "preprocess_views"]
+
+IMAGENET_MEAN = (0.485, 0.456, 0.406)
+"""Normalisation mean of SAM 2's and EdgeTAM's image processors (``Sam2ImageProcessor``)."""
+IMAGENET_STD = (0.229, 0.224, 0.225)
+"""Normalisation standard deviation of the same processors."""
+
+
+def preprocess_views(views: torch.Tensor, size: int) -> torch.Tensor:
+    """``Sam2ImageProcessor``'s pixel values of a batch of uint8 views, vectorised.
+
+    The processor resizes the uint8 image (bilinear, antialiased, rounded back to uint8) to the
+    model's square input, then rescales to [0, 1] and normalises; Meta's ``SAM2Transforms``
+    resizes the float image instead (up to 1/255 apart per pixel).
+
+    Parameters
+    ----------
+    views : (B, U, V, 3) uint8 tensor
+    size : int
+        The model's input side.
+
+    Returns
+    -------
+    (B, 3, size, size) float32 tensor
+    """
+    from torchvision.transforms.v2 import functional as tvf
+
+    x = views.permute(0, 3, 1, 2).contiguous()
+    x = tvf.resize(x, [size, size], interpolation=tvf.InterpolationMode.BILINEAR, antialias=True)
+    mean = torch.tensor(IMAGENET_MEAN, device=x.device).view(1, 3, 1, 1)
+    std = torch.tensor(IMAGENET_STD, device=x.device).view(1, 3, 1, 1)
+    return (x.float() / 255.0 - mean) / std
+
+
+class TransformersSegmenter(Sam2Segmenter):
+    """EdgeTAM or a transformers-format SAM 2 as an lfsam :class:`Segmenter`.
+
+    Parameters
+    ----------
+    model : TransformersImageModel
+        From :func:`lfsam.segmenters.hf_build.build_transformers_sam`.
+    **kwargs
+        As :class:`~lfsam.segmenters.sam2_backend.Sam2Segmenter` (``amg_options``,
+        ``max_prompts_per_batch``, ``encode_batch_size``, ``mask_threshold``,
+        ``keep_decoder_state``).
+
+    Examples
+    --------
+    >>> seg = TransformersSegmenter.from_name("edgetam-tiny-test", device="cpu")
+    >>> view = np.zeros((48, 64, 3), np.uint8)
+    >>> emb = seg.encode(view[None])[0]
+    >>> from lfsam.segmenters.base import Prompts
+    >>> seg.predict(emb, Prompts(points=[[[30, 20]]], point_labels=[[1]])).masks.shape
+    torch.Size([1, 3, 48, 64])
+    """
+
+    @classmethod
+    def from_name(  # type: ignore[override]
+        cls,
+        name: str = TRANSFORMERS_FOLDER,
+        *,
+        checkpoint: str | os.PathLike | None = None,
+        random_weights: bool = False,
+        device: str | torch.device | None = None,
+        seed: int = 0,
+        **kwargs: Any,
+    ) -> TransformersSegmenter:
+        """Build the model with :func:`~lfsam.segmenters.hf_build.build_transformers_sam` and
+        wrap it (further keywords go to the segmenter)."""
+        model = build_transformers_sam(
+            name, checkpoint=checkpoint, random_weights=random_weights, device=device, seed=seed
+        )
+        return cls(model, **kwargs)
+
+    def _encode_batch(self, chunk: np.ndarray) -> list[Sam2Features]:
+        with inference_context(self.device):
+            views = torch.from_numpy(np.ascontiguousarray(chunk)).to(self.device)
+            pixels = preprocess_views(views, int(self.model.image_size))
+            levels = self.model.image_embeddings(pixels)
+            out = []
+            for i in range(len(chunk)):
+                per_view = [level[i : i + 1] for level in levels]
+                if len(chunk) > 1:  # do not keep the whole batch alive through one view
+                    per_view = [level.clone() for level in per_view]
+                out.append(Sam2Features(image_embed=per_view[-1], high_res_feats=per_view[:-1]))
+        return out
+
+    def describe(self) -> dict[str, Any]:
+        """SAM 2's description, with the backend, model type and checkpoint folder."""
+        facts = super().describe()
+        facts.update(
+            backend="transformers",
+            params=int(self.info.get("params", facts["params"])),
+            model_type=self.info.get("model_type"),
+            preprocessing="transformers image processor (uint8 resize)",
+        )
+        return facts
+
+    def cache_identity(self) -> str:
+        """As SAM 2's (weights hash, input size, precision), marked as this backend's: its
+        pre-processing differs, so its embeddings never answer for Meta's."""
+        identity = json.loads(super().cache_identity())
+        identity.update(backend="transformers", model_type=self.info.get("model_type"))
+        return json.dumps(identity, sort_keys=True)
+

@@ -1,0 +1,94 @@
+"""A ``transformers`` SAM 2 / EdgeTAM in the shape of Meta's ``SAM2Base`` image model
+(docs/design.md section 3.8).
+
+:class:`TransformersImageModel` holds the ``transformers`` model (its image encoder runs as
+``transformers`` runs it: ``get_image_embeddings``, with the decoder's two 1x1 convolutions and
+the no-memory embedding) and SAM 2's prompt encoder and mask decoder rebuilt as Meta's modules
+with the same weights (:mod:`lfsam.segmenters.hf_heads`). It answers what lfsam's SAM 2 code asks
+of a ``SAM2Base``: ``image_size``, ``device``, ``sam_prompt_encoder``, ``sam_mask_decoder``,
+``no_mem_embed``, ``directly_add_no_mem_embed``, ``forward_image`` and
+``_prepare_backbone_features`` (the automatic generator's extra crops). It has no video memory:
+Meta's video predictor refuses it (``lfsam.baseline.predictor.video_predictor_for``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import torch
+from torch import nn
+
+from lfsam.segmenters.hf_heads import build_meta_heads, load_meta_heads
+
+__all__ = ["TransformersImageModel"]
+
+
+class TransformersImageModel(nn.Module):
+    """SAM 2's image model from a ``transformers`` checkpoint (``Sam2Model``, ``EdgeTamModel``).
+
+    Parameters
+    ----------
+    hf_model : transformers.PreTrainedModel
+        ``Sam2Model`` or ``EdgeTamModel`` (its heads' weights are copied into Meta's modules).
+    info : dict
+        What :func:`lfsam.segmenters.hf_build.build_transformers_sam` knows of the model
+        (name, hub_id, checkpoint, model_type, random_weights, seed); ``params`` and
+        ``image_size`` are added.
+    """
+
+    directly_add_no_mem_embed = True
+    use_high_res_features_in_sam = True
+    num_feature_levels = 3
+
+    def __init__(self, hf_model: nn.Module, info: dict[str, Any]) -> None:
+        super().__init__()
+        config = hf_model.config
+        heads = build_meta_heads(config)
+        load_meta_heads(heads, hf_model.state_dict())
+        self.hf_model = hf_model
+        self.sam_prompt_encoder = heads.sam_prompt_encoder
+        self.sam_mask_decoder = heads.sam_mask_decoder
+        self.no_mem_embed = heads.no_mem_embed
+        self.image_size = int(config.prompt_encoder_config.image_size)
+        self.model_type = str(info.get("model_type", config.model_type))
+        self.lfsam_info = {
+            **info,
+            "params": int(sum(p.numel() for p in hf_model.parameters())),
+            "image_size": self.image_size,
+        }
+
+    @property
+    def device(self) -> torch.device:
+        """Where the weights are."""
+        return self.no_mem_embed.device
+
+    def image_embeddings(self, pixel_values: torch.Tensor) -> list[torch.Tensor]:
+        """``transformers``' image embeddings of a normalised batch ``(B, 3, S, S)``: the two
+        high-resolution levels after the decoder's 1x1 convolutions and the embedding with the
+        no-memory embedding added, each ``(B, C, H, W)``, finest first."""
+        return list(self.hf_model.get_image_embeddings(pixel_values))
+
+    def forward_image(self, img_batch: torch.Tensor) -> dict[str, Any]:
+        """Meta's ``SAM2Base.forward_image`` output for a normalised batch (without the
+        no-memory embedding, which the caller adds as for Meta's models)."""
+        out = self.hf_model.get_image_features(img_batch, return_dict=True)
+        sizes = self.hf_model.config.vision_config.backbone_feature_sizes
+        batch = img_batch.shape[0]
+
+        def grid(flat: torch.Tensor, size: list[int]) -> torch.Tensor:
+            return flat.permute(1, 2, 0).reshape(batch, -1, *size)
+
+        levels = [grid(f, s) for f, s in zip(out.fpn_hidden_states, sizes, strict=True)]
+        pos = [grid(p, s) for p, s in zip(out.fpn_position_encoding, sizes, strict=True)]
+        return {"vision_features": levels[-1], "vision_pos_enc": pos, "backbone_fpn": levels}
+
+    def _prepare_backbone_features(
+        self, backbone_out: dict[str, Any]
+    ) -> tuple[dict[str, Any], list[torch.Tensor], list[torch.Tensor], list[tuple[int, int]]]:
+        """Flattened features ``(HW, B, C)`` and their sizes, as Meta's method returns them."""
+        maps = backbone_out["backbone_fpn"][-self.num_feature_levels :]
+        pos = backbone_out["vision_pos_enc"][-self.num_feature_levels :]
+        sizes = [(int(x.shape[-2]), int(x.shape[-1])) for x in pos]
+        flat = [x.flatten(2).permute(2, 0, 1) for x in maps]
+        flat_pos = [x.flatten(2).permute(2, 0, 1) for x in pos]
+        return backbone_out, flat, flat_pos, sizes

@@ -1,0 +1,307 @@
+"""The transformers backend (issue 34; docs/design.md section 3.8): EdgeTAM and transformers-format
+SAM 2 folders behind lfsam's segmenter interface.
+
+- lfsam's masks for a click are those of transformers' own processor + model call;
+- Meta's SAM 2 and transformers' ``Sam2Model`` fed the same random weights give the same masks
+  through lfsam's two backends;
+- the tiny EdgeTAM runs the whole pipeline (clicks, --auto, sparse views, the cache, videos);
+- what a user sees: ``lfsam models``, ``--checkpoint DIR`` without ``--model``, one-line errors
+  offline and for folders of the wrong kind.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from lfsam.cli.main import main
+from lfsam.errors import LfsamError
+from lfsam.io import write_lightfield
+from lfsam.result import load_result
+from lfsam.segmenters import load_segmenter
+from lfsam.segmenters.base import Prompts
+from lfsam.segmenters.hf_backend import TransformersSegmenter
+from lfsam.segmenters.hf_build import edgetam_config, tiny_edgetam_config
+from lfsam.segmenters.hf_convert import sam2_to_transformers
+from lfsam.segmenters.registry import TRANSFORMERS_MODELS
+from lfsam.segmenters.sam2_backend import Sam2Segmenter
+from lfsam.segmenters.sam2_build import build_sam2
+from lfsam.synth import generate_scene
+
+
+def _perturbed_meta_tiny(seed: int = 3) -> torch.nn.Module:
+    """sam2-tiny-test with seeded noise on every weight (no parameter left at a constant)."""
+    model = build_sam2("sam2-tiny-test", random_weights=True, device="cpu", seed=seed)
+    gen = torch.Generator().manual_seed(seed)
+    with torch.no_grad():
+        for tensor in [*model.parameters(), *model.buffers()]:
+            if tensor.is_floating_point():
+                tensor.add_(0.05 * torch.randn(tensor.shape, generator=gen))
+    return model
+
+
+@pytest.fixture(scope="module")
+def sam2_folder(tmp_path_factory) -> tuple[Path, torch.nn.Module]:
+    """A transformers-format SAM 2 folder (save_pretrained) of the perturbed tiny Meta model,
+    with its processor, and the Meta model itself."""
+    from transformers import Sam2ImageProcessor, Sam2Processor
+
+    meta = _perturbed_meta_tiny()
+    hf = sam2_to_transformers(meta)
+    folder = tmp_path_factory.mktemp("sam2-hf") / "sam2-tiny-hf"
+    hf.save_pretrained(folder)
+    side = int(meta.image_size)
+    processor = Sam2Processor(
+        image_processor=Sam2ImageProcessor(size={"height": side, "width": side}), target_size=side
+    )
+    processor.save_pretrained(folder)
+    return folder, meta
+
+
+@pytest.fixture(scope="module")
+def scene_dir(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("scene") / "scene"
+    write_lightfield(generate_scene(grid=(5, 5), size=(48, 64), seed=2, num_objects=3), path)
+    return path
+
+
+def _one_line_error(capsys) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("lfsam: error:"), err
+    return err[0]
+
+
+# --- the registry's facts -------------------------------------------------------------------
+@pytest.mark.parametrize("name", list(TRANSFORMERS_MODELS))
+def test_registry_parameter_counts_match_a_build(name):
+    from transformers import EdgeTamModel
+
+    spec = TRANSFORMERS_MODELS[name]
+    config = tiny_edgetam_config() if spec.random_only else edgetam_config()
+    model = EdgeTamModel(config)
+    assert sum(p.numel() for p in model.parameters()) == spec.params
+    assert config.prompt_encoder_config.image_size == spec.image_size
+
+
+# --- correctness without trained weights ----------------------------------------------------
+def test_click_gives_transformers_own_mask(sam2_folder, tmp_path, capsys):
+    """`lfsam segment --checkpoint DIR --no-refine --occlusion none` (no --model): the center
+    view's mask is the one transformers' processor + Sam2Model give for that click."""
+    from transformers import Sam2Model, Sam2Processor
+
+    folder, _ = sam2_folder
+    lf = generate_scene(grid=(3, 3), size=(60, 80), seed=4, num_objects=3)
+    scene = tmp_path / "scene"
+    write_lightfield(lf, scene)
+    out = tmp_path / "r.npz"
+    x, y = 37, 22
+    code = main(["segment", str(scene), "--checkpoint", str(folder), "--point", f"{x},{y}",
+                 "--no-refine", "--occlusion", "none", "--disparity", "gt", "--device", "cpu",
+                 "--out", str(out), "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    result = load_result(out)
+    assert result.meta["segmenter"]["backend"] == "transformers"
+    ours = result.masks.mask(0)[lf.center]
+
+    processor = Sam2Processor.from_pretrained(folder)
+    model = Sam2Model.from_pretrained(folder).eval()
+    center = lf.views[lf.center]
+    inputs = processor(images=center, input_points=[[[[x, y]]]], input_labels=[[[1]]],
+                       return_tensors="pt")
+    with torch.no_grad():
+        output = model(**inputs, multimask_output=True)
+    masks = processor.post_process_masks(output.pred_masks, inputs["original_sizes"])[0][0]
+    theirs = masks[int(output.iou_scores[0, 0].argmax())].numpy()
+    assert 0 < theirs.sum() < theirs.size  # a real mask, not an empty or full one
+    np.testing.assert_array_equal(ours, theirs)
+
+
+def test_meta_and_transformers_backends_give_the_same_masks(sam2_folder):
+    """The same random weights in Meta's sam2 and in transformers' Sam2Model: the same masks and
+    IoU predictions through both of lfsam's backends. The view is the models' input size, so
+    both pre-processings (a float resize in Meta's, a uint8 resize in transformers') are the
+    identity and the two backends see the same pixels."""
+    folder, meta = sam2_folder
+    ours_meta = Sam2Segmenter(meta)
+    ours_hf = load_segmenter("transformers", checkpoint=folder, device="cpu")
+    side = int(meta.image_size)
+    view = np.random.default_rng(0).integers(0, 256, (side, side, 3), dtype=np.uint8)
+    prompts = Prompts(
+        points=[[[40.0, 60.0]], [[200.0, 100.0]], [[120.0, 180.0]]],
+        point_labels=[[1], [1], [1]],
+        boxes=[[10, 20, 90, 120], [150, 60, 250, 160], [80, 140, 180, 230]],
+    )
+    for multimask in (True, False):
+        a = ours_meta.predict(ours_meta.encode(view[None])[0], prompts, multimask)
+        b = ours_hf.predict(ours_hf.encode(view[None])[0], prompts, multimask)
+        torch.testing.assert_close(a.iou_predictions, b.iou_predictions, atol=1e-5, rtol=0)
+        torch.testing.assert_close(a.low_res_logits, b.low_res_logits, atol=1e-4, rtol=0)
+        assert torch.equal(a.masks, b.masks)
+        assert 0 < int(a.masks.sum()) < a.masks.numel()
+
+
+def test_same_weights_agree_on_a_resized_view(sam2_folder):
+    """On a view that is resized, the two pre-processings differ by the rounding of the uint8
+    resize (at most one grey level): the masks still agree on nearly every pixel."""
+    folder, meta = sam2_folder
+    ours_meta = Sam2Segmenter(meta)
+    ours_hf = load_segmenter("transformers", checkpoint=folder, device="cpu")
+    view = generate_scene(grid=(1, 1), size=(96, 128), seed=1, num_objects=2).views[0, 0]
+    prompts = Prompts(points=[[[50.0, 40.0]]], point_labels=[[1]])
+    a = ours_meta.predict(ours_meta.encode(view[None])[0], prompts)
+    b = ours_hf.predict(ours_hf.encode(view[None])[0], prompts)
+    agree = (a.masks == b.masks).float().mean().item()
+    assert agree > 0.99, agree
+
+
+# --- EdgeTAM through the pipeline -----------------------------------------------------------
+def test_tiny_edgetam_segments_with_sparse_views(scene_dir, tmp_path, capsys):
+    out = tmp_path / "e.npz"
+    code = main(["segment", str(scene_dir), "--model", "edgetam-tiny-test", "--point", "20,20",
+                 "--point", "40,30", "--refine-views", "sparse", "--disparity", "gt",
+                 "--out", str(out), "--quiet", "--device", "cpu"])
+    assert code == 0, capsys.readouterr().err
+    result = load_result(out)
+    assert result.meta["views_encoded"] == 9  # 5x5 views, sparse: 9 of 25 encoded
+    assert result.meta["segmenter"]["name"] == "edgetam-tiny-test"
+    assert result.meta["segmenter"]["model_type"] == "edgetam"
+    assert result.labels.shape == (5, 5, 48, 64)
+
+
+def test_tiny_edgetam_automatic_mode_and_the_cache(scene_dir, tmp_path):
+    """--auto through SAM 2's automatic generator on EdgeTAM's embeddings; a second run reads
+    every embedding from the disk cache and gives the same labels."""
+    import lfsam
+    from lfsam.api import ModelOptions, RunOptions, SegmentOptions
+    from lfsam.io import read_lightfield
+
+    lf = read_lightfield(scene_dir)
+    segmenter = load_segmenter(
+        "edgetam-tiny-test", device="cpu", amg_options={"points_per_side": 8,
+                                                        "pred_iou_thresh": 0.0,
+                                                        "stability_score_thresh": 0.0},
+    )
+    options = SegmentOptions(
+        model=ModelOptions(name="edgetam-tiny-test"),
+        run=RunOptions(cache_dir=str(tmp_path / "cache"), progress=False),
+    )
+    first = lfsam.segment(lf, None, model=segmenter, disparity="gt", options=options)
+    encoded = segmenter.encode_calls
+    assert first.num_masks >= 1 and encoded == 25
+    second = lfsam.segment(lf, None, model=segmenter, disparity="gt", options=options)
+    assert segmenter.encode_calls == encoded  # all 25 from the cache
+    np.testing.assert_array_equal(first.labels, second.labels)
+
+
+def test_tiny_edgetam_with_corner_references_and_text(scene_dir, tmp_path, capsys):
+    """--auto --references corners, and --text (SAM 3 finds, EdgeTAM carries), through the CLI."""
+    out = tmp_path / "corners.npz"
+    amg = ["--amg", "points_per_side=8", "--amg", "pred_iou_thresh=0.0",
+           "--amg", "stability_score_thresh=0.0"]
+    code = main(["segment", str(scene_dir), "--model", "edgetam-tiny-test", "--auto",
+                 "--references", "corners", *amg, "--disparity", "gt", "--out", str(out),
+                 "--quiet", "--device", "cpu"])
+    assert code == 0, capsys.readouterr().err
+    assert load_result(out).meta["references"] == "corners"
+    out = tmp_path / "text.npz"
+    code = main(["segment", str(scene_dir), "--model", "edgetam-tiny-test", "--text", "thing",
+                 "--text-model", "sam3-tiny-test", "--random-weights", "--text-threshold", "0",
+                 "--refine-views", "sparse", "--disparity", "gt", "--out", str(out),
+                 "--device", "cpu"])
+    assert code == 0, capsys.readouterr().err
+    result = load_result(out)
+    assert result.num_masks > 0 and result.meta["segmenter"]["backend"] == "transformers"
+
+
+def test_tiny_edgetam_tracks_a_video_with_prompts(tmp_path, capsys):
+    from lfsam.video.synth import generate_video, write_video_frames
+
+    video = tmp_path / "video"
+    write_video_frames(generate_video(grid=(3, 3), size=(40, 56), frames=3, num_objects=2,
+                                      seed=1), video)
+    out = tmp_path / "track"
+    code = main(["segment", str(video), "--model", "edgetam-tiny-test", "--point", "20,20",
+                 "--disparity", "gt", "--out", str(out), "--quiet", "--device", "cpu"])
+    assert code == 0, capsys.readouterr().err
+    code = main(["segment", str(video), "--model", "edgetam-tiny-test", "--point", "20,20",
+                 "--tracking", "memory", "--disparity", "gt", "--out", str(tmp_path / "m"),
+                 "--quiet", "--device", "cpu"])
+    assert code == 2
+    assert "video memory" in _one_line_error(capsys)
+
+
+# --- what a user sees -----------------------------------------------------------------------
+def test_models_lists_edgetam_with_size_and_cache_state(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("HF_HUB_CACHE", str(tmp_path / "hub"))
+    assert main(["models", "--json"]) == 0
+    rows = {row["name"]: row for row in json.loads(capsys.readouterr().out)["models"]}
+    edgetam = rows["edgetam"]
+    assert edgetam["hub_id"] == "yonigozlan/EdgeTAM-hf" and edgetam["weights"] == "not cached"
+    assert edgetam["size_mb"] == round(edgetam["params"] * 4 / 1e6, 1) > 30
+    assert rows["edgetam-tiny-test"]["weights"] == "random only"
+    # a snapshot in the cache, laid out as huggingface_hub lays it out, is found without network
+    repo = tmp_path / "hub" / "models--yonigozlan--EdgeTAM-hf"
+    snapshot = repo / "snapshots" / "0123abc"
+    snapshot.mkdir(parents=True)
+    (snapshot / "config.json").write_text("{}")
+    (snapshot / "model.safetensors").write_bytes(b"")
+    (repo / "refs").mkdir()
+    (repo / "refs" / "main").write_text("0123abc")
+    assert main(["models", "--json"]) == 0
+    rows = {row["name"]: row for row in json.loads(capsys.readouterr().out)["models"]}
+    assert rows["edgetam"]["weights"] == "cached"
+    assert main(["models"]) == 0
+    assert "edgetam" in capsys.readouterr().out
+
+
+def test_offline_without_edgetam_weights_is_one_line(scene_dir, tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("HF_HUB_CACHE", str(tmp_path / "empty-hub"))
+    monkeypatch.setenv("HF_HUB_OFFLINE", "1")
+    code = main(["segment", str(scene_dir), "--model", "edgetam", "--point", "20,20",
+                 "--out", str(tmp_path / "r.npz"), "--quiet"])
+    assert code == 2
+    line = _one_line_error(capsys)
+    assert "edgetam" in line and "--checkpoint DIR" in line and "EdgeTAM-hf" in line
+    assert not (tmp_path / "r.npz").exists()
+
+
+def test_random_weights_edgetam_needs_no_download(monkeypatch, tmp_path):
+    monkeypatch.setenv("HF_HUB_CACHE", str(tmp_path / "empty-hub"))
+    monkeypatch.setenv("HF_HUB_OFFLINE", "1")
+    segmenter = load_segmenter("edgetam", random_weights=True, device="cpu")
+    assert isinstance(segmenter, TransformersSegmenter)
+    assert segmenter.describe()["params"] == TRANSFORMERS_MODELS["edgetam"].params
+    assert segmenter.model.image_size == 1024
+
+
+def test_folder_of_another_family_is_one_line(sam2_folder, scene_dir, tmp_path, capsys):
+    folder, _ = sam2_folder
+    code = main(["segment", str(scene_dir), "--model", "edgetam", "--checkpoint", str(folder),
+                 "--point", "20,20", "--out", str(tmp_path / "r.npz"), "--quiet"])
+    assert code == 2
+    assert "holds a sam2 model, not edgetam" in _one_line_error(capsys)
+
+
+@pytest.mark.parametrize("content", ["not a model", "sam"])
+def test_folders_lfsam_cannot_load_are_one_line(tmp_path, content):
+    folder = tmp_path / "model"
+    folder.mkdir()
+    if content == "sam":
+        (folder / "config.json").write_text(json.dumps({"model_type": "clip"}))
+        (folder / "model.safetensors").write_bytes(b"")
+    with pytest.raises(LfsamError, match=r"transformers-format model folder|'clip' model"):
+        load_segmenter("transformers", checkpoint=folder, device="cpu")
+
+
+def test_corrupt_weights_are_one_line(sam2_folder, tmp_path):
+    import shutil
+
+    folder = tmp_path / "broken"
+    shutil.copytree(sam2_folder[0], folder)
+    (folder / "model.safetensors").write_bytes(b"\x00" * 64)
+    with pytest.raises(LfsamError, match="corrupt or incomplete"):
+        load_segmenter("transformers", checkpoint=folder, device="cpu")
