@@ -305,3 +305,23 @@ def test_corrupt_weights_are_one_line(sam2_folder, tmp_path):
     (folder / "model.safetensors").write_bytes(b"\x00" * 64)
     with pytest.raises(LfsamError, match="corrupt or incomplete"):
         load_segmenter("transformers", checkpoint=folder, device="cpu")
+
+
+def test_bfloat16_precision_is_a_choice(sam2_folder, scene_dir, tmp_path, capsys):
+    """--precision bfloat16: autocast on the CPU (channels-last encoder), described in the
+    result; the masks stay close to float32's. The oracle refuses the option."""
+    folder, _ = sam2_folder
+    view = generate_scene(grid=(1, 1), size=(96, 128), seed=1, num_objects=2).views[0, 0]
+    prompts = Prompts(points=[[[50.0, 40.0]], [[90.0, 60.0]]], point_labels=[[1], [1]])
+    masks = {}
+    for precision in ("float32", "bfloat16"):
+        segmenter = load_segmenter("transformers", checkpoint=folder, device="cpu",
+                                   precision=precision)
+        assert segmenter.describe()["precision"] == (
+            "float32" if precision == "float32" else "bfloat16 autocast")
+        masks[precision] = segmenter.predict(segmenter.encode(view[None])[0], prompts).masks
+    agree = (masks["float32"] == masks["bfloat16"]).float().mean().item()
+    assert agree > 0.9, agree
+    code = main(["segment", str(scene_dir), "--model", "oracle", "--precision", "bfloat16",
+                 "--point", "20,20", "--out", str(tmp_path / "r.npz"), "--quiet"])
+    assert code == 2 and "--precision" in _one_line_error(capsys)

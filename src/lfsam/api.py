@@ -162,6 +162,10 @@ class ModelOptions:
         A local copy of SAM 3's hub repository (a folder); default: the hub cache.
     text_threshold : float, optional
         The score a detected instance needs; default: the detector's (SAM 3's processor: 0.3).
+    precision : {"auto", "float32", "bfloat16"}
+        SAM 2 / EdgeTAM arithmetic: ``auto`` = bfloat16 autocast on CUDA, float32 elsewhere;
+        ``bfloat16`` also on a CPU (about twice as fast where the CPU has native bfloat16;
+        docs/performance.md).
     """
 
     name: str = DEFAULT_MODEL
@@ -174,6 +178,7 @@ class ModelOptions:
     text_model: str | None = None
     text_checkpoint: str | None = None
     text_threshold: float | None = None
+    precision: str = "auto"
 
     @property
     def text_model_name(self) -> str:
@@ -201,6 +206,7 @@ class ModelOptions:
             "amg_options": dict(self.amg) if self.amg else None,
             "oracle_options": dict(self.oracle) if self.oracle else None,
             "seed": self.seed,
+            "precision": self.precision,
         }
 
     def build(

@@ -78,6 +78,7 @@ def run_demo(
     amg_options: dict[str, Any] | None = None,
     device: str | None = None,
     progress: bool = True,
+    precision: str = "auto",
 ) -> DemoReport:
     """Generate, segment, score and draw the bundled scene; write everything to ``out_dir``.
 
@@ -100,6 +101,8 @@ def run_demo(
         (:func:`lfsam.devices.resolve_device`).
     progress : bool
         Progress bars.
+    precision : {"auto", "float32", "bfloat16"}
+        SAM 2 / EdgeTAM arithmetic (:class:`lfsam.api.ModelOptions`).
 
     Returns
     -------
@@ -110,7 +113,7 @@ def run_demo(
     if out.exists() and not out.is_dir():
         raise LfsamError(f"{str(out)!r} exists and is not a folder; choose another --out")
     out.mkdir(parents=True, exist_ok=True)
-    if (checkpoint or random_weights) and not model:
+    if (checkpoint or random_weights or precision != "auto") and not model:
         model = DEFAULT_SAM2
     name, reason = choose_segmenter(model)
 
@@ -119,7 +122,7 @@ def run_demo(
     options = SegmentOptions(
         model=ModelOptions(
             name=name, checkpoint=checkpoint, random_weights=random_weights, device=device,
-            amg=amg_options,
+            amg=amg_options, precision=precision,
         ),
         run=RunOptions(progress=progress),
     )

@@ -369,11 +369,15 @@ def splat_masks(
     (N, U, V) bool tensor
     """
     n, height, width = masks.shape
+    size = height * width
     source = warp.valid if keep is None else (warp.valid & keep)
-    mask_idx, pix_idx = torch.nonzero(masks.reshape(n, -1) & source[None], as_tuple=True)
-    out = torch.zeros((n, height * width), dtype=torch.bool, device=masks.device)
-    out[mask_idx, warp.target[pix_idx]] = True
-    return out.reshape(n, height, width)
+    # every source pixel is scattered (no gather): those not moved go to a spare last column
+    target = torch.where(source, warp.target, size).expand(n, -1)
+    out = torch.zeros((n, size + 1), dtype=torch.uint8, device=masks.device)
+    # a target pixel is in a mask if any source pixel landing on it is (max of 0/1; the bool
+    # masks scattered as their bytes, no copy)
+    out.scatter_reduce_(1, target, masks.reshape(n, size).view(torch.uint8), reduce="amax")
+    return out[:, :size].view(torch.bool).reshape(n, height, width)
 
 
 def fill_warp_holes(
@@ -407,11 +411,12 @@ def fill_warp_holes(
     hole_u, hole_v, src_u, src_v = warp.hole_sources((height, width))
     if hole_u.numel() == 0 or n == 0:
         return coarse
-    values = masks[:, src_u, src_v]
+    sources = src_u * width + src_v
+    values = torch.index_select(masks.reshape(n, -1), 1, sources)
     if keep is not None:
-        values = values & keep.reshape(height, width)[src_u, src_v][None]
+        values = values & keep[sources][None]
     out = coarse.clone()
-    out[:, hole_u, hole_v] = values
+    out.reshape(n, -1)[:, hole_u * width + hole_v] = values
     return out
 
 

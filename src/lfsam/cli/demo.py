@@ -56,6 +56,7 @@ def run(args: argparse.Namespace) -> int:
         amg_options=dict(args.amg) or None,
         device=args.device,
         progress=not args.quiet,
+        precision=args.precision,
     )
     print(f"Segmenter: {report.model} — {report.reason}.\n")
     print(report.table)

@@ -26,6 +26,7 @@ from lfsam.segmenters.registry import (
     TRANSFORMERS_FOLDER,
     TRANSFORMERS_MODELS,
 )
+from lfsam.segmenters.sam2_build import PRECISIONS
 from lfsam.segmenters.text.registry import TEXT_MODELS, TINY_SAM3_SIZES
 
 __all__ = [
@@ -81,7 +82,8 @@ def parse_option(text: str) -> tuple[str, Any]:
 def add_model_arguments(
     parser: argparse.ArgumentParser, default: str | None = DEFAULT_MODEL, model_help: str = ""
 ) -> None:
-    """Add ``--model``, ``--checkpoint``, ``--random-weights``, ``--device`` and ``--amg``.
+    """Add ``--model``, ``--checkpoint``, ``--random-weights``, ``--device``, ``--precision``
+    and ``--amg``.
 
     The one set of model and device options of every command that segments (``segment``,
     ``evaluate``, ``demo``); ``model_help`` is appended to the help of ``--model`` (e.g. what
@@ -109,6 +111,14 @@ def add_model_arguments(
         help="untrained SAM 2 of the same architecture (speed tests only: masks are meaningless)",
     )
     add_device_argument(group)
+    group.add_argument(
+        "--precision",
+        choices=PRECISIONS,
+        default="auto",
+        help="arithmetic of SAM 2 / EdgeTAM: auto (bfloat16 autocast on CUDA, float32 "
+        "elsewhere), float32, or bfloat16 (also on a CPU: about twice as fast where the CPU "
+        "has native bfloat16, e.g. AVX512-BF16; the masks differ slightly from float32's)",
+    )
     group.add_argument(
         "--amg",
         action="append",
@@ -171,6 +181,7 @@ def model_options_from_args(args: argparse.Namespace) -> Any:
         text_model=getattr(args, "text_model", None),
         text_checkpoint=getattr(args, "text_checkpoint", None),
         text_threshold=getattr(args, "text_threshold", None),
+        precision=getattr(args, "precision", None) or "auto",
     )
 
 

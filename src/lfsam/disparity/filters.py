@@ -71,25 +71,33 @@ def gaussian_blur(image: torch.Tensor, sigma: float) -> torch.Tensor:
     return smooth_axis(smooth_axis(image, kernel, -1), kernel, -2)
 
 
-#: :func:`box_blur` windows up to this radius are one 2-D pooling (measured faster on a CPU).
-_POOL2D_MAX_RADIUS = 2
+#: :func:`box_blur` windows up to this radius are sums of shifted slices (measured faster on a CPU).
+_SLICES_MAX_RADIUS = 2
 
 
 def box_blur(image: torch.Tensor, radius: int) -> torch.Tensor:
     """Mean over a ``(2 radius + 1)^2`` window of the last two axes (borders replicated).
 
-    Separable: one running mean along each axis (``avg_pool1d``), so the cost grows only linearly
-    with the window width; windows up to 5 x 5 are one ``avg_pool2d`` instead (twice as fast:
-    no transposed, strided pass).
+    Windows up to 5 x 5 add the shifted slices of the padded image in the window's row-major
+    order, then divide: bit for bit ``avg_pool2d``'s sum, 3-5 times faster on a CPU (one
+    vectorised addition per tap instead of a per-pixel window loop). Wider windows are
+    separable running means (``avg_pool1d`` along each axis), whose cost grows only linearly
+    with the window width.
     """
     if radius <= 0:
         return image
     shape = image.shape
     size = 2 * radius + 1
-    if radius <= _POOL2D_MAX_RADIUS:
-        x = image.reshape(-1, 1, shape[-2], shape[-1])
-        x = F.pad(x, (radius, radius, radius, radius), mode="replicate")
-        return F.avg_pool2d(x, size, stride=1).reshape(shape)
+    if radius <= _SLICES_MAX_RADIUS:
+        rows, cols = shape[-2], shape[-1]
+        x = image.reshape(-1, 1, rows, cols)
+        x = F.pad(x, (radius, radius, radius, radius), mode="replicate")[:, 0]
+        out = x[:, :rows, :cols].clone()
+        for i in range(size):
+            for j in range(size):
+                if i or j:
+                    out.add_(x[:, i : i + rows, j : j + cols])
+        return out.div_(size * size).reshape(shape)
     x = image.reshape(-1, shape[-2], shape[-1])
     x = F.pad(x, (radius, radius), mode="replicate")
     x = F.avg_pool1d(x, size, stride=1)

@@ -47,6 +47,7 @@ def load_segmenter(
     seed: int = 0,
     oracle_options: dict[str, Any] | None = None,
     keep_decoder_state: bool = True,
+    precision: str = "auto",
     **sam2_options: Any,
 ) -> Segmenter:
     """Build the segmenter called ``model``.
@@ -90,10 +91,11 @@ def load_segmenter(
         backend, or SAM 2 weights that cannot be had (one line that says how to provide them).
     """
     if model == ORACLE:
-        if checkpoint is not None or random_weights or amg_options or sam2_options:
+        if (checkpoint is not None or random_weights or amg_options or sam2_options
+                or precision != "auto"):
             raise LfsamError(
-                "--checkpoint, --random-weights and SAM 2 options do not apply to the oracle; "
-                "drop them or choose a SAM 2 --model"
+                "--checkpoint, --random-weights, --precision and SAM 2 options do not apply to "
+                "the oracle; drop them or choose a SAM 2 --model"
             )
         if lightfield is None or lightfield.labels is None:
             raise LfsamError(
@@ -122,6 +124,7 @@ def load_segmenter(
             seed=seed,
             amg_options=amg_options,
             keep_decoder_state=keep_decoder_state,
+            precision=precision,
             **sam2_options,
         )
     get_model_spec(model)  # unknown names fail before anything is imported or downloaded
@@ -135,5 +138,6 @@ def load_segmenter(
         seed=seed,
         amg_options=amg_options,
         keep_decoder_state=keep_decoder_state,
+        precision=precision,
         **sam2_options,
     )

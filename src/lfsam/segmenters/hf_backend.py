@@ -69,7 +69,7 @@ class TransformersSegmenter(Sam2Segmenter):
     **kwargs
         As :class:`~lfsam.segmenters.sam2_backend.Sam2Segmenter` (``amg_options``,
         ``max_prompts_per_batch``, ``encode_batch_size``, ``mask_threshold``,
-        ``keep_decoder_state``).
+        ``keep_decoder_state``, ``precision``).
 
     Examples
     --------
@@ -80,6 +80,14 @@ class TransformersSegmenter(Sam2Segmenter):
     >>> seg.predict(emb, Prompts(points=[[[30, 20]]], point_labels=[[1]])).masks.shape
     torch.Size([1, 3, 48, 64])
     """
+
+    def __init__(self, model: torch.nn.Module, **kwargs: Any) -> None:
+        super().__init__(model, **kwargs)
+        #: bfloat16 convolutions run fastest on channels-last tensors (oneDNN); float32 keeps
+        #: transformers' own layout, so its masks stay transformers' to the bit
+        self.channels_last = self.autocast is not None
+        if self.channels_last:
+            self.model.hf_model.vision_encoder.to(memory_format=torch.channels_last)
 
     @classmethod
     def from_name(  # type: ignore[override]
@@ -100,9 +108,11 @@ class TransformersSegmenter(Sam2Segmenter):
         return cls(model, **kwargs)
 
     def _encode_batch(self, chunk: np.ndarray) -> list[Sam2Features]:
-        with inference_context(self.device):
+        with inference_context(self.device, precision=self.precision):
             views = torch.from_numpy(np.ascontiguousarray(chunk)).to(self.device)
             pixels = preprocess_views(views, int(self.model.image_size))
+            if self.channels_last:
+                pixels = pixels.contiguous(memory_format=torch.channels_last)
             levels = self.model.image_embeddings(pixels)
             out = []
             for i in range(len(chunk)):

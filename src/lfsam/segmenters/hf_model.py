@@ -20,7 +20,38 @@ from torch import nn
 
 from lfsam.segmenters.hf_heads import build_meta_heads, load_meta_heads
 
-__all__ = ["TransformersImageModel"]
+__all__ = ["CachedPositions", "TransformersImageModel"]
+
+
+class CachedPositions(nn.Module):
+    """The FPN neck's sine position encodings, made once per feature-map size.
+
+    ``transformers`` builds them on every forward (a one-entry cache for the neck's four sizes:
+    about 0.1 s per view for EdgeTAM on a CPU, for maps lfsam's image path never reads); they
+    depend only on the size, so they are kept here, one batch row per size, and expanded.
+
+    Parameters
+    ----------
+    encoding : nn.Module
+        The neck's ``position_encoding`` (called as ``encoding(shape, device, dtype)``).
+    """
+
+    def __init__(self, encoding: nn.Module) -> None:
+        super().__init__()
+        self.encoding = encoding
+        self._made: dict[tuple[Any, ...], torch.Tensor] = {}
+
+    def forward(
+        self, shape: torch.Size, device: torch.device | str, dtype: torch.dtype,
+        mask: torch.Tensor | None = None,
+    ) -> torch.Tensor:
+        """The encoding of a ``(B, C, H, W)`` map (computed afresh only with a mask)."""
+        if mask is not None:
+            return self.encoding(shape, device, dtype, mask)
+        key = (tuple(shape[1:]), str(device), dtype)
+        if key not in self._made:
+            self._made[key] = self.encoding(torch.Size((1, *shape[1:])), device, dtype)
+        return self._made[key].expand(shape[0], -1, -1, -1)
 
 
 class TransformersImageModel(nn.Module):
@@ -45,6 +76,8 @@ class TransformersImageModel(nn.Module):
         config = hf_model.config
         heads = build_meta_heads(config)
         load_meta_heads(heads, hf_model.state_dict())
+        neck = hf_model.vision_encoder.neck
+        neck.position_encoding = CachedPositions(neck.position_encoding)
         self.hf_model = hf_model
         self.sam_prompt_encoder = heads.sam_prompt_encoder
         self.sam_mask_decoder = heads.sam_mask_decoder

@@ -41,10 +41,10 @@ from lfsam.segmenters.sam2_adapter import (
     image_transforms,
 )
 from lfsam.segmenters.sam2_build import (
-    autocast_dtype,
     build_sam2,
     inference_context,
     make_image_predictor,
+    precision_dtype,
 )
 from lfsam.segmenters.sam2_decoder import default_chunk_size
 
@@ -119,6 +119,10 @@ class Sam2Segmenter(Segmenter):
         Logit threshold of the masks (SAM 2's default 0).
     keep_decoder_state : bool
         Keep the decoder's image side with each embedding (above).
+    precision : {"auto", "float32", "bfloat16"}
+        The arithmetic (:data:`lfsam.segmenters.sam2_build.PRECISIONS`): ``auto`` is bfloat16
+        autocast on CUDA and float32 elsewhere; ``bfloat16`` autocasts on any device (about
+        twice as fast on CPUs with native bfloat16; the masks differ slightly from float32's).
 
     Examples
     --------
@@ -136,8 +140,11 @@ class Sam2Segmenter(Segmenter):
         encode_batch_size: int | None = None,
         mask_threshold: float = 0.0,
         keep_decoder_state: bool = True,
+        precision: str = "auto",
     ) -> None:
         super().__init__()
+        self.precision = str(precision)
+        self.autocast = precision_dtype(model.device, self.precision)
         if encode_batch_size is None:
             encode_batch_size = default_encode_batch_size(model.device)
         if max_prompts_per_batch is None:
@@ -204,7 +211,7 @@ class Sam2Segmenter(Segmenter):
 
     def describe(self) -> dict[str, Any]:
         """A JSON-ready description for result metadata (random weights are flagged)."""
-        dtype = autocast_dtype(self.device)
+        dtype = self.autocast
         return {
             "backend": "sam2",
             "name": self.name,
@@ -245,7 +252,7 @@ class Sam2Segmenter(Segmenter):
 
     def _encode_batch(self, chunk: np.ndarray) -> list[Sam2Features]:
         model = self.model
-        with inference_context(self.device):
+        with inference_context(self.device, precision=self.precision):
             x = torch.from_numpy(np.ascontiguousarray(chunk)).to(self.device)
             x = x.permute(0, 3, 1, 2).float().div_(255.0)
             x = image_transforms(self._predictor).transforms(x)  # resize + normalise, as set_image
@@ -275,7 +282,7 @@ class Sam2Segmenter(Segmenter):
                 flat = tensor.detach().cpu().contiguous().reshape(-1)
                 digest.update(flat.view(torch.uint8).numpy().tobytes())
             self._weights_digest = digest.hexdigest()
-        dtype = autocast_dtype(self.device)
+        dtype = self.autocast
         return json.dumps(
             {
                 "backend": "sam2",
@@ -363,7 +370,7 @@ class Sam2Segmenter(Segmenter):
         )
         masks, ious, logits = [], [], []
         try:
-            with inference_context(self.device, inference_mode=False):
+            with inference_context(self.device, inference_mode=False, precision=self.precision):
                 for start in range(0, n, self.max_prompts_per_batch):
                     sub = prompts.subset(slice(start, start + self.max_prompts_per_batch))
                     coords, labels, boxes = self._prompt_tensors(sub, (u_size, v_size))
@@ -456,7 +463,7 @@ class Sam2Segmenter(Segmenter):
             # the generator scales its [0, 1] grids by the crop's (width, height)
             generator.point_grids = [points / np.array([v_size, u_size])] * len(grids)
         try:
-            with inference_context(self.device, inference_mode=False):
+            with inference_context(self.device, inference_mode=False, precision=self.precision):
                 records = generator.generate(image)
         finally:
             generator.point_grids = grids

@@ -37,6 +37,7 @@ from lfsam.errors import LfsamError
 from lfsam.segmenters.registry import DEFAULT_MODEL, ModelSpec, get_model_spec
 
 __all__ = [
+    "PRECISIONS",
     "build_sam2",
     "build_sam2_video",
     "cached_checkpoint",
@@ -46,6 +47,7 @@ __all__ = [
     "inference_context",
     "load_checkpoint",
     "make_image_predictor",
+    "precision_dtype",
     "resolve_checkpoint",
     "resolve_device",
 ]
@@ -68,9 +70,35 @@ def autocast_dtype(device: torch.device) -> torch.dtype | None:
     return None
 
 
+PRECISIONS = ("auto", "float32", "bfloat16")
+"""``--precision``: ``auto`` (bfloat16 autocast on CUDA GPUs that have it, else float32),
+``float32``, or ``bfloat16`` autocast anywhere (on a CPU with native bfloat16, e.g. AVX512-BF16
+or AMX, about twice as fast for EdgeTAM's encoder; docs/performance.md)."""
+
+
+def precision_dtype(device: torch.device, precision: str = "auto") -> torch.dtype | None:
+    """The autocast dtype of ``precision`` on ``device`` (None: float32, no autocast).
+
+    Raises
+    ------
+    LfsamError
+        An unknown precision.
+    """
+    if precision == "auto":
+        return autocast_dtype(device)
+    if precision == "float32":
+        return None
+    if precision == "bfloat16":
+        return torch.bfloat16
+    raise LfsamError(f"--precision {precision}: unknown; use one of {', '.join(PRECISIONS)}")
+
+
 @contextlib.contextmanager
-def inference_context(device: torch.device, *, inference_mode: bool = True) -> Iterator[None]:
-    """No autograd, plus bf16 autocast on CUDA (as in SAM 2's examples).
+def inference_context(
+    device: torch.device, *, inference_mode: bool = True, precision: str = "auto"
+) -> Iterator[None]:
+    """No autograd, plus bf16 autocast on CUDA (as in SAM 2's examples), or as ``precision``
+    says (:func:`precision_dtype`).
 
     Parameters
     ----------
@@ -79,9 +107,11 @@ def inference_context(device: torch.device, *, inference_mode: bool = True) -> I
     inference_mode : bool
         Use ``torch.inference_mode`` (fastest; tensors made inside cannot be modified in place
         outside it) or ``torch.no_grad`` (for tensors handed back to callers).
+    precision : {"auto", "float32", "bfloat16"}
+        The arithmetic (:data:`PRECISIONS`).
     """
     grad_off = torch.inference_mode() if inference_mode else torch.no_grad()
-    dtype = autocast_dtype(device)
+    dtype = precision_dtype(device, precision)
     with grad_off:
         if dtype is None:
             yield

@@ -50,7 +50,7 @@ __all__ = [
 ]
 
 #: Keywords of :func:`lfsam.segmenters.load_segmenter` that only a SAM 2 model takes.
-SAM2_ONLY_OPTIONS = ("checkpoint", "random_weights", "amg_options")
+SAM2_ONLY_OPTIONS = ("checkpoint", "random_weights", "amg_options", "precision")
 
 #: Disparity sources the widget offers besides a file (``set_lightfield(disparity=...)``).
 DISPARITY_SOURCES = ("estimate", "gt")
