@@ -393,3 +393,145 @@ def test_view_help_and_the_message_without_the_extra(capsys, monkeypatch):
 
     with pytest.raises(LfsamError, match=r"lfsam\[viewer\]"):
         require_napari()
+
+
+# --- the transformers backend in the dock (EdgeTAM; docs/design.md section 3.8) --------------
+EDGETAM = "edgetam-tiny-test"
+
+
+@pytest.fixture(scope="module")
+def edgetam_folder(tmp_path_factory):
+    """A tiny EdgeTAM in transformers format (``save_pretrained``), as a real checkpoint is:
+    the image and prompt positional embeddings equal."""
+    import torch
+    from transformers import EdgeTamModel
+
+    from lfsam.segmenters.hf_build import tiny_edgetam_config
+
+    torch.manual_seed(0)
+    model = EdgeTamModel(tiny_edgetam_config())
+    with torch.no_grad():
+        shared = model.shared_image_embedding.positional_embedding
+        model.prompt_encoder.shared_embedding.positional_embedding.copy_(shared)
+    folder = tmp_path_factory.mktemp("edgetam-hf") / "edgetam-tiny-hf"
+    model.save_pretrained(folder)
+    return folder
+
+
+def _choose_weights(widget, text):
+    """Choose ``text`` in the weights box as a user does: the current item changes, then the
+    box emits ``activated`` with its index."""
+    box = widget.weights_box
+    index = box.findText(text)
+    assert index >= 0, text
+    box.setCurrentIndex(index)
+    box.activated.emit(index)
+
+
+def _click_center_segments(qtbot, viewer, widget, scene):
+    """A click on an object of the center view gives the current object a mask there."""
+    center = scene.center
+    _click(viewer, widget.layers[L.POINTS], center, _interior(scene.labels[center], OBJ))
+    _idle(qtbot, widget)
+    obj_id = widget.session.current_id
+    assert widget.stages == ["reference", "coarse", "final"]
+    assert (widget.layers[L.CURRENT].data[center] == obj_id).any()
+    assert widget.objects.count() == 1 and str(obj_id) in widget.objects.item(0).text()
+
+
+def test_edgetam_model_segments_a_click(make_napari_viewer, qtbot, scene, monkeypatch):
+    """The model box on the tiny EdgeTAM (random weights): a click segments an object."""
+    from lfsam.segmenters.hf_backend import TransformersSegmenter
+
+    shown = []
+    monkeypatch.setattr("lfsam.viewer.widget._notify_error", shown.append)
+    viewer = make_napari_viewer()
+    widget = LightFieldWidget(viewer, lightfield=scene, model=EDGETAM, disparity="gt",
+                              segmenter_options={"random_weights": True, "device": "cpu"})
+    viewer.window.add_dock_widget(widget)
+    qtbot.waitUntil(lambda: widget.session.loaded and not widget.busy, timeout=TIMEOUT)
+    assert widget.model_box.currentText() == EDGETAM and widget.weights_box.isEnabled()
+    segmenter = widget.session.predictor.segmenter
+    assert isinstance(segmenter, TransformersSegmenter)
+    assert segmenter.info["name"] == EDGETAM and segmenter.info["random_weights"]
+    _click_center_segments(qtbot, viewer, widget, scene)
+    assert shown == []
+
+
+def test_weights_folder_item_loads_a_transformers_folder(
+    make_napari_viewer, qtbot, scene, edgetam_folder, monkeypatch
+):
+    """"folder…" in the weights box asks for a folder; with the model "transformers" the
+    session's segmenter is then the transformers backend on that folder, and clicks segment."""
+    from lfsam.segmenters.hf_backend import TransformersSegmenter
+    from lfsam.segmenters.registry import TRANSFORMERS_FOLDER
+    from lfsam.viewer import controls as C
+
+    asked = []
+
+    def ask_open_folder(parent, title):
+        asked.append(title)
+        return str(edgetam_folder)
+
+    monkeypatch.setattr("lfsam.viewer.controls.ask_open_folder", ask_open_folder)
+
+    def ask_open_file(*args):
+        raise AssertionError("folder… asked for a file")
+
+    monkeypatch.setattr("lfsam.viewer.controls.ask_open_file", ask_open_file)
+    shown = []
+    monkeypatch.setattr("lfsam.viewer.widget._notify_error", shown.append)
+    viewer, widget = _open(make_napari_viewer, qtbot, scene, segmenter_options={"device": "cpu"})
+    assert not widget.weights_box.isEnabled()  # the oracle has no weights
+    widget.model_box.setCurrentText(TRANSFORMERS_FOLDER)
+    _idle(qtbot, widget)
+    assert widget.weights_box.isEnabled() and widget.session.model == TRANSFORMERS_FOLDER
+    shown.clear()  # the model without a folder yet may say so; choosing one must not fail
+    box = widget.weights_box
+    assert box.findText(C.FOLDER_ITEM) == box.count() - 1
+    _choose_weights(widget, C.FOLDER_ITEM)
+    _idle(qtbot, widget)
+    assert len(asked) == 1
+    assert box.currentText() == str(edgetam_folder)
+    assert [box.itemText(i) for i in range(box.count())][-2:] == [C.FILE_ITEM, C.FOLDER_ITEM]
+    segmenter = widget.session.predictor.segmenter
+    assert isinstance(segmenter, TransformersSegmenter)
+    assert segmenter.info["checkpoint"] == str(edgetam_folder)
+    assert segmenter.info["model_type"] == "edgetam" and not segmenter.info["random_weights"]
+    assert widget.session.model == TRANSFORMERS_FOLDER
+    _click_center_segments(qtbot, viewer, widget, scene)
+    # a cancelled dialog keeps the folder in use
+    monkeypatch.setattr("lfsam.viewer.controls.ask_open_folder", lambda parent, title: None)
+    _choose_weights(widget, C.FOLDER_ITEM)
+    _idle(qtbot, widget)
+    assert box.currentText() == str(edgetam_folder)
+    assert widget.session.predictor.segmenter is segmenter  # nothing reloaded
+    assert shown == []
+
+
+def test_view_with_a_checkpoint_folder_shows_transformers(qtbot, scene, edgetam_folder, tmp_path):
+    """`lfsam view SCENE --checkpoint FOLDER` (no --model): the model box shows
+    "transformers", the weights box the folder, and the folder's model is loaded."""
+    from lfsam.cli.main import build_parser
+    from lfsam.cli.view import open_viewer
+    from lfsam.io import write_lightfield
+    from lfsam.segmenters.hf_backend import TransformersSegmenter
+    from lfsam.segmenters.registry import TRANSFORMERS_FOLDER
+
+    scene_dir = tmp_path / "scene"
+    write_lightfield(scene, scene_dir)
+    args = build_parser().parse_args(["view", str(scene_dir), "--checkpoint", str(edgetam_folder),
+                                      "--disparity", "gt", "--device", "cpu"])
+    viewer, widget = open_viewer(args, show=False)
+    try:
+        assert widget.model_box.currentText() == TRANSFORMERS_FOLDER
+        assert widget.weights_box.currentText() == str(edgetam_folder)
+        assert widget.weights_box.isEnabled()
+        qtbot.waitUntil(lambda: widget.session.loaded and not widget.busy, timeout=TIMEOUT)
+        segmenter = widget.session.predictor.segmenter
+        assert isinstance(segmenter, TransformersSegmenter)
+        assert segmenter.info["checkpoint"] == str(edgetam_folder)
+        assert widget.model_box.currentText() == TRANSFORMERS_FOLDER
+        assert widget.weights_box.currentText() == str(edgetam_folder)
+    finally:
+        viewer.close()

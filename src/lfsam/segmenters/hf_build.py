@@ -276,7 +276,9 @@ def build_transformers_sam(
         config = _image_config(family, _read_config(folder))
     elif spec is None:
         raise LfsamError(
-            f"--model {name} needs a transformers-format folder: pass it with --checkpoint DIR"
+            f"the model {name!r} takes its architecture and weights from a transformers-format "
+            "folder (config.json + *.safetensors): give it with --checkpoint DIR (in the "
+            "viewer: Weights > folder…)"
         )
     else:
         family = spec.model_type
