@@ -198,6 +198,24 @@ def segmenter_from_args(
     return model_options_from_args(args).build(lightfield)
 
 
+def _row(spec: Any, cached: Any, kind: str, *, default: bool = False,
+         checkpoint_file: str | None = None, image_size: int | None = None) -> dict[str, Any]:
+    """One model's row of :func:`list_models` (``cached``: its file or folder in the cache)."""
+    return {
+        "name": spec.name,
+        "default": default,
+        "description": spec.description,
+        "params": spec.params,
+        "size_mb": round(spec.params * 4 / 1e6, 1),
+        "image_size": spec.image_size if image_size is None else image_size,
+        "hub_id": spec.hub_id,
+        "checkpoint_file": checkpoint_file,
+        "cached": None if cached is None else str(cached),
+        "weights": "random only" if spec.random_only else ("cached" if cached else "not cached"),
+        "kind": kind,
+    }
+
+
 def list_models() -> dict[str, Any]:
     """What ``lfsam models`` shows, as a JSON-ready dict (no network, no model built)."""
     from lfsam.segmenters.hub_folder import cached_hub_folder
@@ -208,61 +226,14 @@ def list_models() -> dict[str, Any]:
     rows = []
     for spec in MODELS.values():
         cached = cached_checkpoint(spec.name)
-        rows.append(
-            {
-                "name": spec.name,
-                "default": spec.name == DEFAULT_MODEL,
-                "description": spec.description,
-                "params": spec.params,
-                "size_mb": round(spec.params * 4 / 1e6, 1),
-                "image_size": spec.image_size,
-                "hub_id": spec.hub_id,
-                "checkpoint_file": spec.checkpoint_file,
-                "cached": None if cached is None else str(cached),
-                "weights": "random only"
-                if spec.random_only
-                else ("cached" if cached else "not cached"),
-                "kind": "sam2",
-            }
-        )
+        rows.append(_row(spec, cached, "sam2", default=spec.name == DEFAULT_MODEL,
+                         checkpoint_file=spec.checkpoint_file))
     for hf_spec in TRANSFORMERS_MODELS.values():  # EdgeTAM (docs/design.md section 3.8)
         folder = None if hf_spec.hub_id is None else cached_hub_folder(hf_spec.hub_id)
-        rows.append(
-            {
-                "name": hf_spec.name,
-                "default": False,
-                "description": hf_spec.description,
-                "params": hf_spec.params,
-                "size_mb": round(hf_spec.params * 4 / 1e6, 1),
-                "image_size": hf_spec.image_size,
-                "hub_id": hf_spec.hub_id,
-                "checkpoint_file": None,
-                "cached": None if folder is None else str(folder),
-                "weights": "random only"
-                if hf_spec.random_only
-                else ("cached" if folder else "not cached"),
-                "kind": "transformers",
-            }
-        )
+        rows.append(_row(hf_spec, folder, "transformers"))
     for text_spec in TEXT_MODELS.values():  # --text-model (docs/design.md section 9)
-        folder = cached_text_weights(text_spec.name)
-        rows.append(
-            {
-                "name": text_spec.name,
-                "default": False,
-                "description": text_spec.description,
-                "params": text_spec.params,
-                "size_mb": round(text_spec.params * 4 / 1e6, 1),
-                "image_size": 1008 if text_spec.hub_id else TINY_SAM3_SIZES["image_size"],
-                "hub_id": text_spec.hub_id,
-                "checkpoint_file": None,
-                "cached": None if folder is None else str(folder),
-                "weights": "random only"
-                if text_spec.random_only
-                else ("cached" if folder else "not cached"),
-                "kind": "text",
-            }
-        )
+        side = 1008 if text_spec.hub_id else TINY_SAM3_SIZES["image_size"]
+        rows.append(_row(text_spec, cached_text_weights(text_spec.name), "text", image_size=side))
     rows.append(
         {
             "name": ORACLE,

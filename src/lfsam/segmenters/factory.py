@@ -109,28 +109,14 @@ def load_segmenter(
         raise LfsamError("oracle options apply only to --model oracle; drop them")
     from lfsam.segmenters.hf_build import is_transformers_folder
 
-    if model in TRANSFORMERS_MODELS or model == TRANSFORMERS_FOLDER or is_transformers_folder(
-        checkpoint
-    ):
-        if model not in TRANSFORMERS_MODELS and model != TRANSFORMERS_FOLDER:
-            get_model_spec(model)  # unknown names fail before anything is imported
-        from lfsam.segmenters.hf_backend import TransformersSegmenter
-
-        return TransformersSegmenter.from_name(
-            model,
-            checkpoint=checkpoint,
-            random_weights=random_weights,
-            device=device,
-            seed=seed,
-            amg_options=amg_options,
-            keep_decoder_state=keep_decoder_state,
-            precision=precision,
-            **sam2_options,
-        )
-    get_model_spec(model)  # unknown names fail before anything is imported or downloaded
-    from lfsam.segmenters.sam2_backend import Sam2Segmenter
-
-    return Sam2Segmenter.from_name(
+    transformers = model in TRANSFORMERS_MODELS or model == TRANSFORMERS_FOLDER
+    if not transformers:
+        get_model_spec(model)  # unknown names fail before anything is imported or downloaded
+    if transformers or is_transformers_folder(checkpoint):
+        from lfsam.segmenters.hf_backend import TransformersSegmenter as backend
+    else:
+        from lfsam.segmenters.sam2_backend import Sam2Segmenter as backend
+    return backend.from_name(
         model,
         checkpoint=checkpoint,
         random_weights=random_weights,
