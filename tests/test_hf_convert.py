@@ -290,3 +290,35 @@ def test_wrong_shape_raises(tiny):
     sd["sam_mask_decoder.conv_s0.bias"] = torch.zeros(5)
     with pytest.raises(LfsamError, match=r"shape mismatch.*conv_s0.bias"):
         sam2_state_dict_to_transformers(sd, reference=reference)
+
+
+def test_the_mapping_names_sammodel_heads():
+    """SAM v1's heads as Meta modules (no high-resolution maps, no object scores) convert, by the
+    same mapping, to exactly the head parameters of transformers' SamModel, shapes included; the
+    no-memory embedding is Sam2Model's alone."""
+    from transformers import SamConfig, SamModel, SamVisionConfig
+
+    from lfsam.segmenters.hf_heads import build_meta_heads
+
+    config = SamConfig(
+        vision_config=SamVisionConfig(hidden_size=32, num_hidden_layers=1, num_attention_heads=2,
+                                      image_size=128, output_channels=32, num_pos_feats=16,
+                                      global_attn_indexes=[0], mlp_dim=64),
+        prompt_encoder_config={"hidden_size": 32, "image_size": 128},
+        mask_decoder_config={"hidden_size": 32, "mlp_dim": 64, "num_attention_heads": 2,
+                             "iou_head_hidden_dim": 32},
+    )
+    heads = build_meta_heads(config)
+    assert not heads.sam_mask_decoder.use_high_res_features
+    assert not heads.sam_mask_decoder.pred_obj_scores
+    reference = {
+        k: v for k, v in SamModel(config).state_dict().items()
+        if k.startswith(("prompt_encoder.", "mask_decoder.", "shared_image_embedding."))
+    }
+    converted = sam2_state_dict_to_transformers(
+        heads.state_dict(), reference=reference, target="SamModel"
+    )
+    assert "mask_decoder.transformer.layers.0.mlp.lin1.weight" in converted
+    assert "prompt_encoder.point_embed.3.weight" in converted
+    with pytest.raises(LfsamError, match="not filled"):
+        sam2_state_dict_to_transformers(heads.state_dict(), reference=reference)

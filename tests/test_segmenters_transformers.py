@@ -6,7 +6,9 @@ SAM 2 folders behind lfsam's segmenter interface.
   through lfsam's two backends;
 - the tiny EdgeTAM runs the whole pipeline (clicks, --auto, sparse views, the cache, videos);
 - what a user sees: ``lfsam models``, ``--checkpoint DIR`` without ``--model``, one-line errors
-  offline and for folders of the wrong kind.
+  offline and for folders of the wrong kind;
+- SAM (v1) folders (``model_type: sam``): the padded geometry gives transformers' own pixels,
+  logits, IoU predictions and masks on non-square views, and the whole pipeline runs.
 """
 
 from __future__ import annotations
@@ -27,7 +29,9 @@ from lfsam.segmenters.base import Prompts
 from lfsam.segmenters.hf_backend import TransformersSegmenter
 from lfsam.segmenters.hf_build import edgetam_config, tiny_edgetam_config
 from lfsam.segmenters.hf_convert import sam2_to_transformers
+from lfsam.segmenters.hf_sam1 import PaddedTransforms, preprocess_padded, view_grid
 from lfsam.segmenters.registry import TRANSFORMERS_MODELS
+from lfsam.segmenters.sam2_adapter import image_transforms
 from lfsam.segmenters.sam2_backend import Sam2Segmenter
 from lfsam.segmenters.sam2_build import build_sam2
 from lfsam.synth import generate_scene
@@ -60,6 +64,45 @@ def sam2_folder(tmp_path_factory) -> tuple[Path, torch.nn.Module]:
     )
     processor.save_pretrained(folder)
     return folder, meta
+
+
+def tiny_sam_config():
+    """A tiny ``SamConfig``: ViT of 2 layers (32 wide, 2 heads, one windowed of 4, one global),
+    patch 16 on a 256-pixel input (a 16 x 16 embedding), prompt encoder and decoder 32 wide."""
+    from transformers import SamConfig, SamVisionConfig
+
+    vision = SamVisionConfig(hidden_size=32, num_hidden_layers=2, num_attention_heads=2,
+                             image_size=256, patch_size=16, output_channels=32, num_pos_feats=16,
+                             global_attn_indexes=[1], window_size=4, mlp_dim=64)
+    return SamConfig(
+        vision_config=vision,
+        prompt_encoder_config={"hidden_size": 32, "image_size": 256, "patch_size": 16},
+        mask_decoder_config={"hidden_size": 32, "mlp_dim": 64, "num_attention_heads": 2,
+                             "iou_head_hidden_dim": 32},
+    )
+
+
+@pytest.fixture(scope="module")
+def sam1_folder(tmp_path_factory) -> tuple[Path, torch.nn.Module]:
+    """A transformers-format SAM (v1) folder: the tiny SamModel with seeded noise on every
+    weight (its Fourier matrix of unit scale, so the masks are smooth), saved with
+    save_pretrained (the tied matrix once) and a SamProcessor of 256 pixels; and the model."""
+    from transformers import SamImageProcessor, SamModel, SamProcessor
+
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(0)
+        model = SamModel(tiny_sam_config()).eval()
+    gen = torch.Generator().manual_seed(3)
+    with torch.no_grad():
+        for tensor in model.parameters():
+            tensor.add_(0.05 * torch.randn(tensor.shape, generator=gen))
+        model.shared_image_embedding.positional_embedding.copy_(
+            torch.randn(2, 16, generator=gen))
+    folder = tmp_path_factory.mktemp("sam-hf") / "sam-tiny-hf"
+    model.save_pretrained(folder)
+    SamProcessor(SamImageProcessor(size={"longest_edge": 256},
+                                   pad_size={"height": 256, "width": 256})).save_pretrained(folder)
+    return folder, model
 
 
 @pytest.fixture(scope="module")
@@ -325,3 +368,111 @@ def test_bfloat16_precision_is_a_choice(sam2_folder, scene_dir, tmp_path, capsys
     code = main(["segment", str(scene_dir), "--model", "oracle", "--precision", "bfloat16",
                  "--point", "20,20", "--out", str(tmp_path / "r.npz"), "--quiet"])
     assert code == 2 and "--precision" in _one_line_error(capsys)
+
+
+# --- SAM (v1) in transformers format ---------------------------------------------------------
+def test_sam1_click_gives_transformers_own_mask(sam1_folder, tmp_path, capsys):
+    """`lfsam segment --checkpoint DIR` of a SamModel on a non-square scene (60 x 80 views, so
+    the input is padded): the center view's mask is SamProcessor + SamModel +
+    post_process_masks's highest-IoU candidate for the click."""
+    from transformers import SamModel, SamProcessor
+
+    folder, _ = sam1_folder
+    lf = generate_scene(grid=(3, 3), size=(60, 80), seed=4, num_objects=3)
+    scene = tmp_path / "scene"
+    write_lightfield(lf, scene)
+    out = tmp_path / "r.npz"
+    x, y = 37, 22
+    code = main(["segment", str(scene), "--checkpoint", str(folder), "--point", f"{x},{y}",
+                 "--no-refine", "--occlusion", "none", "--disparity", "gt", "--device", "cpu",
+                 "--out", str(out), "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    result = load_result(out)
+    assert result.meta["segmenter"]["model_type"] == "sam"
+    ours = result.masks.mask(0)[lf.center]
+
+    processor = SamProcessor.from_pretrained(folder)
+    model = SamModel.from_pretrained(folder).eval()
+    inputs = processor(images=lf.views[lf.center], input_points=[[[x, y]]], return_tensors="pt")
+    with torch.no_grad():
+        output = model(**inputs, multimask_output=True)
+    masks = processor.post_process_masks(output.pred_masks, inputs["original_sizes"],
+                                         inputs["reshaped_input_sizes"])[0][0]
+    theirs = masks[int(output.iou_scores[0, 0].argmax())].numpy()
+    assert 0 < theirs.sum() < theirs.size
+    np.testing.assert_array_equal(ours, theirs)
+
+
+def test_sam1_prompts_give_transformers_own_logits(sam1_folder):
+    """Points, boxes and both (SAM v1's convention: points, then the box, no padding point)
+    through `predict`: SamModel's low-resolution logits and IoU predictions within 1e-4 and its
+    post-processed masks; the pixels are SamImageProcessor's; a cached embedding round-trips."""
+    from transformers import SamImageProcessor, SamProcessor
+
+    folder, model = sam1_folder
+    image_processor = SamImageProcessor.from_pretrained(folder)
+    for hw in ((45, 80), (77, 50)):
+        view = np.random.default_rng(hw[0]).integers(0, 256, (*hw, 3), dtype=np.uint8)
+        theirs = image_processor(images=view, return_tensors="pt")["pixel_values"]
+        ours = preprocess_padded(torch.from_numpy(view)[None], 256)
+        torch.testing.assert_close(ours, theirs, atol=1e-6, rtol=0)
+
+    processor = SamProcessor.from_pretrained(folder)
+    segmenter = load_segmenter("transformers", checkpoint=folder, device="cpu")
+    view = generate_scene(grid=(1, 1), size=(61, 80), seed=1, num_objects=3).views[0, 0]
+    embedding = segmenter.encode(view[None])[0]
+    assert segmenter.embedding_state(embedding).keys() == {"level0", "dtype"}
+    points = [[[20.0, 30.0]], [[55.0, 12.0]], [[70.0, 50.0]]]
+    boxes = [[5.0, 10.0, 40.0, 50.0], [30.0, 2.0, 78.0, 30.0], [45.0, 25.0, 79.0, 60.0]]
+    cases = [
+        ({"points": points, "point_labels": [[1], [1], [0]]},
+         {"input_points": [points], "input_labels": [[[1], [1], [0]]]}),
+        ({"boxes": boxes}, {"input_boxes": [boxes]}),
+        ({"points": points, "point_labels": [[1], [1], [1]], "boxes": boxes},
+         {"input_points": [points], "input_labels": [[[1], [1], [1]]], "input_boxes": [boxes]}),
+    ]
+    for ours_args, their_args in cases:
+        inputs = processor(images=view, return_tensors="pt", **their_args)
+        for multimask in (True, False):
+            ours = segmenter.predict(embedding, Prompts(**ours_args), multimask)
+            with torch.no_grad():
+                output = model(**inputs, multimask_output=multimask)
+            torch.testing.assert_close(ours.iou_predictions, output.iou_scores[0],
+                                       atol=1e-4, rtol=0)
+            torch.testing.assert_close(ours.low_res_logits, output.pred_masks[0].clamp(-32, 32),
+                                       atol=1e-4, rtol=0)
+            masks = processor.post_process_masks(output.pred_masks, inputs["original_sizes"],
+                                                 inputs["reshaped_input_sizes"])[0]
+            assert torch.equal(ours.masks, masks)
+            assert 0 < int(masks.sum()) < masks.numel()
+
+    # semantic occluding samples the cells over the view: 61 x 80 -> 195 x 256, 13 x 16 cells
+    assert view_grid((61, 80), 256, 16) == (13, 16)
+    assert segmenter._feature_grid(embedding).shape[-2:] == (13, 16)
+    assert segmenter.sample_features(embedding, torch.tensor([[30, 40]])).shape == (1, 32)
+    cached = segmenter.embedding_from_state(segmenter.embedding_state(embedding), (61, 80),
+                                            (0, 0))
+    again = segmenter.predict(cached, Prompts(points=points, point_labels=[[1], [1], [1]]))
+    first = segmenter.predict(embedding, Prompts(points=points, point_labels=[[1], [1], [1]]))
+    assert torch.equal(again.masks, first.masks)
+
+    # automatic generation runs SAM 2's generator in the padded geometry
+    generated = segmenter.generate(embedding, view, points=np.array([[20.0, 30.0]]))
+    assert generated.masks.shape[1:] == (61, 80)
+    assert isinstance(image_transforms(segmenter._mask_generator().predictor), PaddedTransforms)
+
+
+def test_sam1_runs_the_whole_pipeline(sam1_folder, scene_dir, tmp_path, capsys):
+    """Refinement and semantic occluding (the defaults) with sparse views on a 5x5 scene."""
+    folder, _ = sam1_folder
+    out = tmp_path / "s.npz"
+    code = main(["segment", str(scene_dir), "--checkpoint", str(folder), "--point", "20,20",
+                 "--point", "40,30", "--refine-views", "sparse", "--disparity", "gt",
+                 "--out", str(out), "--quiet", "--device", "cpu"])
+    assert code == 0, capsys.readouterr().err
+    result = load_result(out)
+    assert result.meta["views_encoded"] == 9
+    assert result.meta["segmenter"]["model_type"] == "sam"
+    assert result.meta["segmenter"]["backend"] == "transformers"
+    assert result.labels.shape == (5, 5, 48, 64)
+    assert (result.labels > 0).any()

@@ -48,7 +48,7 @@ weights) and its tiny random-weight test model. For each model: its parameter co
 of its float32 weights, and whether the weights are already in the Hugging Face cache (looked
 up on disk, no network). Weights not cached are downloaded on first use; without network,
 download the .pt file from the model hub by hand and pass it with --checkpoint FILE (EdgeTAM:
-the repository's folder, --checkpoint DIR). Any transformers-format SAM 2 or EdgeTAM folder
+the repository's folder, --checkpoint DIR). Any transformers-format SAM 2, EdgeTAM or SAM folder
 (config.json + *.safetensors) works with --checkpoint DIR; its config.json names the model.
 """
 
@@ -102,8 +102,8 @@ def add_model_arguments(
         "--checkpoint",
         metavar="PATH",
         help="SAM 2 weights file (.pt), or a transformers-format folder (config.json + "
-        "*.safetensors of a SAM 2 or EdgeTAM model; its config names the model, so --model may "
-        "be left out); default: the Hugging Face cache, downloaded once",
+        "*.safetensors of a SAM 2, EdgeTAM or SAM model; its config names the model, so --model "
+        "may be left out); default: the Hugging Face cache, downloaded once",
     )
     group.add_argument(
         "--random-weights",

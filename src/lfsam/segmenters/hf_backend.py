@@ -9,6 +9,11 @@ SAM 2's heads in Meta's modules (:class:`~lfsam.segmenters.hf_model.Transformers
 lfsam's batched decoder, which shares a view's image side across its prompts. The masks are those
 of ``transformers``' own processor + model call for the same view and prompt
 (``tests/test_segmenters_transformers.py``).
+
+SAM v1 (``SamModel``) keeps the view's aspect and pads it (:mod:`lfsam.segmenters.hf_sam1`): its
+pixels are ``SamImageProcessor``'s, the predictors' transforms are
+:class:`~lfsam.segmenters.hf_sam1.PaddedTransforms` (prompt coordinates, mask post-processing
+as ``SamProcessor``), and semantic occluding samples only the embedding cells over the view.
 """
 
 from __future__ import annotations
@@ -20,8 +25,11 @@ from typing import Any
 import numpy as np
 import torch
 
+from lfsam.segmenters.base import ViewEmbedding
 from lfsam.segmenters.hf_build import build_transformers_sam
+from lfsam.segmenters.hf_sam1 import PaddedTransforms, preprocess_padded, view_grid
 from lfsam.segmenters.registry import TRANSFORMERS_FOLDER
+from lfsam.segmenters.sam2_adapter import image_transforms, use_image_transforms
 from lfsam.segmenters.sam2_backend import Sam2Features, Sam2Segmenter
 from lfsam.segmenters.sam2_build import inference_context
 
@@ -60,7 +68,7 @@ def preprocess_views(views: torch.Tensor, size: int) -> torch.Tensor:
 
 
 class TransformersSegmenter(Sam2Segmenter):
-    """EdgeTAM or a transformers-format SAM 2 as an lfsam :class:`Segmenter`.
+    """EdgeTAM or a transformers-format SAM 2 or SAM as an lfsam :class:`Segmenter`.
 
     Parameters
     ----------
@@ -88,6 +96,38 @@ class TransformersSegmenter(Sam2Segmenter):
         self.channels_last = self.autocast is not None
         if self.channels_last:
             self.model.hf_model.vision_encoder.to(memory_format=torch.channels_last)
+        if self.model.padded_input:  # SAM v1: prompts and masks in the padded geometry
+            self._use_padded_transforms(self._predictor)
+
+    @staticmethod
+    def _use_padded_transforms(predictor: Any) -> None:
+        use_image_transforms(predictor, PaddedTransforms.like(image_transforms(predictor)))
+
+    def _mask_generator(self) -> Any:
+        """SAM 2's generator; for SAM v1 its predictor takes the padded transforms."""
+        fresh = self._generator is None
+        generator = super()._mask_generator()
+        if fresh and self.model.padded_input:
+            self._use_padded_transforms(generator.predictor)
+        return generator
+
+    def _feature_grid(self, embedding: ViewEmbedding) -> torch.Tensor:
+        """The embedding; for SAM v1 the top-left ``ceil(h'/16) x ceil(w'/16)`` cells, those
+        over the resized view (:func:`~lfsam.segmenters.hf_sam1.view_grid`).
+
+        The feature-grid convention (:mod:`lfsam.segmenters.feature_grid`) spreads those cells
+        evenly over the view. Where ``h'`` (or ``w'``) is not a multiple of 16, the last row
+        (column) of cells also covers padding, and pixel row ``r`` of ``U`` lands
+        ``(r + 0.5) / U * (ceil(h'/16) - h'/16)`` cells below where the encoder saw it: nothing
+        at the top, less than one cell at the bottom (an approximation; docs/design.md
+        section 3.8).
+        """
+        embed = self._view_features(embedding).image_embed
+        if not self.model.padded_input:
+            return embed
+        rows, cols = view_grid(tuple(embedding.image_size), int(self.model.image_size),
+                               int(embed.shape[-1]))
+        return embed[..., :rows, :cols]
 
     @classmethod
     def from_name(  # type: ignore[override]
@@ -110,7 +150,11 @@ class TransformersSegmenter(Sam2Segmenter):
     def _encode_batch(self, chunk: np.ndarray) -> list[Sam2Features]:
         with inference_context(self.device, precision=self.precision):
             views = torch.from_numpy(np.ascontiguousarray(chunk)).to(self.device)
-            pixels = preprocess_views(views, int(self.model.image_size))
+            side = int(self.model.image_size)
+            if self.model.padded_input:
+                pixels = preprocess_padded(views, side)
+            else:
+                pixels = preprocess_views(views, side)
             if self.channels_last:
                 pixels = pixels.contiguous(memory_format=torch.channels_last)
             levels = self.model.image_embeddings(pixels)
@@ -129,7 +173,10 @@ class TransformersSegmenter(Sam2Segmenter):
             backend="transformers",
             params=int(self.info.get("params", facts["params"])),
             model_type=self.info.get("model_type"),
-            preprocessing="transformers image processor (uint8 resize)",
+            preprocessing=(
+                "transformers image processor (uint8 resize of the longest side, padded)"
+                if self.model.padded_input else "transformers image processor (uint8 resize)"
+            ),
         )
         return facts
 

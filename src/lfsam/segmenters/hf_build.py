@@ -1,4 +1,5 @@
-"""Building SAM 2-family models from ``transformers`` checkpoints (docs/design.md section 3.8).
+"""Building SAM 2-family (and SAM) models from ``transformers`` checkpoints (docs/design.md
+section 3.8).
 
 The counterpart of :mod:`lfsam.segmenters.sam2_build` for models in Hugging Face format:
 architecture, weights and device, separated from inference.
@@ -8,8 +9,9 @@ architecture, weights and device, separated from inference.
 - ``edgetam-tiny-test``: EdgeTAM's classes (``EdgeTamModel``, a timm RepViT encoder) at a tiny
   size (:func:`tiny_edgetam_config`), random weights, for tests;
 - any transformers-format folder (``config.json`` + ``*.safetensors``): its ``model_type``
-  (``sam2``, ``edgetam``, or their ``_video`` checkpoints, whose image part is loaded) picks the
-  classes; memory weights of video checkpoints are not needed and not loaded.
+  (``sam2``, ``edgetam``, or their ``_video`` checkpoints, whose image part is loaded; or
+  ``sam``, SAM v1's ``SamModel``, also SlimSAM's and MedSAM's) picks the classes; memory weights
+  of video checkpoints are not needed and not loaded.
 
 ``random_weights=True`` builds the architecture untrained and seeded (tests, speed). The model is
 returned as :class:`lfsam.segmenters.hf_model.TransformersImageModel`: the ``transformers`` image
@@ -51,6 +53,7 @@ MODEL_TYPES: dict[str, str] = {
     "sam2_video": "sam2",
     "edgetam": "edgetam",
     "edgetam_video": "edgetam",
+    "sam": "sam",
 }
 """``config.json`` model types lfsam loads, and the family (classes) each one is built with."""
 
@@ -123,7 +126,7 @@ def _read_config(folder: Path) -> dict[str, Any]:
 
 
 def folder_family(folder: str | os.PathLike) -> str:
-    """The family (``"sam2"`` or ``"edgetam"``) of a transformers-format folder, from the
+    """The family (``"sam2"``, ``"edgetam"`` or ``"sam"``) of a transformers-format folder, from the
     ``model_type`` of its ``config.json``.
 
     Raises
@@ -136,7 +139,7 @@ def folder_family(folder: str | os.PathLike) -> str:
     if model_type not in MODEL_TYPES:
         raise LfsamError(
             f"--checkpoint {str(folder)!r} holds a {model_type or 'untyped'!r} model; lfsam "
-            f"segments with model types {', '.join(MODEL_TYPES)} (SAM 2 and EdgeTAM)"
+            f"segments with model types {', '.join(MODEL_TYPES)} (SAM 2, EdgeTAM and SAM)"
         )
     return MODEL_TYPES[model_type]
 
@@ -146,6 +149,10 @@ def _classes(family: str) -> tuple[type, type]:
         from transformers import EdgeTamConfig, EdgeTamModel
 
         return EdgeTamConfig, EdgeTamModel
+    if family == "sam":
+        from transformers import SamConfig, SamModel
+
+        return SamConfig, SamModel
     from transformers import Sam2Config, Sam2Model
 
     return Sam2Config, Sam2Model
@@ -179,6 +186,10 @@ def _load_weights(model: torch.nn.Module, folder: Path, label: str) -> None:
             ) from None
     expected = model.state_dict()
     state = {k: v for k, v in state.items() if k in expected or k.startswith(_HEAD_PREFIXES)}
+    tied = getattr(model, "_tied_weights_keys", None)  # SamModel saves its tied matrix once
+    for key, source in (tied.items() if isinstance(tied, dict) else ()):
+        if key not in state and source in state:
+            state[key] = state[source]
     missing = [k for k in expected if k not in state]
     unexpected = [k for k in state if k not in expected]
     shaped = [k for k in expected if k in state and state[k].shape != expected[k].shape]
@@ -210,7 +221,7 @@ def _random_model(family: str, config: Any, seed: int) -> torch.nn.Module:
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
         model = model_class(config)
-    with torch.no_grad():  # SAM 2 has one positional matrix for the image and the prompts
+    with torch.no_grad():  # SAM has one positional matrix for the image and the prompts
         shared = model.shared_image_embedding.positional_embedding
         model.prompt_encoder.shared_embedding.positional_embedding.copy_(shared)
     return model

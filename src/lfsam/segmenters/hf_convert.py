@@ -22,6 +22,14 @@ Three steps, each usable alone:
 - :func:`sam2_to_transformers` builds the ``Sam2Model`` and loads the converted weights,
   requiring every key to be filled with a tensor of the right shape.
 
+The same mapping also names the heads of ``transformers``' ``SamModel`` (SAM v1, SlimSAM,
+MedSAM; ``target="SamModel"``, used by :func:`lfsam.segmenters.hf_heads.load_meta_heads`):
+``SamModel`` spells three of ``Sam2Model``'s head names differently (:data:`_SAM_V1_NAMES`:
+attention ``out_proj`` for ``o_proj``, the two-way blocks' MLP ``lin1``/``lin2`` for
+``proj_in``/``proj_out``) and keeps the four point embeddings as four one-row tables
+(``prompt_encoder.point_embed.{i}.weight``); it has no no-memory embedding, no object-score head
+and no high-resolution convolutions (docs/design.md section 3.8).
+
 Every mismatch (unknown or missing key, wrong shape, unsupported setting) raises
 :class:`lfsam.errors.LfsamError` naming the keys. ``transformers`` is imported only inside the
 functions: it is an optional dependency of :mod:`lfsam.segmenters`.
@@ -51,7 +59,12 @@ if TYPE_CHECKING:
     import transformers
     from sam2.modeling.sam2_base import SAM2Base
 
-__all__ = ["sam2_config_for", "sam2_state_dict_to_transformers", "sam2_to_transformers"]
+__all__ = [
+    "TARGETS",
+    "sam2_config_for",
+    "sam2_state_dict_to_transformers",
+    "sam2_to_transformers",
+]
 
 # Meta state-dict entries of the video (memory) part: no counterpart in Sam2Model, dropped.
 _MEMORY_PARAMS = frozenset(
@@ -72,6 +85,19 @@ _PE_TARGETS = (
 )
 _POINT_EMBED = re.compile(r"sam_prompt_encoder\.point_embeddings\.(\d+)\.weight")
 _POINT_TARGET = "prompt_encoder.point_embed.weight"
+_NO_MEM = "no_mem_embed"
+
+TARGETS = ("Sam2Model", "SamModel")
+"""The ``transformers`` classes whose names :func:`sam2_state_dict_to_transformers` writes
+(``Sam2Model``'s names are also ``EdgeTamModel``'s for the heads)."""
+
+_SAM_V1_NAMES: tuple[tuple[re.Pattern[str], str], ...] = (
+    (re.compile(r"\.o_proj\."), ".out_proj."),
+    (re.compile(r"(transformer\.layers\.\d+\.mlp)\.proj_in\."), r"\1.lin1."),
+    (re.compile(r"(transformer\.layers\.\d+\.mlp)\.proj_out\."), r"\1.lin2."),
+)
+"""Where ``SamModel`` names a ``Sam2Model`` head parameter differently (applied to the names the
+rules below give): its attentions' output projection and its two-way blocks' two-layer MLP."""
 
 _WB = r"(?P<wb>weight|bias)"
 _MLP_LAYER = r"layers\.(?P<layer>\d+)\." + _WB
@@ -216,8 +242,16 @@ def _mlp_name(key: str, layer: int, depths: dict[str, int]) -> str:
     return f"layers.{layer - 1}"
 
 
-def _rename(key: str, depths: dict[str, int]) -> str | None:
-    """The HF key of one Meta key, or None if no rule knows it."""
+def _rename(key: str, depths: dict[str, int], target: str = "Sam2Model") -> str | None:
+    """The HF key of one Meta key in ``target``'s names, or None if no rule knows it."""
+    name = _rename_sam2(key, depths)
+    if name is not None and target == "SamModel":
+        for pattern, replacement in _SAM_V1_NAMES:
+            name = pattern.sub(replacement, name)
+    return name
+
+
+def _rename_sam2(key: str, depths: dict[str, int]) -> str | None:
     for pattern, template, maps in _RULES:
         match = pattern.fullmatch(key)
         if match is None:
@@ -242,8 +276,9 @@ def sam2_state_dict_to_transformers(
     state_dict: Mapping[str, torch.Tensor],
     *,
     reference: Mapping[str, torch.Tensor] | None = None,
+    target: str = "Sam2Model",
 ) -> dict[str, torch.Tensor]:
-    """Meta ``SAM2Base`` state dict (image part) -> ``Sam2Model`` state dict keys.
+    """Meta ``SAM2Base`` state dict (image part) -> ``Sam2Model`` (or ``SamModel``) keys.
 
     Parameters
     ----------
@@ -251,23 +286,32 @@ def sam2_state_dict_to_transformers(
         ``SAM2Base.state_dict()`` (or the ``"model"`` entry of a SAM 2 checkpoint). The memory
         modules' entries are dropped.
     reference : mapping of str to torch.Tensor, optional
-        The target ``Sam2Model``'s own ``state_dict()``. When given, the result must have
-        exactly its keys, each with the same shape.
+        The target model's own ``state_dict()`` (with ``SamModel``: its head entries). When
+        given, the result must have exactly its keys, each with the same shape.
+    target : {"Sam2Model", "SamModel"}
+        Whose names to write (:data:`TARGETS`). ``SamModel`` (SAM v1's heads as Meta's SAM 2
+        modules built without high-resolution features and object scores,
+        :func:`lfsam.segmenters.hf_heads.build_meta_heads`): the renames of
+        :data:`_SAM_V1_NAMES`, the point embeddings kept one table each, and no no-memory
+        embedding (an entry ``no_mem_embed`` is dropped; docs/design.md section 3.8).
 
     Returns
     -------
     dict of str to torch.Tensor
-        The same tensors (not copied) under ``Sam2Model``'s names; the four point embeddings
-        stacked into ``prompt_encoder.point_embed.weight``; the prompt encoder's Fourier matrix
-        under both of ``Sam2Model``'s names (the second a copy).
+        The same tensors (not copied) under the target's names; for ``Sam2Model`` the four
+        point embeddings stacked into ``prompt_encoder.point_embed.weight``; the prompt
+        encoder's Fourier matrix under both of the target's names (the second a copy).
 
     Raises
     ------
     LfsamError
-        A key no rule knows, a missing point embedding, Fourier matrix or no-memory embedding,
-        or (with ``reference``) a missing or extra key or a wrong shape.
+        A key no rule knows, a missing point embedding, Fourier matrix or (``Sam2Model``)
+        no-memory embedding, or (with ``reference``) a missing or extra key or a wrong shape.
     """
-    keys = [k for k in state_dict if not _is_memory_key(k)]
+    if target not in TARGETS:
+        raise LfsamError(f"unknown transformers target {target!r}; choose one of {TARGETS}")
+    sam_v1 = target == "SamModel"
+    keys = [k for k in state_dict if not _is_memory_key(k) and not (sam_v1 and k == _NO_MEM)]
     depths = _mlp_depths(keys)
     out: dict[str, torch.Tensor] = {}
     points: dict[int, torch.Tensor] = {}
@@ -282,7 +326,7 @@ def sam2_state_dict_to_transformers(
         if point:
             points[int(point[1])] = tensor
             continue
-        new_key = _rename(key, depths)
+        new_key = _rename(key, depths, target)
         if new_key is None:
             unknown.append(key)
         elif new_key in out:
@@ -295,7 +339,7 @@ def sam2_state_dict_to_transformers(
         )
     if _PE_MATRIX not in state_dict:
         raise LfsamError(f"SAM 2 state dict lacks {_PE_MATRIX}")
-    if "no_mem_embed" not in state_dict:
+    if not sam_v1 and _NO_MEM not in state_dict:
         raise LfsamError("SAM 2 state dict lacks no_mem_embed")
     if not points or sorted(points) != list(range(len(points))):
         raise LfsamError(
@@ -308,7 +352,10 @@ def sam2_state_dict_to_transformers(
             "SAM 2 point embeddings must each be (1, C); got "
             + ", ".join(str(tuple(r.shape)) for r in rows)
         )
-    out[_POINT_TARGET] = torch.cat(rows, dim=0)
+    if sam_v1:  # SamModel: one embedding table per point label
+        out.update({f"prompt_encoder.point_embed.{i}.weight": row for i, row in enumerate(rows)})
+    else:
+        out[_POINT_TARGET] = torch.cat(rows, dim=0)
     if reference is not None:
         _check_against(out, reference)
     return out

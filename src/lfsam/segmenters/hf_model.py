@@ -1,4 +1,4 @@
-"""A ``transformers`` SAM 2 / EdgeTAM in the shape of Meta's ``SAM2Base`` image model
+"""A ``transformers`` SAM 2 / EdgeTAM / SAM in the shape of Meta's ``SAM2Base`` image model
 (docs/design.md section 3.8).
 
 :class:`TransformersImageModel` holds the ``transformers`` model (its image encoder runs as
@@ -9,6 +9,13 @@ of a ``SAM2Base``: ``image_size``, ``device``, ``sam_prompt_encoder``, ``sam_mas
 ``no_mem_embed``, ``directly_add_no_mem_embed``, ``forward_image`` and
 ``_prepare_backbone_features`` (the automatic generator's extra crops). It has no video memory:
 Meta's video predictor refuses it (``lfsam.baseline.predictor.video_predictor_for``).
+
+A ``SamModel`` (SAM v1) has one embedding level and no no-memory embedding: its image embedding
+is the only level (``use_high_res_features_in_sam`` False, ``num_feature_levels`` 1),
+``no_mem_embed`` stays zero and is not added (``directly_add_no_mem_embed`` False), box prompts
+go to the prompt encoder as boxes (``boxes_as_points`` False, as SAM v1's predictors pass them),
+and ``padded_input`` tells the backend that the view is resized by its longest side and padded
+(:mod:`lfsam.segmenters.hf_sam1`; docs/design.md section 3.8).
 """
 
 from __future__ import annotations
@@ -60,7 +67,8 @@ class TransformersImageModel(nn.Module):
     Parameters
     ----------
     hf_model : transformers.PreTrainedModel
-        ``Sam2Model`` or ``EdgeTamModel`` (its heads' weights are copied into Meta's modules).
+        ``Sam2Model``, ``EdgeTamModel`` or ``SamModel`` (its heads' weights are copied into
+        Meta's modules).
     info : dict
         What :func:`lfsam.segmenters.hf_build.build_transformers_sam` knows of the model
         (name, hub_id, checkpoint, model_type, random_weights, seed); ``params`` and
@@ -70,6 +78,8 @@ class TransformersImageModel(nn.Module):
     directly_add_no_mem_embed = True
     use_high_res_features_in_sam = True
     num_feature_levels = 3
+    boxes_as_points = True
+    padded_input = False
 
     def __init__(self, hf_model: nn.Module, info: dict[str, Any]) -> None:
         super().__init__()
@@ -77,7 +87,14 @@ class TransformersImageModel(nn.Module):
         heads = build_meta_heads(config)
         load_meta_heads(heads, hf_model.state_dict())
         neck = hf_model.vision_encoder.neck
-        neck.position_encoding = CachedPositions(neck.position_encoding)
+        if hasattr(neck, "position_encoding"):  # SAM 2's FPN (SamModel's neck has none)
+            neck.position_encoding = CachedPositions(neck.position_encoding)
+        if config.model_type == "sam":
+            self.directly_add_no_mem_embed = False
+            self.use_high_res_features_in_sam = False
+            self.num_feature_levels = 1
+            self.boxes_as_points = False
+            self.padded_input = True
         self.hf_model = hf_model
         self.sam_prompt_encoder = heads.sam_prompt_encoder
         self.sam_mask_decoder = heads.sam_mask_decoder
@@ -98,12 +115,21 @@ class TransformersImageModel(nn.Module):
     def image_embeddings(self, pixel_values: torch.Tensor) -> list[torch.Tensor]:
         """``transformers``' image embeddings of a normalised batch ``(B, 3, S, S)``: the two
         high-resolution levels after the decoder's 1x1 convolutions and the embedding with the
-        no-memory embedding added, each ``(B, C, H, W)``, finest first."""
+        no-memory embedding added, each ``(B, C, H, W)``, finest first (SAM v1: the embedding
+        alone)."""
+        if self.padded_input:
+            return [self.hf_model.get_image_embeddings(pixel_values)]
         return list(self.hf_model.get_image_embeddings(pixel_values))
 
     def forward_image(self, img_batch: torch.Tensor) -> dict[str, Any]:
         """Meta's ``SAM2Base.forward_image`` output for a normalised batch (without the
-        no-memory embedding, which the caller adds as for Meta's models)."""
+        no-memory embedding, which the caller adds as for Meta's models; SAM v1: one level,
+        with the prompt encoder's dense positional encoding)."""
+        if self.padded_input:
+            embed = self.hf_model.get_image_embeddings(img_batch)
+            pos = self.hf_model.get_image_wide_positional_embeddings().to(embed.dtype)
+            pos = pos.expand(embed.shape[0], -1, -1, -1)
+            return {"vision_features": embed, "vision_pos_enc": [pos], "backbone_fpn": [embed]}
         out = self.hf_model.get_image_features(img_batch, return_dict=True)
         sizes = self.hf_model.config.vision_config.backbone_feature_sizes
         batch = img_batch.shape[0]

@@ -46,6 +46,7 @@ __all__ = [
     "missing_sam2_api",
     "quiet_video_progress",
     "stability_scores",
+    "use_image_transforms",
 ]
 
 SAM2_CLASS_ATTRIBUTES: dict[str, tuple[str, ...]] = {
@@ -104,6 +105,13 @@ def image_transforms(predictor: SAM2ImagePredictor) -> Any:
     """The predictor's ``SAM2Transforms``: input resize + normalisation (``.transforms``), prompt
     coordinates (``.transform_coords``, ``.transform_boxes``) and mask post-processing."""
     return predictor._transforms
+
+
+def use_image_transforms(predictor: SAM2ImagePredictor, transforms: Any) -> None:
+    """Make ``transforms`` (an object with ``SAM2Transforms``' methods, e.g.
+    :class:`lfsam.segmenters.hf_sam1.PaddedTransforms`) the predictor's input, prompt and mask
+    geometry."""
+    predictor._transforms = transforms
 
 
 def fit_feature_sizes(predictor: SAM2ImagePredictor, image_size: int) -> None:

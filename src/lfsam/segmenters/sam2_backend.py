@@ -71,7 +71,9 @@ class Sam2Features:
         The image embedding after the neck, plus ``no_mem_embed`` (C = 256, 64 x 64 for a 1024
         input); what the mask decoder and semantic occluding use.
     high_res_feats : list of two tensors
-        ``(1, C/8, H/4, W/4)`` and ``(1, C/4, H/8, W/8)`` (after the decoder's 1x1 convolutions).
+        ``(1, C/8, H/4, W/4)`` and ``(1, C/4, H/8, W/8)`` (after the decoder's 1x1 convolutions);
+        empty for a model without them (SAM v1 from ``transformers``, docs/design.md
+        section 3.8).
     pixel_norms : (U * V,) tensor, optional
         Norm of the upsampled embedding at every pixel (semantic occluding), made on first use.
     decoder_state : ImageState, optional
@@ -308,17 +310,28 @@ class Sam2Segmenter(Segmenter):
     ) -> ViewEmbedding:
         """Inverse of :meth:`embedding_state` (checks the shapes against this model)."""
         dtype = getattr(torch, str(state["dtype"]).removeprefix("torch."))
-        levels = [
-            torch.from_numpy(state[f"level{i}"]).to(self.device, dtype) for i in range(3)
-        ]
         side = int(self.model.image_size)
-        expected = [side // 16, side // 4, side // 8]
+        expected = [side // 16, side // 4, side // 8][: int(self.model.num_feature_levels)]
+        if sum(key.startswith("level") for key in state) != len(expected):
+            raise LfsamError(
+                "embedding levels do not match this model; encode the view with this model"
+            )
+        levels = [
+            torch.from_numpy(state[f"level{i}"]).to(self.device, dtype)
+            for i in range(len(expected))
+        ]
         if [int(level.shape[-1]) for level in levels] != expected:
             raise LfsamError(
                 "embedding shapes do not match this model; encode the view with this model"
             )
         feats = Sam2Features(image_embed=levels[0], high_res_feats=levels[1:])
         return ViewEmbedding(image_size=tuple(image_size), key=tuple(key), data=feats)
+
+    def _feature_grid(self, embedding: ViewEmbedding) -> torch.Tensor:
+        """The ``(1, C, h, w)`` embedding cells that span the view, which semantic occluding
+        samples (:mod:`lfsam.segmenters.feature_grid`): the whole embedding, as the view is
+        resized to the square input (a padded input keeps only the cells over the view)."""
+        return self._view_features(embedding).image_embed
 
     @staticmethod
     def _view_features(embedding: ViewEmbedding) -> Sam2Features:
@@ -481,7 +494,8 @@ class Sam2Segmenter(Segmenter):
     def sample_features(self, embedding: ViewEmbedding, rows_cols: torch.Tensor) -> torch.Tensor:
         """Bilinearly sample the image embedding at pixel positions (paper section 3.3).
 
-        The view is resized to the model's square input without padding, so each axis maps
+        The view is resized to the model's square input without padding (a padded input
+        samples only the cells over the view, :meth:`_feature_grid`), so each axis maps
         separately: pixel row ``r`` of a ``U``-row view lies at normalised coordinate
         ``2 (r + 0.5) / U - 1`` of the embedding grid (half-pixel centres, as
         ``F.interpolate(..., mode="bilinear", align_corners=False)``). Positions beyond the
@@ -491,11 +505,10 @@ class Sam2Segmenter(Segmenter):
         -------
         features : (P, C) float32 tensor on :attr:`device` (C = 256 for the real models)
         """
-        feats = self._view_features(embedding)
         u_size, v_size = embedding.image_size
         rc = torch.as_tensor(rows_cols, dtype=torch.float32, device=self.device).reshape(-1, 2)
         with torch.no_grad():
-            emb = feats.image_embed.float()
+            emb = self._feature_grid(embedding).float()
             grid = torch.stack(
                 [(rc[:, 1] + 0.5) * (2.0 / v_size) - 1.0, (rc[:, 0] + 0.5) * (2.0 / u_size) - 1.0],
                 dim=-1,
@@ -519,7 +532,7 @@ class Sam2Segmenter(Segmenter):
         """Sum of the bilinearly upsampled embedding over each mask, computed on the embedding
         grid (exact; :func:`lfsam.segmenters.feature_grid.grid_feature_sums`)."""
         with torch.no_grad():
-            grid = self._view_features(embedding).image_embed[0].float()
+            grid = self._feature_grid(embedding)[0].float()
             return grid_feature_sums(
                 grid, mask_index.to(self.device), pixel_index.to(self.device), num_masks,
                 tuple(embedding.image_size),
@@ -537,7 +550,7 @@ class Sam2Segmenter(Segmenter):
         :func:`lfsam.segmenters.feature_grid.grid_cosine_similarity`)."""
         with torch.no_grad():
             feats = self._view_features(embedding)
-            grid = feats.image_embed[0].float()
+            grid = self._feature_grid(embedding)[0].float()
             if feats.pixel_norms is None:  # prompt-independent: once per view
                 feats.pixel_norms = pixel_feature_norms(grid, tuple(embedding.image_size))
             sims = grid_cosine_similarity(

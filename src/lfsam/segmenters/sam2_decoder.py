@@ -280,7 +280,10 @@ def embed_prompts(
     """Sparse prompt embeddings, merged exactly as ``SAM2ImagePredictor._predict`` merges them.
 
     Box corners come first with labels 2 and 3, then the points; the prompt encoder appends its
-    padding point (label -1) because boxes go in as points. Point label -1 marks padding.
+    padding point (label -1) because boxes go in as points. Point label -1 marks padding. A model
+    whose ``boxes_as_points`` is False (SAM v1 from ``transformers``, whose predictors pass boxes
+    as boxes) gets the points first, without the padding point when there is a box, then the box
+    corners (``PromptEncoder.forward(points, boxes)``; docs/design.md section 3.8).
 
     Parameters
     ----------
@@ -299,16 +302,19 @@ def embed_prompts(
     if point_coords is not None and point_labels is None:
         raise LfsamError("points need labels (1 = positive, 0 = negative, -1 = padding)")
     points = None if point_coords is None else (point_coords, point_labels)
+    if boxes is not None and points is not None and points[0].shape[0] != boxes.shape[0]:
+        raise LfsamError(
+            f"got {points[0].shape[0]} point prompts but {boxes.shape[0]} boxes; "
+            "give one box per prompt"
+        )
+    if boxes is not None and not getattr(model, "boxes_as_points", True):
+        sparse, _dense = model.sam_prompt_encoder(points=points, boxes=boxes, masks=None)
+        return sparse
     if boxes is not None:
         box_coords = boxes.reshape(-1, 2, 2)
         box_labels = torch.tensor([[2, 3]], dtype=torch.int, device=boxes.device)
         box_labels = box_labels.repeat(boxes.shape[0], 1)
         if points is not None:
-            if points[0].shape[0] != boxes.shape[0]:
-                raise LfsamError(
-                    f"got {points[0].shape[0]} point prompts but {boxes.shape[0]} boxes; "
-                    "give one box per prompt"
-                )
             points = (
                 torch.cat([box_coords, points[0]], dim=1),
                 torch.cat([box_labels, points[1]], dim=1),
