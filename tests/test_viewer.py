@@ -509,9 +509,13 @@ def test_weights_folder_item_loads_a_transformers_folder(
     assert shown == []
 
 
-def test_view_with_a_checkpoint_folder_shows_transformers(qtbot, scene, edgetam_folder, tmp_path):
+def test_view_with_a_checkpoint_folder_shows_transformers(
+    make_napari_viewer, qtbot, scene, edgetam_folder, tmp_path
+):
     """`lfsam view SCENE --checkpoint FOLDER` (no --model): the model box shows
-    "transformers", the weights box the folder, and the folder's model is loaded."""
+    "transformers", the weights box the folder, and the folder's model is loaded.
+    (``make_napari_viewer`` resets napari's command registry afterwards, where open_viewer
+    registered the plugin's commands.)"""
     from lfsam.cli.main import build_parser
     from lfsam.cli.view import open_viewer
     from lfsam.io import write_lightfield

@@ -129,7 +129,14 @@ class PaddedTransforms:
         self, coords: torch.Tensor, normalize: bool = False, orig_hw: tuple[int, int] | None = None
     ) -> torch.Tensor:
         """``(..., 2)`` ``(x, y)`` view pixels (``normalize=True``) or fractions of the view to
-        model-input pixels: scaled by ``w' / V`` and ``h' / U`` (``SamProcessor``)."""
+        model-input pixels: scaled by ``w' / V`` and ``h' / U`` (``SamProcessor``).
+
+        Raises
+        ------
+        ValueError
+            Without ``orig_hw`` (the caller's code is at fault: Meta's predictors always pass
+            it).
+        """
         if orig_hw is None:
             raise ValueError("SAM's padded input needs the view size (orig_hw) for coordinates")
         h, w = resized_size(orig_hw, self.resolution)
