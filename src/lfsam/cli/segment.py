@@ -84,6 +84,9 @@ examples:
   lfsam segment scene --auto --amg points_per_side=32 --out coarser_auto.npz
   lfsam segment hidden.npz --auto --references corners --out all_objects.npz
   lfsam segment scene --auto --refine-views sparse --out fast.npz   # 13 of 9x9 views encoded
+  lfsam segment scene --point 160,120 --model edgetam --out edge.npz  # on-device SAM 2, 4x faster
+  lfsam segment scene --point 160,120 --model edgetam --precision bfloat16 --out edge.npz
+  lfsam segment scene --point 160,120 --checkpoint ~/models/my-sam2-hf --out mine.npz  # HF folder
   lfsam segment scene --text disc --model oracle --disparity gt --out discs.npz
   lfsam segment scene --text "red cup" --text plate@0,0 --point 60,40 --out mixed.npz
   lfsam segment scene --text cup --text-checkpoint ~/models/sam3 --out cups.npz
