@@ -19,15 +19,17 @@ object recomputes that object only; every other object's masks are kept as they 
 between objects keep the pipeline's paint order (larger reference-view masks first, smaller on
 top; docs/design.md section 3.6), and an object's label value is its id.
 
-A facade: objects and clicks live in :mod:`lfsam.pipeline.objects`, the streaming of views in
-:mod:`lfsam.pipeline.engine`, results in :mod:`lfsam.result_objects`; the automatic mode wraps
-it from outside (:class:`lfsam.generator.LightFieldMaskGenerator`); batch: :func:`lfsam.segment`.
+A facade: objects and clicks live in :mod:`lfsam.pipeline.objects`, the streaming of views,
+which views are refined and the run's metadata in :mod:`lfsam.pipeline.engine`, results in
+:mod:`lfsam.result_objects`; the automatic mode and text prompts wrap it from outside
+(:class:`lfsam.generator.LightFieldMaskGenerator`, :mod:`lfsam.text_search`), light-field video
+too (:mod:`lfsam.video.track`); batch: :func:`lfsam.segment`.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -38,19 +40,11 @@ from lfsam.lightfield import LightField
 from lfsam.pipeline.config import PipelineConfig
 from lfsam.pipeline.engine import StreamingEngine
 from lfsam.pipeline.objects import ObjectTable, TrackedObject, View
-from lfsam.prediction import LightFieldPrediction, PackedMaskMap
-from lfsam.prompts import (
-    BoxPrompt,
-    ObjectPrompts,
-    PointPrompt,
-    TextPrompt,
-    check_phrase,
-    validate_objects,
-)
+from lfsam.prediction import LightFieldPrediction
+from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt, validate_objects
 from lfsam.result import SegmentationResult
-from lfsam.result_objects import GivenMask, build_result, result_objects, stored_prompts
+from lfsam.result_objects import GivenMask, build_result, result_objects
 from lfsam.segmenters.base import Segmenter, ViewEmbedding
-from lfsam.segmenters.text import TextDetector
 from lfsam.timing import StageTimer
 from lfsam.version import __version__
 
@@ -136,25 +130,18 @@ class LightFieldPredictor:
         :meth:`predict` (their step-1 masks, coarse masks and the embeddings stay), e.g. to
         finish the views a sparse pass filled."""
         config = replace(self.config, refine_views=setting)
-        if config == self.config:
-            return
-        self.config = config
-        if self._engine is not None:
-            self._engine.config = config
-            for obj in self._table.objects.values():
-                obj.refined = None
-            self._labels_cache.pop("refined", None)
+        if config != self.config:
+            self.config = config
+            if self._engine is not None:
+                self._engine.config = config
+                self._table.forget_refined()
+                self._labels_cache.pop("refined", None)
 
     @property
     def refined_views(self) -> np.ndarray | None:
         """``(S, T)`` bool: the views refined with SAM 2 for at least one object (all present
         views with ``refine_views="all"``); None before a light field is set."""
-        if self._engine is None:
-            return None
-        references = [
-            self._table[i].reference_view(self.lightfield.center) for i in self._table.ids
-        ]
-        return self._engine.refined_flags(references)
+        return None if self._engine is None else self._engine.refined_views(self._table)
 
     def require_lightfield(self) -> LightField:
         """The light field set; an :class:`LfsamError` when none is."""
@@ -287,47 +274,6 @@ class LightFieldPredictor:
         ))
         self._labels_cache.clear()
 
-    def add_text(
-        self,
-        phrase: str,
-        detector: TextDetector,
-        view: View | None = None,
-        threshold: float | None = None,
-        keep: Callable[[np.ndarray], bool] | None = None,
-    ) -> list[int]:
-        """Find every instance of ``phrase`` in ``view`` (None = center) with ``detector`` and
-        add each as an object given by its mask there, with the phrase as its category and the
-        detector's score (docs/design.md section 9); ids follow :meth:`next_id`, best score
-        first. ``keep(mask)`` may refuse an instance (e.g. one already found from another
-        view).
-
-        Returns
-        -------
-        list of int
-            The ids of the objects added (empty when nothing was found).
-        """
-        lf = self.require_lightfield()
-        phrase = check_phrase(phrase)
-        view = lf.center if view is None else (int(view[0]), int(view[1]))
-        validate_objects([TextPrompt(phrase, view)], lf.grid_shape, lf.view_shape)
-        if not lf.present[view]:
-            raise LfsamError(
-                f"text {phrase!r}: view {view[0]},{view[1]} is absent from this light field; "
-                "find text in a view that exists"
-            )
-        start = time.perf_counter()
-        with self.engine.timer("text"):
-            found = detector.detect(lf.views[view], phrase, view=view, threshold=threshold)
-        self.seconds += time.perf_counter() - start
-        ids = []
-        for mask, score in zip(found.masks, found.scores, strict=True):
-            if keep is not None and not keep(mask):
-                continue
-            obj_id = self.next_id()
-            self.add_mask(obj_id, mask, view=view, score=float(score), category=phrase)
-            ids.append(obj_id)
-        return ids
-
     def category(self, obj_id: int) -> str | None:
         """The phrase a text prompt found object ``obj_id`` by (None for other objects)."""
         return self._table[self._table.check([obj_id])[0]].category
@@ -353,11 +299,7 @@ class LightFieldPredictor:
         closing gaps (e.g. after merges); returns their new ids."""
         mapping = self._table.renumber(list(ids))
         if self._engine is not None:
-            counts = self._engine.decode_counts
-            moved = {old: counts.pop(old, 0) for old in mapping}
-            for old, new in mapping.items():
-                if moved[old]:
-                    counts[new] = moved[old]
+            self._engine.renumber_counts(mapping)
         self._labels_cache.clear()
         return list(mapping.values())
 
@@ -424,20 +366,12 @@ class LightFieldPredictor:
 
     def _prediction(self, stage: str) -> LightFieldPrediction:
         lf = self.require_lightfield()
-        attr = "refined" if stage == "refined" else "coarse"
-        ready = [i for i in self.object_ids if getattr(self._table[i], attr) is not None]
-        bits = {i: getattr(self._table[i], attr).bits for i in ready}
-        if stage not in self._labels_cache:
-            order = self._table.paint_order(ready)
-            self._labels_cache[stage] = self._engine.fuse(ready, bits, order)
-        refs = {i: self._table[i].reference for i in ready}
-        return LightFieldPrediction(
-            labels=self._labels_cache[stage],
-            masks=PackedMaskMap(bits, (*lf.grid_shape, *lf.view_shape)),
-            scores={i: refs[i].score for i in ready},
-            reference_views={i: refs[i].view for i in ready},
-            stage=stage,
+        shape = (*lf.grid_shape, *lf.view_shape)
+        prediction = self._table.prediction(
+            stage, shape, self._engine.fuse, self._labels_cache.get(stage)
         )
+        self._labels_cache[stage] = prediction.labels
+        return prediction
 
     # --- results ------------------------------------------------------------------------------
     def to_result(self) -> SegmentationResult:
@@ -446,31 +380,11 @@ class LightFieldPredictor:
         ``meta["views_encoded"]`` counts image-encoder runs)."""
         lf = self.require_lightfield()
         prediction = self.predict()
-        engine = self._engine
-        timings = dict(engine.timer.seconds)
+        timings = dict(self._engine.timer.seconds)
         timings["total"] = self.seconds + timings.get("disparity", 0.0)
-        resolved = engine.disparities.resolved
-        meta = {
-            "method": "lfsam",
-            "package_version": __version__,
-            "segmenter": self.segmenter.describe(),
-            "config": self.config.to_dict(),
-            "views_encoded": self.views_encoded,
-            "refined_views": self.refined_views.tolist(),
-            "views_present": int(lf.present.sum()),
-            "disparity_source": engine.disparities.source(
-                lf.center if lf.center in resolved or not resolved else resolved[0]
-            ),
-            "disparity_sources": {
-                f"{s},{t}": engine.disparities.source((s, t)) for s, t in resolved
-            },
-        }
+        meta = {"method": "lfsam", "package_version": __version__, **self._engine.run_meta(),
+                "refined_views": self.refined_views.tolist()}
         return build_result(lf, self._table.objects, prediction.labels, timings, meta)
-
-    @staticmethod
-    def load_objects(result: SegmentationResult) -> list[ObjectPrompts]:
-        """The prompted objects stored in a result (to reopen it for editing)."""
-        return stored_prompts(result)
 
     def open_result(self, result: SegmentationResult) -> None:
         """Take a result's objects: prompted ones by their prompts, the others (automatic or

@@ -8,23 +8,25 @@ where an instance is kept only when at most half of it lies where an object foun
 in that view (:func:`lfsam.pipeline.references.drop_covered_masks`, the automatic mode's rule):
 an instance the center view found is not found again from a corner, one it could not see is.
 Each kept instance becomes an object given by its mask in the view where it was found
-(:meth:`lfsam.predictor.LightFieldPredictor.add_text`), with the phrase as its category.
+(:func:`add_text`, through the predictor's ``add_mask``), with the phrase as its category.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from lfsam.errors import LfsamError
 from lfsam.pipeline.references import check_references, drop_covered_masks, reference_views
 from lfsam.predictor import LightFieldPredictor, View
-from lfsam.prompts import TextPrompt
+from lfsam.prompts import TextPrompt, check_phrase, validate_objects
 from lfsam.segmenters.text import TextDetector
 
-__all__ = ["TextFind", "find_text"]
+__all__ = ["TextFind", "add_text", "find_text"]
 
 
 @dataclass(frozen=True)
@@ -70,6 +72,54 @@ class _Uncovered:
         return kept
 
 
+def add_text(
+    predictor: LightFieldPredictor,
+    phrase: str,
+    detector: TextDetector,
+    view: View | None = None,
+    threshold: float | None = None,
+    keep: Callable[[np.ndarray], bool] | None = None,
+) -> list[int]:
+    """Find every instance of ``phrase`` in ``view`` (None = center) with ``detector`` and add
+    each to ``predictor`` as an object given by its mask there, with the phrase as its category
+    and the detector's score (docs/design.md section 9); ids follow the predictor's
+    ``next_id``, best score first. ``keep(mask)`` may refuse an instance (e.g. one already
+    found from another view). The detector's seconds count in the predictor's (stage
+    ``text``).
+
+    Returns
+    -------
+    list of int
+        The ids of the objects added (empty when nothing was found).
+
+    Raises
+    ------
+    LfsamError
+        An empty phrase, a view outside the grid, or a view absent from the light field.
+    """
+    lf = predictor.require_lightfield()
+    phrase = check_phrase(phrase)
+    view = lf.center if view is None else (int(view[0]), int(view[1]))
+    validate_objects([TextPrompt(phrase, view)], lf.grid_shape, lf.view_shape)
+    if not lf.present[view]:
+        raise LfsamError(
+            f"text {phrase!r}: view {view[0]},{view[1]} is absent from this light field; "
+            "find text in a view that exists"
+        )
+    start = time.perf_counter()
+    with predictor.engine.timer("text"):
+        found = detector.detect(lf.views[view], phrase, view=view, threshold=threshold)
+    predictor.seconds += time.perf_counter() - start
+    ids = []
+    for mask, score in zip(found.masks, found.scores, strict=True):
+        if keep is not None and not keep(mask):
+            continue
+        obj_id = predictor.next_id()
+        predictor.add_mask(obj_id, mask, view=view, score=float(score), category=phrase)
+        ids.append(obj_id)
+    return ids
+
+
 def find_text(
     predictor: LightFieldPredictor,
     detector: TextDetector,
@@ -105,7 +155,7 @@ def find_text(
             views = [v for v in reference_views(lf.grid_shape, references) if lf.present[v]]
         for index, view in enumerate(views):
             if index == 0:
-                ids = predictor.add_text(text.phrase, detector, view, threshold)
+                ids = add_text(predictor, text.phrase, detector, view, threshold)
                 finds.append(TextFind(text.phrase, view, tuple(ids)))
                 continue
             known = predictor.object_ids
@@ -115,6 +165,6 @@ def find_text(
                 else np.zeros(lf.view_shape, dtype=bool)
             )
             keep = _Uncovered(covered)
-            ids = predictor.add_text(text.phrase, detector, view, threshold, keep=keep)
+            ids = add_text(predictor, text.phrase, detector, view, threshold, keep=keep)
             finds.append(TextFind(text.phrase, view, tuple(ids), keep.refused))
     return finds

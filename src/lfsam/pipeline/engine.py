@@ -31,6 +31,7 @@ from lfsam.pipeline.initial import initial_segmentation
 from lfsam.pipeline.mask_disparity import matched_disparity, unseen_by_estimate
 from lfsam.pipeline.objects import (
     Clicks,
+    ObjectTable,
     ObjectViews,
     Reference,
     TrackedObject,
@@ -270,6 +271,38 @@ class StreamingEngine:
         (:func:`lfsam.pipeline.sparse.nearest_sources`)."""
         base = self.base_refined
         return nearest_sources(view, (base or frozenset()) | {reference})
+
+    def refined_views(self, objects: ObjectTable) -> np.ndarray:
+        """``(S, T)`` bool: the views refined for at least one of ``objects``
+        (:meth:`refined_flags` of their reference views)."""
+        center = self.lightfield.center
+        return self.refined_flags([objects[i].reference_view(center) for i in objects.ids])
+
+    def renumber_counts(self, mapping: Mapping[int, int]) -> None:
+        """Move the decode counts of renumbered objects (``mapping``: old id -> new id)."""
+        moved = {old: self.decode_counts.pop(old, 0) for old in mapping}
+        for old, new in mapping.items():
+            if moved[old]:
+                self.decode_counts[new] = moved[old]
+
+    def run_meta(self) -> dict[str, Any]:
+        """The run's metadata that the engine knows: the segmenter, the configuration, the
+        views encoded and present, and where each reference view's disparity came from
+        (result ``meta``)."""
+        lf = self.lightfield
+        resolved = self.disparities.resolved
+        return {
+            "segmenter": self.segmenter.describe(),
+            "config": self.config.to_dict(),
+            "views_encoded": self.store.views_encoded,
+            "views_present": int(lf.present.sum()),
+            "disparity_source": self.disparities.source(
+                lf.center if lf.center in resolved or not resolved else resolved[0]
+            ),
+            "disparity_sources": {
+                f"{s},{t}": self.disparities.source((s, t)) for s, t in resolved
+            },
+        }
 
     def refined_flags(self, references: Iterable[View]) -> np.ndarray:
         """``(S, T)`` bool: the views refined for at least one object whose reference view is

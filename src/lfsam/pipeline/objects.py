@@ -22,6 +22,7 @@ import numpy as np
 import torch
 
 from lfsam.errors import LfsamError
+from lfsam.prediction import LightFieldPrediction, PackedMaskMap
 from lfsam.prompts import ObjectPrompts
 
 __all__ = [
@@ -254,6 +255,36 @@ class ObjectTable:
     def clear(self) -> None:
         """Forget every object."""
         self.objects = {}
+
+    def prediction(
+        self,
+        stage: str,
+        shape: tuple[int, int, int, int],
+        fuse: Callable[[list[int], dict[int, np.ndarray], list[int]], np.ndarray],
+        labels: np.ndarray | None = None,
+    ) -> LightFieldPrediction:
+        """The objects' masks at ``stage`` (``"coarse"`` or ``"refined"``; objects without them
+        yet are left out) with their labels: ``labels`` when the caller holds them, else
+        ``fuse(ids, bits, paint_order)`` (:meth:`lfsam.pipeline.engine.StreamingEngine.fuse`).
+        ``shape`` is the light field's ``(S, T, U, V)``."""
+        ready = [i for i in self.ids if getattr(self.objects[i], stage) is not None]
+        bits = {i: getattr(self.objects[i], stage).bits for i in ready}
+        if labels is None:
+            labels = fuse(ready, bits, self.paint_order(ready))
+        refs = {i: self.objects[i].reference for i in ready}
+        return LightFieldPrediction(
+            labels=labels,
+            masks=PackedMaskMap(bits, shape),
+            scores={i: refs[i].score for i in ready},
+            reference_views={i: refs[i].view for i in ready},
+            stage=stage,
+        )
+
+    def forget_refined(self) -> None:
+        """Drop every object's refined masks (refined again at the next prediction, e.g. under
+        another ``refine_views``); step 1 and the coarse masks stay."""
+        for obj in self.objects.values():
+            obj.refined = None
 
     def paint_order(self, ids: Sequence[int]) -> list[int]:
         """``ids`` in paint order: larger reference-view masks first, smaller on top (ties by

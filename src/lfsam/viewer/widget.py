@@ -631,7 +631,7 @@ class LightFieldWidget(QWidget):
         self.work.when_idle(run)
 
     def open_result(self, result: Any) -> None:
-        """Reopen a result's objects (``LightFieldPredictor.load_objects``) for correction."""
+        """Reopen a result's objects (``lfsam.result_objects.stored_prompts``) for correction."""
 
         def run() -> None:
             self.session.open_result(result)

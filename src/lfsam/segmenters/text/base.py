@@ -4,7 +4,7 @@ A detector looks at one view and a phrase (a noun phrase such as ``"red cup"``, 
 SAM 3's terms) and returns every instance it finds: one boolean mask per instance at the view's
 resolution with the detector's score in [0, 1], best first. It knows nothing of light fields
 beyond the view it is shown; carrying the instances into the other views is the pipeline's job
-(:meth:`lfsam.predictor.LightFieldPredictor.add_text`).
+(:func:`lfsam.text_search.add_text`).
 """
 
 from __future__ import annotations
