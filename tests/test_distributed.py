@@ -5,7 +5,8 @@ are small synthetic light fields segmented by the oracle with ground-truth dispa
 Result files cannot be byte-identical between two runs (each result holds the run's wall-clock
 timings, and an .npz zip entry its write time), so the comparison is over every array of each
 result (labels, packed masks, scores, ...) exactly, the metadata exactly, the timing dictionary's
-keys, and every metric except the timing one (T, ``ms_per_mask_view``, and ``seconds``).
+keys, and every metric except the timing one (T, ``ms_per_mask_view``, and ``seconds``). A video's
+result folder (issue 38) is compared file by file the same way.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from lfsam.distributed import ray_mapper, task_resources
 from lfsam.errors import LfsamError
 from lfsam.io import write_lightfield
 from lfsam.synth import generate_scene
+from lfsam.video.synth import generate_video, write_video_frames
 
 TIMING_FIELDS = {"seconds", "ms_per_mask_view"}
 
@@ -47,16 +49,31 @@ def dataset(tmp_path_factory) -> Path:
     return root
 
 
+@pytest.fixture(scope="module")
+def mixed(tmp_path_factory) -> Path:
+    """Two tiny light-field videos (3 frames of 3x3 views of 32x48) and one light field."""
+    root = tmp_path_factory.mktemp("mixed")
+    for seed, name in enumerate(("clip_a", "clip_b")):
+        frames = generate_video(grid=(3, 3), size=(32, 48), frames=3, seed=seed, num_objects=2)
+        write_video_frames(frames, root / name)
+    write_lightfield(generate_scene(grid=(3, 3), size=(32, 48), seed=5, num_objects=3),
+                     root / "scene.npz")
+    return root
+
+
 def _evaluate(dataset: Path, out: Path, *extra: str) -> int:
     return main(["evaluate", str(dataset), "--model", "oracle", "--disparity", "gt",
                  "--device", "cpu", "--out", str(out), *extra])
 
 
-def _contents(out: Path) -> dict[str, object]:
+def _contents(out: Path, prefix: str = "") -> dict[str, object]:
     """Everything in an output folder except the timings (see the module docstring)."""
     found: dict[str, object] = {}
     for path in sorted(out.iterdir()):
-        if path.suffix == ".npz":
+        if path.is_dir():  # a video's result folder
+            found[prefix + path.name + "/"] = oct(path.stat().st_mode & 0o777)
+            found.update(_contents(path, f"{prefix}{path.name}/"))
+        elif path.suffix == ".npz":
             with np.load(path) as npz:
                 for key in npz.files:
                     value = npz[key]
@@ -64,18 +81,21 @@ def _contents(out: Path) -> dict[str, object]:
                         value = sorted(json.loads(str(value)))
                     elif key == "meta":
                         value = json.loads(str(value))
-                    found[f"{path.name}:{key}"] = value
+                    found[f"{prefix}{path.name}:{key}"] = value
         elif path.name.endswith(".metrics.json"):
             record = json.loads(path.read_text())
-            found[path.name] = {k: v for k, v in record.items() if k not in TIMING_FIELDS}
+            found[prefix + path.name] = {
+                k: v for k, v in record.items() if k not in TIMING_FIELDS}
+        elif path.suffix == ".json":  # a video result's manifest
+            found[prefix + path.name] = json.loads(path.read_text())
         elif path.name == "metrics.csv":
             with open(path, newline="") as handle:
                 rows = list(csv.DictReader(handle))
-            found[path.name] = [
+            found[prefix + path.name] = [
                 {k: v for k, v in row.items() if k not in TIMING_FIELDS} for row in rows
             ]
         else:
-            found[path.name] = _without_t_column(path.read_text())
+            found[prefix + path.name] = _without_t_column(path.read_text())
     return found
 
 
@@ -123,6 +143,62 @@ def test_ray_run_writes_the_sequential_results(local_ray, dataset, tmp_path, cap
     assert _evaluate(dataset, tmp_path / "ray", "--ray") == 0
     assert "(1 run now, 2 resumed)" in capsys.readouterr().err
     _assert_same(seq, _contents(tmp_path / "ray"))
+
+
+def test_ray_run_of_videos_writes_the_sequential_results(local_ray, mixed, tmp_path, capsys):
+    """Videos and a light field in one data set: each a Ray task, the sequential folder."""
+    assert _evaluate(mixed, tmp_path / "seq") == 0
+    assert _evaluate(mixed, tmp_path / "ray", "--ray") == 0
+    seq, dist = _contents(tmp_path / "seq"), _contents(tmp_path / "ray")
+    assert {"clip_a/frame_0002.npz:labels", "clip_b/lfsam_video_result.json",
+            "scene.npz:labels"} <= set(seq)
+    _assert_same(seq, dist)
+    rows = {row["scene"]: row for row in seq["metrics.csv"]}
+    assert list(rows) == ["clip_a", "clip_b", "scene", "mean"]
+    for name in ("clip_a", "clip_b"):  # tracked and scored: the video columns F and IDsw
+        assert rows[name]["error"] == "" and float(rows[name]["view_iou"]) >= 0.9
+        assert (float(rows[name]["frames"]), float(rows[name]["identity_switches"])) == (3, 0)
+    assert rows["scene"]["frames"] == "" and float(rows["scene"]["siou"]) > 0.5
+    assert "IDsw" in "\n".join(seq["table.md"])
+
+    # Resumed the same way: a lost record reruns its video alone, and its folder is replaced.
+    (tmp_path / "ray" / "clip_b.metrics.json").unlink()
+    capsys.readouterr()
+    assert _evaluate(mixed, tmp_path / "ray", "--ray") == 0
+    assert "(1 run now, 2 resumed)" in capsys.readouterr().err
+    _assert_same(seq, _contents(tmp_path / "ray"))
+
+
+def test_ray_video_errors_are_the_sequential_rows(local_ray, mixed, tmp_path):
+    """A video that cannot be tracked, or whose result folder may not be written, is the same
+    error row as in a sequential run, and nothing already in the output folder is lost."""
+    from lfsam.evaluate import evaluate_dataset
+    from lfsam.video.evaluate import VideoTracking
+    from lfsam.video.track import track_video
+
+    def track(video, folder):
+        if "clip_a" in str(video.meta.get("source")):
+            raise RuntimeError("no track")
+        return track_video(video, None, folder, model="oracle", disparity="gt")
+
+    def segment(lf):
+        from lfsam.result import SegmentationResult
+
+        return SegmentationResult(labels=lf.labels, timings={"total": 0.1})
+
+    tables = {}
+    for run, mapper in (("seq", None), ("ray", ray_mapper(device="cpu"))):
+        (tmp_path / run / "clip_b").mkdir(parents=True)  # the user's, not a video result
+        (tmp_path / run / "clip_b" / "mine.txt").write_text("keep me\n")
+        tables[run] = evaluate_dataset(mixed, tmp_path / run, segment, method_label="gt",
+                                       videos=VideoTracking(track, "gt"), map_scenes=mapper)
+        assert (tmp_path / run / "clip_b" / "mine.txt").read_text() == "keep me\n"
+        assert not (tmp_path / run / "clip_a").exists()
+    errors = {run: [(r.scene, r.error) for r in table.failed] for run, table in tables.items()}
+    assert [scene for scene, _ in errors["seq"]] == ["clip_a", "clip_b"]
+    assert "no track" in errors["seq"][0][1] and "not a video result" in errors["seq"][1][1]
+    assert errors["ray"] == [(s, e.replace("/seq/", "/ray/")) for s, e in errors["seq"]]
+    assert [r.scene for r in tables["ray"].rows] == ["clip_a", "clip_b", "scene"]
 
 
 def test_ray_task_failure_is_a_failed_row(local_ray, dataset, tmp_path):

@@ -1,16 +1,21 @@
-"""Data-set runs on a Ray cluster: one task per light field (``lfsam evaluate --ray``; issue 18).
+"""Data-set runs on a Ray cluster: one task per scene (``lfsam evaluate --ray``; issues 18, 38).
 
 :func:`ray_mapper` gives :func:`lfsam.evaluate.evaluate_dataset` a scene mapper that sends each
-scene still to do to a Ray task and hands back the outcomes as the tasks finish. The task reads,
-segments and scores its light field and returns the result file's bytes; the calling process
-writes every file of the output folder, so the folder is the same as a sequential run's (same
-files, same resumability: an interrupted run keeps the scenes finished so far) and need not be
-visible to the workers. The workers must see the data set at the same path (a shared file
-system) and have lfsam installed (or ship it with Ray's ``runtime_env``).
+scene still to do to a Ray task and hands back the outcomes as the tasks finish. A light field's
+task reads, segments and scores it and returns the result file's bytes; a light-field video's
+task (the run's :class:`lfsam.evaluate.VideoScenes`, e.g. :class:`lfsam.video.evaluate.
+VideoTracking`) tracks and scores it into a temporary folder on the worker and returns that
+result folder's files (docs/design.md section 10). The calling process writes every file of the
+output folder, so the folder is the same as a sequential run's (same files, same rows, same
+resumability: an interrupted run keeps the scenes finished so far) and need not be visible to
+the workers. The workers must see the data set at the same path (a shared file system) and have
+lfsam installed (or ship it with Ray's ``runtime_env``). A video's result folder travels back
+as one Ray object, held in memory until written (a long video of large views needs the room).
 
-Each task asks Ray for ``num_cpus`` CPUs and, on CUDA, ``num_gpus`` GPUs (a fraction such as 0.5
-packs two light fields per GPU; Ray sets ``CUDA_VISIBLE_DEVICES`` so the task's ``cuda`` device
-is its own GPU). Ray is an optional dependency: ``pip install lfsam[ray]``.
+Each task (a light field or a whole video) asks Ray for ``num_cpus`` CPUs and, on CUDA,
+``num_gpus`` GPUs (a fraction such as 0.5 packs two scenes per GPU; Ray sets
+``CUDA_VISIBLE_DEVICES`` so the task's ``cuda`` device is its own GPU). Ray is an optional
+dependency: ``pip install lfsam[ray]``.
 """
 
 from __future__ import annotations
@@ -39,7 +44,7 @@ def import_ray() -> Any:
 def task_resources(
     device: str | None, cluster_gpus: float, num_gpus: float | None = None, num_cpus: float = 1
 ) -> dict[str, float]:
-    """Ray resources of one light field's task.
+    """Ray resources of one scene's task (a light field or a video).
 
     Parameters
     ----------
@@ -80,7 +85,8 @@ def task_resources(
 
 
 def _run_remote(job: SceneJob, name: str, path: str) -> SceneOutcome:
-    """The body of one Ray task: the scene's job, its result file returned as bytes."""
+    """The body of one Ray task: the scene's job, its result file (a video's result folder)
+    returned as bytes."""
     return job(name, Path(path), in_memory=True)
 
 

@@ -17,7 +17,10 @@ A data set may hold light-field videos too (docs/design.md section 10): given ``
 :class:`VideoScenes`, e.g. :class:`lfsam.video.evaluate.VideoTracking`), every scene it
 recognises is tracked into the result folder ``<scene>/`` and scored frame by frame; its row
 holds the means over the frames, the number of frames and the identity switches
-(:data:`lfsam.metrics.VIDEO_METRICS`).
+(:data:`lfsam.metrics.VIDEO_METRICS`). On a Ray cluster (:mod:`lfsam.distributed`) a video's
+task writes its result folder on the worker and sends back its files
+(:meth:`VideoScenes.run_detached`), which this process writes into ``out_dir``
+(:meth:`VideoScenes.store`): the same folder as a sequential run's.
 """
 
 from __future__ import annotations
@@ -317,8 +320,9 @@ def evaluate_dataset(
     videos : VideoScenes, optional
         Runs the entries that are light-field videos (:class:`VideoScenes`; e.g.
         :class:`lfsam.video.evaluate.VideoTracking`): each is tracked into the result folder
-        ``<scene>/`` instead of ``<scene>.npz``. Without it a video is skipped as not a light
-        field.
+        ``<scene>/`` instead of ``<scene>.npz`` (with ``map_scenes`` too: each video is then
+        one job, its folder sent back and written here). Without it a video is skipped as not a
+        light field.
 
     Returns
     -------
@@ -360,7 +364,7 @@ def evaluate_dataset(
             pending.append((name, path))
     job = SceneJob(segment_fn, method_label, out, device, reader, detect, videos)
     for outcome in (map_scenes or _map_in_order)(job, pending):
-        _record_outcome(outcome, out, table)
+        _record_outcome(outcome, job, table)
         bar.set_postfix_str(outcome.name)
         bar.update(1)
     bar.close()
@@ -372,7 +376,8 @@ def evaluate_dataset(
     table.mean = {key: _mean([row.metrics.get(key) for row in ok]) for key in METRIC_KEYS}
     for key in VIDEO_KEYS:  # totals, not means: frames scored and identity switches in all
         values = [row.metrics.get(key) for row in ok if row.metrics.get(key) is not None]
-        table.mean[key] = sum(values) if values else None
+        # float, as in the rows' records: a resumed run writes the mean row of a fresh one
+        table.mean[key] = float(sum(values)) if values else None
     _write_text(out / "metrics.csv", table.to_csv())
     _write_text(out / "table.md", table.to_markdown(f"{method_label} on {Path(dataset_dir).name}"))
     return table
@@ -473,6 +478,9 @@ class SceneOutcome:
     result_bytes : bytes or None
         The result's ``.npz`` file, when the job ran with ``in_memory`` (on another machine);
         otherwise the job wrote it into the output folder itself.
+    result_files : dict of str to bytes, or None
+        A video's result folder (path inside it -> file contents), when the job ran with
+        ``in_memory`` (:meth:`VideoScenes.run_detached`).
     """
 
     name: str
@@ -480,6 +488,7 @@ class SceneOutcome:
     skipped: str | None = None
     entry: str = ""
     result_bytes: bytes | None = None
+    result_files: dict[str, bytes] | None = None
 
 
 @dataclass
@@ -496,14 +505,14 @@ class SceneJob:
     videos: VideoScenes | None = None
 
     def __call__(self, name: str, path: Path, in_memory: bool = False) -> SceneOutcome:
-        """Run the scene; with ``in_memory`` the result file comes back as bytes instead of
-        being written to the output folder (for a machine that may not see it)."""
+        """Run the scene; with ``in_memory`` the result file (a video's result folder) comes
+        back as bytes instead of being written to the output folder (for a machine that may not
+        see it; docs/design.md section 10)."""
         if self.videos is not None and self.videos.is_video(path):
-            if in_memory:  # a video's result is a folder, written where it runs
-                row = SceneRow(scene=name, method=self.method_label,
-                               error="light-field videos are evaluated without --ray")
-            else:
-                row = self.videos.run(name, path, self.out / name)
+            if in_memory:
+                row, files = self.videos.run_detached(name, path, self.out / name)
+                return SceneOutcome(name=name, row=row, entry=path.name, result_files=files)
+            row = self.videos.run(name, path, self.out / name)
             return SceneOutcome(name=name, row=row, entry=path.name)
         try:
             self.detect(path)
@@ -542,6 +551,15 @@ class VideoScenes(Protocol):
         """Track, write the result folder ``result_folder`` and score one video; any failure
         is the row's error."""
 
+    def run_detached(self, name: str, path: Path, result_folder: Path
+                     ) -> tuple[SceneRow, dict[str, bytes] | None]:
+        """As :meth:`run` on a machine that may not see ``result_folder`` (a Ray task): the
+        row, and the result folder's files (path inside it -> contents; None on error)."""
+
+    def store(self, files: dict[str, bytes], result_folder: Path) -> None:
+        """Write the files of :meth:`run_detached` as ``result_folder``, as :meth:`run` would
+        have written it; raises when it cannot."""
+
 
 def _map_in_order(job: SceneJob, scenes: Sequence[tuple[str, Path]]) -> Iterator[SceneOutcome]:
     """The default :data:`SceneMapper`: each scene in this process, in name order."""
@@ -549,8 +567,9 @@ def _map_in_order(job: SceneJob, scenes: Sequence[tuple[str, Path]]) -> Iterator
         yield job(name, path)
 
 
-def _record_outcome(outcome: SceneOutcome, out: Path, table: EvaluationTable) -> None:
+def _record_outcome(outcome: SceneOutcome, job: SceneJob, table: EvaluationTable) -> None:
     """Write a finished scene's files (result before record: resumability) and tabulate it."""
+    out = job.out
     if outcome.row is None:
         table.skipped.append((outcome.entry, str(outcome.skipped)))
         note = f"lfsam evaluate: skipping {outcome.entry}: not a light field ({outcome.skipped})"
@@ -560,6 +579,11 @@ def _record_outcome(outcome: SceneOutcome, out: Path, table: EvaluationTable) ->
     if outcome.result_bytes is not None and row.error is None:
         with atomic_output(out / f"{row.scene}.npz") as tmp:
             tmp.write_bytes(outcome.result_bytes)
+    if outcome.result_files is not None and row.error is None and job.videos is not None:
+        try:
+            job.videos.store(outcome.result_files, out / row.scene)
+        except Exception as exc:  # as the sequential run's failure to write the folder
+            row = SceneRow(scene=row.scene, method=row.method, error=describe_failure(exc))
     if row.error is not None:
         tqdm.write(f"lfsam evaluate: scene {row.scene} failed: {row.error}", file=sys.stderr)
     _write_text(out / f"{row.scene}{_RECORD_SUFFIX}", json.dumps(row.to_record(), indent=1))

@@ -49,10 +49,11 @@ over the frames (vIoU: over frames and views; vIoU(min): the worst view of any f
 Runs resume: scenes whose result and metrics are in OUT are not run again (use --force). A scene
 that fails gets a row with its error; the others still run.
 
---ray spreads the scenes over a Ray cluster, one task per light field (with one GPU each on
-CUDA, or --gpus-per-task); without an address it starts a local cluster on this machine. The
-output folder and its files are the same as a sequential run's (needs `pip install lfsam[ray]`;
-the workers must see DATASET_DIR at the same path). See docs/performance.md.
+--ray spreads the scenes over a Ray cluster, one task per light field or video (with one GPU
+each on CUDA, or --gpus-per-task); without an address it starts a local cluster on this machine.
+The output folder and its files (a video's result folder included: tracked on the worker, sent
+back and written here) are the same as a sequential run's (needs `pip install lfsam[ray]`; the
+workers must see DATASET_DIR at the same path). See docs/performance.md.
 
 --compare DIR1 DIR2 ... prints one table with the mean row of each earlier run and the best value
 of each column in bold, like the paper's Table 1 (baseline vs ours) and Table 2 (ablations).
@@ -117,7 +118,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--gpus-per-task", type=float, metavar="G",
-        help="with --ray: GPUs per light field (default 1 when the cluster has GPUs, else 0)",
+        help="with --ray: GPUs per scene (default 1 when the cluster has GPUs, else 0)",
     )
     parser.add_argument(
         "--cpus-per-task", type=float, default=1, metavar="C", help="with --ray: CPUs per task"

@@ -7,22 +7,31 @@ result folder, and scores it frame by frame against the video's ground truth
 (:func:`lfsam.metrics.temporal.evaluate_frames`, the same scores as ``lfsam metrics`` prints for
 that folder). The scene's row holds the means over the frames of the paper's metrics and of the
 per-view IoU, the worst view of any frame, the number of frames and the identity switches.
+
+On a Ray cluster (``lfsam evaluate --ray``, :mod:`lfsam.distributed`) each video is one task:
+:meth:`VideoTracking.run_detached` tracks and scores it into a temporary folder on the worker
+and returns the folder's files; the calling process writes them with
+:meth:`VideoTracking.store`, under the same checks as the sequential run, so both give the same
+result folder and row (docs/design.md section 10).
 """
 
 from __future__ import annotations
 
 import shutil
+import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from lfsam.errors import LfsamError
 from lfsam.evaluate import SceneRow, describe_failure
+from lfsam.fileutil import atomic_folder_output
 from lfsam.metrics import check_ground_truth
 from lfsam.metrics.temporal import evaluate_frames
 from lfsam.video.detect import is_video, read_video
-from lfsam.video.result import VideoResult
+from lfsam.video.result import VideoResult, check_result_folder
 from lfsam.video.source import LightFieldVideo
 
 __all__ = ["VideoTracking", "video_row_metrics"]
@@ -97,3 +106,60 @@ class VideoTracking:
         row.metrics = video_row_metrics(scores["summary"])
         row.num_masks = len(result.object_ids)
         return row
+
+    def run_detached(self, name: str, path: Path, result_folder: Path
+                     ) -> tuple[SceneRow, dict[str, bytes] | None]:
+        """:meth:`run` on a machine that may not see ``result_folder`` (a Ray task).
+
+        The video is tracked and scored into a temporary folder, whose files come back instead
+        (docs/design.md section 10); the caller writes them with :meth:`store`.
+
+        Parameters
+        ----------
+        name : str
+            Scene name.
+        path : Path
+            The video (at the same path as for the caller: a shared file system).
+        result_folder : Path
+            Where the caller will write the folder (named in error messages instead of the
+            temporary folder, so that an error row reads as the sequential run's).
+
+        Returns
+        -------
+        row : SceneRow
+        files : dict of str to bytes, or None
+            Each file of the result folder by its path inside it (``/``-separated); None when
+            the row is an error.
+        """
+        with tempfile.TemporaryDirectory(prefix="lfsam-video-") as tmp:
+            folder = Path(tmp) / name
+            row = self.run(name, path, folder)
+            if row.error is not None:
+                row.error = row.error.replace(str(folder), str(result_folder))
+                return row, None
+            files = {item.relative_to(folder).as_posix(): item.read_bytes()
+                     for item in sorted(folder.rglob("*")) if item.is_file()}
+        return row, files
+
+    def store(self, files: dict[str, bytes], result_folder: Path) -> None:
+        """Write the files of :meth:`run_detached` as the result folder ``result_folder``.
+
+        As the sequential run writes it: refused where ``result_folder`` is neither new, an
+        earlier video result nor an empty folder (:func:`lfsam.video.result.
+        check_result_folder`), and atomic (:func:`lfsam.fileutil.atomic_folder_output`: a
+        failure leaves what was there).
+
+        Raises
+        ------
+        LfsamError
+            If ``result_folder`` may not be replaced, or a file's path leaves the folder.
+        """
+        check_result_folder(result_folder)
+        with atomic_folder_output(result_folder) as tmp:
+            for relative, data in files.items():
+                parts = Path(relative).parts
+                if Path(relative).is_absolute() or ".." in parts or not parts:
+                    raise LfsamError(f"{relative!r} is not a path inside a result folder")
+                target = tmp.joinpath(*parts)
+                target.parent.mkdir(parents=True, exist_ok=True)
+                target.write_bytes(data)
