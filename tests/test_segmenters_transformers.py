@@ -130,13 +130,9 @@ def test_registry_parameter_counts_match_a_build(name):
     assert config.prompt_encoder_config.image_size == spec.image_size
 
 
-# --- correctness without trained weights ----------------------------------------------------
-def test_click_gives_transformers_own_mask(sam2_folder, tmp_path, capsys):
-    """`lfsam segment --checkpoint DIR --no-refine --occlusion none` (no --model): the center
-    view's mask is the one transformers' processor + Sam2Model give for that click."""
-    from transformers import Sam2Model, Sam2Processor
-
-    folder, _ = sam2_folder
+def _click_without_refinement(folder, tmp_path, capsys):
+    """`lfsam segment SCENE --checkpoint FOLDER --point X,Y --no-refine --occlusion none` (no
+    --model) on a 3x3 scene of 60x80: the scene, the result and the click."""
     lf = generate_scene(grid=(3, 3), size=(60, 80), seed=4, num_objects=3)
     scene = tmp_path / "scene"
     write_lightfield(lf, scene)
@@ -146,7 +142,17 @@ def test_click_gives_transformers_own_mask(sam2_folder, tmp_path, capsys):
                  "--no-refine", "--occlusion", "none", "--disparity", "gt", "--device", "cpu",
                  "--out", str(out), "--quiet"])
     assert code == 0, capsys.readouterr().err
-    result = load_result(out)
+    return lf, load_result(out), (x, y)
+
+
+# --- correctness without trained weights ----------------------------------------------------
+def test_click_gives_transformers_own_mask(sam2_folder, tmp_path, capsys):
+    """`lfsam segment --checkpoint DIR --no-refine --occlusion none` (no --model): the center
+    view's mask is the one transformers' processor + Sam2Model give for that click."""
+    from transformers import Sam2Model, Sam2Processor
+
+    folder, _ = sam2_folder
+    lf, result, (x, y) = _click_without_refinement(folder, tmp_path, capsys)
     assert result.meta["segmenter"]["backend"] == "transformers"
     ours = result.masks.mask(0)[lf.center]
 
@@ -378,16 +384,7 @@ def test_sam1_click_gives_transformers_own_mask(sam1_folder, tmp_path, capsys):
     from transformers import SamModel, SamProcessor
 
     folder, _ = sam1_folder
-    lf = generate_scene(grid=(3, 3), size=(60, 80), seed=4, num_objects=3)
-    scene = tmp_path / "scene"
-    write_lightfield(lf, scene)
-    out = tmp_path / "r.npz"
-    x, y = 37, 22
-    code = main(["segment", str(scene), "--checkpoint", str(folder), "--point", f"{x},{y}",
-                 "--no-refine", "--occlusion", "none", "--disparity", "gt", "--device", "cpu",
-                 "--out", str(out), "--quiet"])
-    assert code == 0, capsys.readouterr().err
-    result = load_result(out)
+    lf, result, (x, y) = _click_without_refinement(folder, tmp_path, capsys)
     assert result.meta["segmenter"]["model_type"] == "sam"
     ours = result.masks.mask(0)[lf.center]
 
