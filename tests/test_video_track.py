@@ -70,3 +70,32 @@ def test_started_at_frame_3_and_equal_to_segmenting_each_frame(tracked):
         one = lfsam.segment(lf, [ObjectPrompts(3, (PointPrompt(*_inner_point(mask)),))],
                             model="oracle", disparity="gt", options=QUIET)
         np.testing.assert_array_equal(one.labels == 3, result.labels[f] == 3)
+
+
+def test_result_folder_keeps_each_objects_prompts_with_their_frames(tmp_path):
+    """Issue 38: clicks on frames 0 and 2 come back from the result folder as given (frames,
+    views and polarity kept), in id order, so that the viewer reopens the track editable."""
+    from lfsam.prompts import BoxPrompt
+    from lfsam.video.track import track_video
+
+    write_video_frames(generate_video(grid=(3, 3), size=(32, 48), frames=3, seed=0,
+                                      num_objects=2), tmp_path / "clip")
+    video = read_video(tmp_path / "clip")
+    first, last = video.frame(0).labels[1, 1], video.frame(2).labels[1, 1]
+    background = np.argwhere(last == 1)[0]  # label 1 is the background plane
+    prompts = [
+        ObjectPrompts(2, (PointPrompt(*_inner_point(last == 3), True, (1, 1), 2),),
+                      BoxPrompt(0, 0, 47, 31, view=(1, 1), frame=2)),
+        ObjectPrompts(1, (PointPrompt(*_inner_point(first == 2), True, (1, 1), 0),
+                          PointPrompt(float(background[1]), float(background[0]), False,
+                                      (1, 1), 2))),
+    ]
+    result = track_video(video, prompts, tmp_path / "out", model="oracle", disparity="gt",
+                         options=QUIET)
+    again = lfsam.load_result(tmp_path / "out")  # read back from the folder
+    for stored in (result.stored_prompts(), again.stored_prompts()):
+        assert stored == sorted(prompts, key=lambda o: o.obj_id)
+    assert [p.frame for p in again.stored_prompts()[0].points] == [0, 2]
+    assert again.categories == {}
+    assert [e["id"] for e in again.meta["objects"]] == [1, 2]
+    assert not (again.labels[0] == 2).any() and (again.labels[2] == 2).any()  # starts at 2

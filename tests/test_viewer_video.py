@@ -256,9 +256,10 @@ def test_frame_store_holds_written_frames_spills_and_reads_results(tmp_path):
     assert store[1:3].shape == (2, 1, 2, 3, 4)
 
 
-def test_lfsam_view_video_with_its_result_folder(qtbot, clip, tmp_path):
-    """``lfsam view VIDEO --result FOLDER`` shows the tracked labels; a result of another
-    shape, or a single result file, is refused in one line."""
+def test_lfsam_view_video_with_its_result_folder(make_napari_viewer, qtbot, clip, tmp_path):
+    """``lfsam view VIDEO --result FOLDER`` shows the tracked labels (a folder that keeps no
+    prompts, as written before issue 38: shown only); a result of another shape, or a single
+    result file, is refused in one line."""
     import argparse
 
     from lfsam.cli.main import build_parser
@@ -276,7 +277,8 @@ def test_lfsam_view_video_with_its_result_folder(qtbot, clip, tmp_path):
         qtbot.waitUntil(lambda: widget.session.loaded and not widget.busy, timeout=TIMEOUT)
         assert widget.session.tracked is not None
         assert [int(widget.layers[L.COMMITTED].data[f].max()) for f in range(3)] == [1, 2, 3]
-        assert "showing" in widget.status.text()
+        assert "showing" in widget.status.text() and "not stored" in widget.status.text()
+        assert widget.session.object_ids == [] and widget.session.current_id == 4
     finally:
         viewer.close()
     bad = argparse.Namespace(**{**vars(args), "result": str(tmp_path / "x.npz")})
@@ -324,3 +326,83 @@ def test_stop_tracking_after_the_frame_being_tracked_keeps_nothing(
         np.testing.assert_array_equal(layer[f], full.labels[f])
     saved = lfsam.load_result(widget.save(tmp_path / "saved"))
     np.testing.assert_array_equal(saved.labels[2], full.labels[2])
+
+
+def test_saved_track_reopens_editable_and_tracks_again(make_napari_viewer, qtbot, clip, tmp_path):
+    """Issue 38: a track saved by the dock reopens with ``lfsam view VIDEO --result FOLDER``
+    with the same objects, editable, their prompts on their frames; a click added on frame 2
+    and Track again re-track them (equal to ``track_video`` with the new prompts)."""
+    from lfsam.api import RunOptions, SegmentOptions
+    from lfsam.cli.main import build_parser
+    from lfsam.cli.view import open_viewer
+    from lfsam.video.track import track_video
+
+    viewer, widget = _open(make_napari_viewer, qtbot, clip)
+    video = read_video(clip)
+    points = widget.layers[L.POINTS]
+    _click(viewer, points, 0, CENTER, _interior(video.frame(0).labels[CENTER], FIRST))
+    _idle(qtbot, widget)
+    widget.commit()
+    _idle(qtbot, widget)
+    _click(viewer, points, 1, CENTER, _interior(video.frame(1).labels[CENTER], LATER))
+    _idle(qtbot, widget)
+    widget.track()
+    _idle(qtbot, widget)
+    saved = widget.save(tmp_path / "saved")
+    objects = dict(widget.session.video_objects)
+    first_id, later_id = sorted(objects)
+    assert [p.frame for p in objects[later_id].points] == [1]
+
+    args = build_parser().parse_args(["view", str(clip), "--model", "oracle", "--disparity",
+                                      "gt", "--result", str(saved)])
+    viewer, widget = open_viewer(args, show=False)
+    try:
+        qtbot.waitUntil(lambda: widget.session.tracked is not None and not widget.busy,
+                        timeout=TIMEOUT)
+        session = widget.session
+        assert session.video_objects == objects  # the same objects, prompts and frames
+        assert session.committed == {first_id, later_id}
+        assert session.current_id == later_id + 1
+        listed = [widget.objects.item(i).text() for i in range(widget.objects.count())]
+        assert listed == [f"{first_id}  (committed)", f"{later_id}  (committed)"]
+        assert "editable" in widget.status.text()
+        tracked = lfsam.load_result(saved)
+        for f in range(3):  # the tracked labels are shown, read from the folder
+            np.testing.assert_array_equal(widget.layers[L.COMMITTED].data[f], tracked.labels[f])
+        # edit the later object: its prompts go to the points layer with their frames
+        widget.edit_object(later_id)
+        _idle(qtbot, widget)
+        assert session.current_id == later_id
+        np.testing.assert_array_equal(widget.layers[L.POINTS].data[:, :3], [[1, *CENTER]])
+        # a click on frame 2, then Track again
+        pixel = _interior(video.frame(2).labels[CENTER], LATER)
+        _click(viewer, widget.layers[L.POINTS], 2, CENTER, pixel)
+        _idle(qtbot, widget)
+        edited = session.video_objects[later_id]
+        assert [p.frame for p in edited.points] == [1, 2]
+        assert session.video_objects[first_id] == objects[first_id]
+        widget.track(tmp_path / "again")
+        _idle(qtbot, widget)
+        again = session.tracked
+        assert again is not tracked and again.path == tmp_path / "again"
+        prompts = [session.video_objects[i] for i in sorted(session.video_objects)]
+        assert again.stored_prompts() == prompts  # the edited prompts are stored in turn
+        direct = track_video(video, prompts, tmp_path / "direct", model="oracle",
+                             disparity="gt",
+                             options=SegmentOptions(run=RunOptions(progress=False)))
+        for f in range(3):
+            np.testing.assert_array_equal(widget.layers[L.COMMITTED].data[f], direct.labels[f])
+            np.testing.assert_array_equal(again.labels[f], direct.labels[f])
+        # a session with objects does not drop them for another result folder
+        with pytest.raises(LfsamError, match="has objects already"):
+            widget.show_tracked(tracked)
+    finally:
+        viewer.close()
+    # File > Open of the folder, then "Reopen selected labels layer": the same
+    viewer, widget = _open(make_napari_viewer, qtbot, clip)
+    (layer,) = viewer.open(str(saved), plugin="lfsam")
+    viewer.layers.selection.active = layer
+    widget.controls.open_labels_button.click()
+    _idle(qtbot, widget)
+    assert widget.session.video_objects == objects and widget.session.tracked.path == saved
+    assert widget.session.committed == {first_id, later_id}

@@ -5,6 +5,13 @@ A folder::
     lfsam_video_result.json   format, version, frames, grid, view_size, object ids, meta
     frame_0000.npz ...        one result per frame (:func:`lfsam.result.save_result`)
 
+The manifest's ``meta["objects"]`` keeps each object as the track was given it, so that the
+folder reopens editable (:meth:`VideoResult.stored_prompts`): one entry per object in id order,
+in the prompt-file format (:func:`lfsam.prompts.prompts_to_json`: every point and the box with
+its view and its ``frame``), or ``"mask": "automatic"`` for an object without prompts (found by
+the automatic mode), with ``"category"`` where the frames' results name one. Folders written
+before lfsam stored them have no ``meta["objects"]``: they open, with no prompts.
+
 written frame by frame into a temporary folder next to the target and renamed onto it when
 the last frame is in (:func:`lfsam.fileutil.atomic_folder_output`): a failed run leaves
 nothing. Memory stays flat in the number of frames. :func:`load_video_result` (and
@@ -17,7 +24,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +32,7 @@ import numpy as np
 
 from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_folder_output
+from lfsam.prompts import ObjectPrompts, prompts_from_json, prompts_to_json
 from lfsam.result import SegmentationResult, load_result, save_result
 
 __all__ = [
@@ -38,6 +46,8 @@ __all__ = [
 
 RESULT_MARKER = "lfsam_video_result.json"
 FORMAT = "lfsam-video-result"
+#: The keys of a ``meta["objects"]`` entry that are prompts (the prompt-file format's).
+_PROMPT_KEYS = ("id", "points", "labels", "box", "view", "frame")
 
 
 def frame_name(index: int) -> str:
@@ -86,6 +96,7 @@ class _Writer:
         self.object_ids: set[int] = set()
         self.grid: list[int] | None = None
         self.view_size: list[int] | None = None
+        self.categories: dict[int, str] = {}
 
     def write(self, result: SegmentationResult) -> None:
         """Append the next frame's result."""
@@ -97,13 +108,41 @@ class _Writer:
                              f"{[*self.grid, *self.view_size]}")
         save_result(result, self.folder / frame_name(self.frames))
         self.object_ids.update(int(i) for i in np.unique(result.labels) if i > 0)
+        for key, phrase in (result.meta.get("categories") or {}).items():
+            self.categories.setdefault(int(key), str(phrase))
         self.frames += 1
+
+    def object_entries(self, objects: Sequence[ObjectPrompts]) -> list[dict[str, Any]]:
+        """``meta["objects"]`` (see the module docstring): ``objects``' prompts, the other ids
+        of the labels as automatic masks, each with its category if a frame gave one."""
+        prompted = {int(obj.obj_id): obj for obj in objects}
+        entries = []
+        for obj_id in sorted({*prompted, *self.object_ids}):
+            obj = prompted.get(obj_id)
+            entry = (prompts_to_json([obj])[0] if obj is not None
+                     else {"id": obj_id, "mask": "automatic"})
+            if obj_id in self.categories:
+                entry["category"] = self.categories[obj_id]
+            entries.append(entry)
+        return entries
 
 
 @contextlib.contextmanager
-def video_result_writer(path: str | os.PathLike, meta: dict[str, Any] | None = None
-                        ) -> Iterator[_Writer]:
+def video_result_writer(path: str | os.PathLike, meta: dict[str, Any] | None = None,
+                        objects: Sequence[ObjectPrompts] | None = None) -> Iterator[_Writer]:
     """Write a video result frame by frame; it appears at ``path`` only when complete.
+
+    Parameters
+    ----------
+    path : path-like
+        The result folder (:func:`check_result_folder`).
+    meta : dict, optional
+        The manifest's ``meta``, read when the last frame is in (so it may be completed
+        meanwhile).
+    objects : sequence of ObjectPrompts, optional
+        The objects' frame-tagged prompts the frames were tracked from (an empty sequence for
+        the automatic mode), kept as ``meta["objects"]`` (see the module docstring) so that
+        the folder reopens editable; None keeps no objects.
 
     Examples
     --------
@@ -130,7 +169,8 @@ def video_result_writer(path: str | os.PathLike, meta: dict[str, Any] | None = N
             "grid": writer.grid,
             "view_size": writer.view_size,
             "object_ids": sorted(writer.object_ids),
-            "meta": meta or {},
+            "meta": {**(meta or {}),
+                     **({} if objects is None else {"objects": writer.object_entries(objects)})},
         }
         (tmp / RESULT_MARKER).write_text(json.dumps(manifest, indent=1, default=str),
                                          encoding="utf-8")
@@ -200,6 +240,43 @@ class VideoResult:
     def __iter__(self) -> Iterator[SegmentationResult]:
         for index in range(self.num_frames):
             yield self.frame(index)
+
+    def stored_prompts(self) -> list[ObjectPrompts] | None:
+        """The prompted objects as the track was given them, each point and box with its frame
+        (``meta["objects"]``, see the module docstring), in id order, to reopen the folder for
+        editing; objects without prompts (automatic masks) are left out.
+
+        Returns
+        -------
+        list of ObjectPrompts, or None
+            None for a folder that keeps no objects (written before lfsam stored them).
+
+        Raises
+        ------
+        LfsamError
+            If the stored objects are damaged (one line naming the folder).
+        """
+        entries = self.meta.get("objects")
+        if entries is None:
+            return None
+        try:
+            if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
+                raise LfsamError("a list of objects is expected")
+            objects = prompts_from_json([{k: v for k, v in e.items() if k in _PROMPT_KEYS}
+                                         for e in entries if "mask" not in e])
+        except LfsamError as exc:
+            raise LfsamError(f"the objects stored in {self.path / RESULT_MARKER} are damaged "
+                             f"({exc}); track the video again") from None
+        return [obj for obj in objects if isinstance(obj, ObjectPrompts)]
+
+    @property
+    def categories(self) -> dict[int, str]:
+        """Each object's category (``meta["objects"]``), for the objects that have one."""
+        entries = self.meta.get("objects")
+        if not isinstance(entries, list):
+            return {}
+        return {int(e["id"]): str(e["category"]) for e in entries
+                if isinstance(e, dict) and e.get("category") and "id" in e}
 
 
 def load_video_result(path: str | os.PathLike) -> VideoResult:

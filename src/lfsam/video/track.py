@@ -26,7 +26,9 @@ Objects start at the first frame of their prompts (absent before); prompts given
 frame replace the carried ones there. ``auto`` finds the objects of frame 0
 (:class:`lfsam.generator.LightFieldMaskGenerator`).
 
-The result is written frame by frame (:mod:`lfsam.video.result`): memory stays flat in F.
+The result is written frame by frame (:mod:`lfsam.video.result`): memory stays flat in F. Its
+manifest keeps each object's frame-tagged prompts as given (``meta["objects"]``), so that the
+viewer reopens the folder editable (:meth:`lfsam.video.result.VideoResult.stored_prompts`).
 """
 
 from __future__ import annotations
@@ -142,7 +144,8 @@ def track_video(
     Returns
     -------
     VideoResult
-        The written result, opened lazily.
+        The written result, opened lazily; its :meth:`~VideoResult.stored_prompts` gives
+        ``prompts`` back in id order, frames kept ([] in the automatic mode).
 
     Raises
     ------
@@ -176,7 +179,7 @@ def track_video(
     bar = tqdm(total=video.num_frames, desc="tracking", unit="frame",
                disable=not options.run.progress)
     reference: ReferenceMemory | None = None
-    with video_result_writer(out, meta=meta) as writer:
+    with video_result_writer(out, meta=meta, objects=objects or []) as writer:
         for index in range(video.num_frames):
             lf = video.frame(index)
             if per_frame or segmenter is None:

@@ -1,7 +1,7 @@
 """The light-field video part of the napari dock (docs/design.md section 10): the frame slider,
-tracking a video's objects through its frames in the worker, stopping it, and showing a saved
-track. A mixin of :class:`lfsam.viewer.widget.LightFieldWidget`, kept beside it (the widget
-lays out and connects the dock; this module knows what a video adds).
+tracking a video's objects through its frames in the worker, stopping it, and reopening a saved
+track with its objects editable. A mixin of :class:`lfsam.viewer.widget.LightFieldWidget`, kept
+beside it (the widget lays out and connects the dock; this module knows what a video adds).
 """
 
 from __future__ import annotations
@@ -21,13 +21,14 @@ __all__ = ["VideoDock"]
 
 class VideoDock:
     """What the dock does with a light-field video (mixed into the widget, which provides
-    ``session``, ``viewer``, ``controls``, ``layers``, ``work``, ``_start_session``,
-    ``_when_loaded`` and ``_set_status``)."""
+    ``session``, ``viewer``, ``controls``, ``layers``, ``prompts``, ``work``,
+    ``_start_session``, ``_when_loaded``, ``_refresh_objects`` and ``_set_status``)."""
 
     session: Any
     viewer: Any
     controls: Any
     layers: Any
+    prompts: Any
     work: Any
     _stop_track: threading.Event | None = None
 
@@ -83,23 +84,41 @@ class VideoDock:
             self._set_status("stopping after the frame being tracked…")
 
     def show_tracked(self, result: Any) -> None:
-        """Show a video result folder's labels (``lfsam view VIDEO --result FOLDER``) in the
-        committed layer, read lazily; Save copies it. Its objects are not editable (their
-        prompts are not kept per frame): click them again and Track to change them."""
+        """Reopen a saved track, a video result folder (``lfsam view VIDEO --result FOLDER``,
+        or its labels layer opened with File > Open and reopened from the dock): its labels in
+        the committed layer, read lazily, and its objects back in the object list, editable,
+        with their prompts on the frames they were given on
+        (:meth:`VideoSession.open_result`): edit one, click on any frame and Track again. Save
+        copies the folder until the next Track. A folder that keeps no prompts (written before
+        lfsam stored them, or tracked from automatic masks) is shown only: click its objects
+        again and Track to change it.
+
+        Raises
+        ------
+        LfsamError
+            Without a video, or for a result :meth:`VideoSession.open_result` does not take
+            (checked now, before anything changes).
+        """
         session = self.session
         if not self.is_video:
             raise LfsamError("a video result needs its video: open the light-field video")
-        if tuple(result.shape) != tuple(session.video.shape):
-            raise LfsamError(
-                f"the result has labels {tuple(result.shape)}, the video "
-                f"{tuple(session.video.shape)}; open the result of this video"
-            )
+        session.check_result(result)
 
         def run() -> None:  # after the model's loading, which would overwrite the status
-            session.tracked = result
+            ids = session.open_result(result)
+            if ids:
+                self.prompts.write(None, session.lightfield.center)
+                self.layers[L.CURRENT].data.clear()
+                self.layers[L.CURRENT].refresh()
             self.layers[L.COMMITTED].data.attach_result(result)
             self.layers[L.COMMITTED].refresh()
-            self._set_status(f"showing {result.path} ({len(result.object_ids)} object(s)); "
-                             "to change it, click the objects and Track again")
+            self._refresh_objects()
+            self._set_status(
+                f"showing {result.path} ({len(result.object_ids)} object(s)); "
+                + (f"its {len(ids)} prompted object(s) are editable: double-click one, click "
+                   "on any frame and Track again" if ids else
+                   "its prompts are not stored in it: to change it, click the objects and "
+                   "Track again")
+            )
 
         self.work.when_idle(run)

@@ -11,10 +11,14 @@ docs/design.md sections 8 and 10. A :class:`VideoSession` is a
   oracle is rebuilt from the new frame's labels, a SAM 2 model is kept);
 - :meth:`VideoSession.track` runs :func:`lfsam.video.track.track_video` over the whole video with
   every object's frame-tagged prompts, into a result folder (temporary unless given), calling
-  back after each frame; :meth:`VideoSession.save` copies that folder.
+  back after each frame; :meth:`VideoSession.save` copies that folder;
+- :meth:`VideoSession.open_result` reopens a saved track (a video result folder): its objects
+  come back editable with their frame-tagged prompts
+  (:meth:`lfsam.video.result.VideoResult.stored_prompts`), its labels are the last track.
 
 What a single light field offers but a video does not (segment everything, text prompts,
-reopening a result) raises a one-line :class:`LfsamError` saying what to do instead.
+reopening a single light field's result or labels) raises a one-line :class:`LfsamError` saying
+what to do instead.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from lfsam.errors import LfsamError
-from lfsam.prompts import ObjectPrompts
+from lfsam.prompts import ObjectPrompts, validate_objects
 from lfsam.segmenters.registry import ORACLE
 from lfsam.video.prompts import prompts_at
 from lfsam.video.source import LightFieldVideo
@@ -63,7 +67,8 @@ class VideoSession(ViewerSession):
     video_objects : dict of int to ObjectPrompts
         Every object's frame-tagged prompts (the current object's as the history has them).
     tracked : VideoResult or None
-        The last track's result (:meth:`track`).
+        The last track's result (:meth:`track`), or the saved track reopened
+        (:meth:`open_result`).
     """
 
     video: LightFieldVideo | None = None
@@ -203,14 +208,75 @@ class VideoSession(ViewerSession):
         """Not for videos (raises)."""
         raise _unsupported("Find (text prompts)", "click the objects on any frame")
 
-    def open_result(self, result: Any) -> list[int]:
-        """Not for videos (raises)."""
-        raise _unsupported("reopening a result",
-                           "click the objects again and press Track")
-
     def open_labels(self, labels: Any) -> list[int]:
-        """Not for videos (raises)."""
+        """Not for videos (raises): :meth:`open_result` takes a video's result folder."""
         return self.open_result(labels)
+
+    # --- a saved track ----------------------------------------------------------------------------
+    def check_result(self, result: Any) -> list[ObjectPrompts]:
+        """Check that :meth:`open_result` can reopen ``result``; its prompted objects (empty
+        for a folder that keeps none).
+
+        Raises
+        ------
+        LfsamError
+            What :meth:`open_result` raises.
+        """
+        if not hasattr(result, "stored_prompts"):  # a single light field's result or labels
+            raise _unsupported("reopening a result",
+                               "open the video's result folder (saved by Track and Save, or "
+                               "`lfsam segment VIDEO --out FOLDER`), or click the objects "
+                               "again and press Track")
+        if tuple(result.shape) != tuple(self.video.shape):
+            raise LfsamError(
+                f"the result has labels {tuple(result.shape)}, the video "
+                f"{tuple(self.video.shape)}; open the result of this video"
+            )
+        objects = result.stored_prompts() or []
+        try:
+            validate_objects(objects, self.video.grid_shape, self.video.view_shape,
+                             self.video.num_frames)
+        except LfsamError as exc:
+            raise LfsamError(f"{result.path} does not fit this video: {exc}") from None
+        if objects and self.video_objects:
+            raise LfsamError(
+                "the session has objects already; remove them (or Track and Save them) before "
+                "reopening a result folder, whose objects replace them"
+            )
+        return objects
+
+    def open_result(self, result: Any) -> list[int]:
+        """Reopen a saved track (a :class:`lfsam.video.result.VideoResult`; docs/design.md
+        section 10): its objects come back editable, committed, with their frame-tagged prompts
+        (:meth:`~lfsam.video.result.VideoResult.stored_prompts`), and ``result`` becomes
+        :attr:`tracked` (what Save writes until the next Track).
+
+        Returns
+        -------
+        ids : list of int
+            The objects reopened; empty for a folder that keeps no prompts (written before lfsam
+            stored them, or tracked from automatic masks): it is :attr:`tracked`, not editable.
+
+        Raises
+        ------
+        LfsamError
+            A single light field's result or labels, another video's result, stored prompts
+            that do not fit the video, or (for a folder with prompts) objects in the session
+            already, which it would replace.
+        """
+        objects = self.check_result(result)
+        fresh = not self.video_objects and self.history.current is None
+        self.tracked = result
+        if objects:
+            self.video_objects = {obj.obj_id: obj for obj in objects}
+            self.committed = set(self.video_objects)
+            self.auto.clear()
+            self.history.reset()
+            if self.predictor is not None:
+                self._place_objects()
+        if objects or fresh:  # a new object gets an id after every id of the track
+            self.current_id = max([0, *self.video_objects, *result.object_ids]) + 1
+        return sorted(self.video_objects) if objects else []
 
     # --- tracking and output --------------------------------------------------------------------
     def track(self, out: str | os.PathLike | None = None,

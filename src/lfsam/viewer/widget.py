@@ -39,6 +39,7 @@ from qtpy.QtWidgets import QListWidgetItem, QWidget
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.pipeline.references import REFERENCE_MODES
+from lfsam.result import SegmentationResult
 from lfsam.segmenters.registry import ORACLE
 from lfsam.viewer import controls as C
 from lfsam.viewer import layers as L
@@ -558,19 +559,18 @@ class LightFieldWidget(VideoDock, QWidget):
         self.work.when_idle(run)
 
     def open_result(self, result: Any) -> None:
-        """Reopen a result's objects (``lfsam.result_objects.stored_prompts``) for correction."""
+        """Reopen a result's objects to correct them (a video's result: :meth:`show_tracked`)."""
 
         def run() -> None:
             self.session.open_result(result)
             self.masks.show_labels(L.COMMITTED, np.asarray(result.labels))
             self._predict_all("reopening")
 
-        self.work.when_idle(lambda: self._when_loaded(run))
+        then = partial(self.show_tracked, result) if self.is_video else run
+        self.work.when_idle(lambda: self._when_loaded(then))
 
     def open_labels(self, labels: np.ndarray) -> None:
         """Reopen a labels array ``(S, T, U, V)`` (label = object id) for correction."""
-        from lfsam.result import SegmentationResult
-
         self.open_result(SegmentationResult(labels=np.asarray(labels, dtype=np.int32)))
 
     def show_display(self, name: str) -> None:
