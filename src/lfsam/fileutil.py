@@ -4,7 +4,10 @@ A file (:func:`atomic_output`) or a folder (:func:`atomic_folder_output`) is wri
 temporary name in the same folder and renamed onto its final name only when complete, so a run
 that fails or is interrupted leaves no partial or corrupt output behind (and a folder it
 replaces stays as it was). :func:`check_output_path` and :func:`check_cache_dir` check an output
-file's folder and a cache folder before any work.
+file's folder and a cache folder before any work; :func:`check_writable`, which every command
+calls for each of its outputs before it reads an input or loads a model, proves the output can
+be written by creating and removing a file where it will be written (docs/design.md section 2,
+"Outputs and inputs on the command line").
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ __all__ = [
     "atomic_output",
     "check_cache_dir",
     "check_output_path",
+    "check_writable",
     "replace_folder",
 ]
 
@@ -44,6 +48,94 @@ def check_output_path(path: str | os.PathLike) -> Path:
         )
     if path.is_dir():
         raise LfsamError(f"output {str(path)!r} is a folder; give a file name")
+    return path
+
+
+def _nearest_existing(path: Path) -> Path:
+    """``path`` or its nearest ancestor that exists (``.`` for a relative path with none)."""
+    for candidate in (path, *path.parents):
+        try:
+            if candidate.exists():
+                return candidate
+        except OSError:  # not searchable: the probe below names the reason
+            return candidate
+    return Path(".")
+
+
+def check_writable(
+    path: str | os.PathLike, *, folder: bool, option: str, inside: bool = False
+) -> Path:
+    """Check that the output ``path`` can be written, before any work, or fail in one line.
+
+    A file is created and removed where the output will be written (docs/design.md section
+    2, "Outputs and inputs on the command line"): for a file, or for a folder written next to
+    its final name and renamed onto it (the atomic writes of this module), in its parent
+    folder, which must exist; for a folder the command creates with its parents and writes
+    into (``inside``), in the folder itself when it exists, else in its nearest existing
+    ancestor. So an unwritable place (a read-only mount, another user's folder, ``/proc``)
+    stops a command before it reads its input or loads a model, not after the work.
+
+    Parameters
+    ----------
+    path : path-like
+        The output file or folder.
+    folder : bool
+        Whether the output is a folder (then ``path`` must not be an existing file) or a file
+        (then ``path`` must not be an existing folder).
+    option : str
+        How the user named the output, for the message: ``"--out"``, ``"OUT"``, ...
+    inside : bool
+        A folder output the command creates (parents included) and writes its files into.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    LfsamError
+        Naming ``option``, ``path`` and the reason: a file where a folder belongs or the other
+        way round, a missing parent folder, or the operating system's refusal to create a file
+        there (``[Errno 13] Permission denied``, ``[Errno 30] Read-only file system``, ...).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> tmp = Path(tempfile.mkdtemp())
+    >>> check_writable(tmp / "result.npz", folder=False, option="--out").name
+    'result.npz'
+    >>> _ = (tmp / "notes.txt").write_text("a file")
+    >>> check_writable(tmp / "notes.txt" / "r.npz", folder=False, option="--out")
+    Traceback (most recent call last):
+    ...
+    lfsam.errors.LfsamError: cannot write --out .../notes.txt/r.npz: ... is a file, not a folder...
+    >>> shutil.rmtree(tmp)
+    """
+    path = Path(path)
+    fix = f"choose another {option}"
+    if folder and path.exists() and not path.is_dir():
+        raise LfsamError(f"{option} {path} is a file, but a folder is written there; {fix}")
+    if not folder and path.is_dir():
+        raise LfsamError(f"{option} {path} is a folder; give a file name for {option}")
+    target = path if inside else (path.parent if str(path.parent) else Path("."))
+    where = _nearest_existing(target)
+    if not where.is_dir():
+        raise LfsamError(f"cannot write {option} {path}: {where} is a file, not a folder; {fix}")
+    try:
+        handle, probe = tempfile.mkstemp(prefix=".lfsam-write-check.", dir=where)
+        os.close(handle)
+        os.unlink(probe)
+    except OSError as exc:
+        reason = f"[Errno {exc.errno}] {exc.strerror}" if exc.strerror else type(exc).__name__
+        raise LfsamError(
+            f"cannot write {option} {path}: {reason} (creating a file in {str(where)!r}); "
+            "choose a folder you can write to"
+        ) from None
+    if where != target and not inside:
+        raise LfsamError(
+            f"the folder {str(target)!r} of {option} {path} does not exist; create it "
+            f"(mkdir -p {target}) or {fix}"
+        )
     return path
 
 

@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 
 from lfsam.cli.common import HelpFormatter, add_value_range
+from lfsam.cli.inputs import expect_input
+from lfsam.fileutil import check_writable
 from lfsam.io import FORMATS, read_lightfield, resolve_output, write_lightfield
 
 __all__ = ["register", "run"]
@@ -34,8 +36,10 @@ examples:
 
 def run(args: argparse.Namespace) -> int:
     """Read ``args.path`` and write it to ``args.out``."""
-    if Path(args.path).exists():
-        resolve_output(args.out)  # a bad output fails before the input is read
+    expect_input(args.path, "convert", ("lightfield",))
+    if Path(args.path).exists():  # a bad output fails before the input is read
+        check_writable(args.out, folder=Path(args.out).suffix.lower() != ".npz", option="OUT")
+        resolve_output(args.out)
     lf = read_lightfield(args.path, args.format_in, value_range=args.value_range)
     out = write_lightfield(lf, args.out)
     kind = ".npz archive" if out.suffix.lower() == ".npz" else "scene folder"

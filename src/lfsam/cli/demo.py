@@ -6,6 +6,7 @@ import argparse
 
 from lfsam.cli.common import HelpFormatter
 from lfsam.cli.models import add_model_arguments, model_name_from_args
+from lfsam.fileutil import check_writable
 
 DESCRIPTION = """\
 Run lfsam end to end on the bundled synthetic light field (9x9 views of 240x320 with exact
@@ -46,6 +47,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``lfsam demo``."""
+    check_writable(args.out, folder=True, option="--out", inside=True)  # before any work
     from lfsam.demo import run_demo
 
     report = run_demo(

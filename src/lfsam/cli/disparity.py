@@ -9,8 +9,9 @@ import time
 import numpy as np
 
 from lfsam.cli.common import HelpFormatter, add_device_argument, parse_pair
+from lfsam.cli.inputs import expect_input
 from lfsam.errors import LfsamError
-from lfsam.fileutil import atomic_output, check_output_path
+from lfsam.fileutil import atomic_output, check_output_path, check_writable
 from lfsam.io import read_lightfield
 
 # The names of lfsam.disparity.methods.METHODS, default first (kept here so that building the
@@ -101,13 +102,14 @@ def run(args: argparse.Namespace) -> int:
 
     if not str(args.out).endswith(".npy"):
         raise LfsamError(f"--out must end in .npy, got {args.out!r}")
-    check_output_path(args.out)
-    if args.confidence is not None:
-        if not str(args.confidence).endswith(".npy"):
-            raise LfsamError(f"--confidence must end in .npy, got {args.confidence!r}")
-        check_output_path(args.confidence)
-    if args.preview:
-        check_output_path(args.preview)
+    if args.confidence is not None and not str(args.confidence).endswith(".npy"):
+        raise LfsamError(f"--confidence must end in .npy, got {args.confidence!r}")
+    for option, path in (("--out", args.out), ("--confidence", args.confidence),
+                         ("--preview", args.preview)):
+        if path:  # every output, before the light field is read
+            check_writable(path, folder=False, option=option)
+            check_output_path(path)
+    expect_input(args.path, "disparity", ("lightfield",))
     lightfield = read_lightfield(args.path, format=args.input_format)
     start = time.perf_counter()
     options = {} if args.edge_refinement is None else {"edge_refinement": args.edge_refinement}

@@ -14,9 +14,11 @@ from lfsam.cli.common import (
     add_refine_views_argument,
     add_tracking_argument,
 )
+from lfsam.cli.inputs import expect_dataset
 from lfsam.cli.models import add_model_arguments, model_name_from_args, model_options_from_args
 from lfsam.cli.text import add_text_arguments, check_text_weights
 from lfsam.errors import LfsamError
+from lfsam.fileutil import check_writable
 
 if TYPE_CHECKING:
     from pathlib import Path
@@ -170,6 +172,8 @@ def run(args: argparse.Namespace) -> int:
         raise LfsamError(f"--references {args.references} needs --method lfsam")
     if args.text and args.method != "lfsam":
         raise LfsamError("text prompts need --method lfsam (the video baseline takes clicks)")
+    check_writable(args.out, folder=True, option="--out", inside=True)  # before any work
+    expect_dataset(args.dataset)
     check_text_weights(args)
     if args.tracking == "memory" and args.model == "oracle":
         raise LfsamError("--tracking memory needs a SAM 2 --model (the oracle has no video "

@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 
 from lfsam.cli.common import HelpFormatter
+from lfsam.cli.inputs import expect_input, expect_partner
 from lfsam.errors import LfsamError
 from lfsam.export import EXPORT_FORMATS, check_export_target, export_result, export_video
+from lfsam.fileutil import check_writable
 from lfsam.io import read_lightfield
 from lfsam.lightfield import check_result_shape
 from lfsam.result import load_result
@@ -65,7 +67,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Load the result (and its light field), export it, print what was written."""
+    check_writable(args.out, folder=True, option="--out")
     check_export_target(args.out, args.force)
+    kind = expect_input(args.result, "export", ("result", "video-result"))
+    expect_partner(args.lightfield, args.result, kind, "export", "--lightfield")
     if is_video_result(args.result):
         return _run_video(args)
     result = load_result(args.result)

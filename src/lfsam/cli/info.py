@@ -7,6 +7,7 @@ import json
 from typing import Any
 
 from lfsam.cli.common import HelpFormatter, add_value_range
+from lfsam.cli.inputs import expect_input
 from lfsam.io import FORMATS, read_lightfield
 from lfsam.lightfield import LightField
 from lfsam.video import is_video, read_video
@@ -42,6 +43,24 @@ def summarize(lf: LightField) -> dict[str, Any]:
         if key in lf.meta and key not in summary:
             summary[key] = lf.meta[key]
     return summary
+
+
+def _plain(value: Any) -> str:
+    """A value of the text summary: strings as they are, a list of strings joined by commas,
+    anything else as JSON with absent entries as ``none`` (the text never says ``null``)."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, list) and all(isinstance(v, str) for v in value):
+        return ", ".join(value) if value else "none"
+
+    def no_null(item: Any) -> Any:
+        if isinstance(item, dict):
+            return {k: no_null(v) for k, v in item.items()}
+        if isinstance(item, list):
+            return [no_null(v) for v in item]
+        return "none" if item is None else item
+
+    return json.dumps(no_null(value))
 
 
 def _text(summary: dict[str, Any]) -> str:
@@ -83,10 +102,8 @@ def _text(summary: dict[str, Any]) -> str:
         "views_present",
     }
     for key, value in summary.items():
-        if key not in shown:
-            lines.append(
-                (key.replace("_", " "), value if isinstance(value, str) else json.dumps(value))
-            )
+        if key not in shown and value is not None:  # absent: no row (JSON keeps its null)
+            lines.append((key.replace("_", " "), _plain(value)))
     width = max(len(name) for name, _ in lines)
     return "\n".join(f"{name:<{width}}  {value}" for name, value in lines)
 
@@ -102,6 +119,8 @@ def _video_text(summary: dict[str, Any]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Print the summary of ``args.path`` (a light field or a light-field video)."""
+    expect_input(args.path, "info", ("lightfield", "video"),
+                 hint="draw a result with `lfsam show` instead")
     if args.format is None and is_video(args.path):
         with read_video(args.path, value_range=args.value_range) as video:
             summary = video.describe()

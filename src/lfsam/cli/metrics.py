@@ -7,6 +7,7 @@ import json
 import math
 
 from lfsam.cli.common import HelpFormatter, add_device_argument, bounded_int
+from lfsam.cli.inputs import expect_input, expect_partner
 from lfsam.errors import LfsamError
 from lfsam.io import read_lightfield
 from lfsam.result import load_result
@@ -93,6 +94,8 @@ def run(args: argparse.Namespace) -> int:
     """Load the result and the ground truth, print the metrics as one JSON object."""
     from lfsam.metrics import evaluate_result  # loads on use, keeping `lfsam --help` light
 
+    kind = expect_input(args.result, "metrics", ("result", "video-result"))
+    expect_partner(args.gt, args.result, kind, "metrics", "--gt")
     if is_video_result(args.result):
         return _run_video(args)
     result = load_result(args.result)

@@ -15,12 +15,13 @@ from lfsam.cli.common import (
     bounded_int,
     unit_interval,
 )
+from lfsam.cli.inputs import expect_input
 from lfsam.cli.models import add_model_arguments, model_options_from_args
 from lfsam.cli.prompts import PROMPT_PARSERS, PromptAction, objects_from_items
 from lfsam.cli.segment_video import run_video
 from lfsam.cli.text import add_text_arguments, check_text_weights, report_text
 from lfsam.errors import LfsamError
-from lfsam.fileutil import check_cache_dir, check_output_path
+from lfsam.fileutil import check_cache_dir, check_output_path, check_writable
 from lfsam.io import read_lightfield
 from lfsam.prompts import ObjectPrompts, load_prompts
 from lfsam.result import save_result
@@ -200,11 +201,13 @@ def run(args: argparse.Namespace) -> int:
         t_iou=args.t_iou,
         refine_views=args.refine_views,
     )
+    expect_input(args.path, "segment", ("lightfield", "video"))
     if args.input_format is None and is_video(args.path):  # issue 25: track through frames
         return run_video(args, config, has_prompts)
     if args.tracking != "auto":
         raise LfsamError(f"--tracking {args.tracking} applies to light-field videos; "
                          f"{args.path} is a single light field")
+    check_writable(args.out, folder=False, option="--out")  # before any reading or model
     check_output_path(args.out)
     if args.cache is not None:
         check_cache_dir(args.cache)

@@ -11,7 +11,7 @@ from typing import Any
 from lfsam.cli.common import TRACKING_MODES
 from lfsam.cli.models import model_options_from_args
 from lfsam.cli.prompts import objects_from_items
-from lfsam.fileutil import check_cache_dir
+from lfsam.fileutil import check_cache_dir, check_writable
 from lfsam.prompts import load_prompts
 from lfsam.video import read_video
 from lfsam.video.result import check_result_folder
@@ -25,6 +25,7 @@ def run_video(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
     from lfsam.api import RunOptions, SegmentOptions
     from lfsam.video.track import track_video
 
+    check_writable(args.out, folder=True, option="--out")  # before the video or a model is read
     check_result_folder(args.out)
     if args.cache is not None:
         check_cache_dir(args.cache)

@@ -11,9 +11,10 @@ from pathlib import Path
 import numpy as np
 
 from lfsam.cli.common import HelpFormatter
+from lfsam.cli.inputs import expect_input, expect_partner
 from lfsam.cli.show_video import parse_view, run_video
 from lfsam.errors import LfsamError
-from lfsam.fileutil import check_output_path
+from lfsam.fileutil import check_output_path, check_writable
 from lfsam.io import read_lightfield
 from lfsam.result import load_result
 
@@ -296,7 +297,7 @@ def _outputs(args: argparse.Namespace) -> tuple[list[tuple[str, Path]], Path | N
         anim_name = f"anim.{args.anim_format}"
         if out.is_dir() or str(args.out).endswith(("/", "\\")):
             if not out.is_dir():
-                new_folder = check_output_path(out)  # its parent must exist; made after checks
+                new_folder = out  # its parent must exist (checked below); made after checks
             paths = [
                 ("grid", out / "grid.png"),
                 ("epi", out / "epi.png"),
@@ -317,6 +318,9 @@ def _outputs(args: argparse.Namespace) -> tuple[list[tuple[str, Path]], Path | N
                 "change the suffix of --out"
             )
         paths = [(kind, out)]
+    # before anything is read (docs/design.md section 2): the new folder, or every file
+    for target in [new_folder] if new_folder is not None else [path for _, path in paths]:
+        check_writable(target, folder=target is new_folder, option="--out")
     if new_folder is None:
         for _, path in paths:
             check_output_path(path)
@@ -328,6 +332,15 @@ def run(args: argparse.Namespace) -> int:
     from lfsam import viz
     from lfsam.video.result import is_video_result
 
+    kind = expect_input(args.input, "show", ("result", "video-result", "lightfield"),
+                        hint=f"segment it first (lfsam segment {args.input} --auto --out "
+                        "RESULT_FOLDER) and show the result folder")
+    if kind == "lightfield" and args.lightfield is not None:
+        raise LfsamError(f"{args.input} is a light field; --lightfield goes with a result "
+                         "(lfsam show RESULT.npz --lightfield PATH)")
+    expect_partner(args.lightfield, args.input, kind, "show", "--lightfield")
+    if args.compare is not None and args.compare.lower() != "gt":
+        expect_input(args.compare, "show", ("result",), option="--compare")
     if is_video_result(args.input):
         return run_video(args)
     if args.view is not None:

@@ -8,7 +8,7 @@ import sys
 import warnings
 
 from lfsam.errors import LfsamError
-from lfsam.fileutil import check_output_path
+from lfsam.fileutil import check_output_path, check_writable
 from lfsam.video import read_video
 from lfsam.video.result import load_video_result
 
@@ -29,7 +29,6 @@ def run_video(args: argparse.Namespace) -> int:
     input) as a GIF or MP4: ``--view S,T`` one view, else the grid."""
     from lfsam import viz
 
-    result = load_video_result(args.input)
     if args.kind not in (None, "anim") or not str(args.out).lower().endswith(
             viz.ANIMATION_SUFFIXES):
         raise LfsamError("a light-field video's result is shown as an animation over time; "
@@ -37,7 +36,9 @@ def run_video(args: argparse.Namespace) -> int:
     if args.compare or args.gt_labels or args.mask_outlines:
         raise LfsamError("--compare, --gt-labels and --mask-outlines take a single light field's "
                          "result, not a video's")
+    check_writable(args.out, folder=False, option="--out")  # before anything is read
     check_output_path(args.out)
+    result = load_video_result(args.input)
     source = args.lightfield or result.meta.get("input")
     if source is None:
         raise LfsamError(f"{args.input} is a video result; give its video with --lightfield PATH")

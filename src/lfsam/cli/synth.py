@@ -7,6 +7,7 @@ import math
 
 from lfsam.cli.common import HelpFormatter, bounded_int, parse_pair, unit_interval
 from lfsam.errors import LfsamError
+from lfsam.fileutil import check_writable
 from lfsam.io import WRITE_FORMATS, resolve_output, write_lightfield
 from lfsam.synth import generate_scene
 from lfsam.video.synth import generate_video, write_video_frames
@@ -73,6 +74,7 @@ def _run_video(args: argparse.Namespace) -> int:
             "--frames writes a folder of frames (give OUT without .npz) and takes neither "
             "--hidden-objects nor --specular"
         )
+    check_writable(args.out, folder=True, option="OUT")
     frames = generate_video(
         grid=args.grid, size=args.size, frames=args.frames, seed=args.seed,
         num_objects=args.objects, disparity_range=args.disparity_range,
@@ -91,7 +93,9 @@ def run(args: argparse.Namespace) -> int:
     """Generate the scene (or with ``--frames``, the video) and write it."""
     if args.frames is not None:
         return _run_video(args)
-    resolve_output(args.out, args.format)  # fail before the work, not after
+    npz = args.format == "npz" if args.format else str(args.out).lower().endswith(".npz")
+    check_writable(args.out, folder=not npz, option="OUT")  # fail before the work, not after
+    resolve_output(args.out, args.format)
     rendered = args.grid[0] * args.grid[1] * args.size[0] * args.size[1] * args.supersample**2
     if rendered * 3 > MAX_RENDER_BYTES:
         raise LfsamError(

@@ -34,7 +34,7 @@ A light-field video (a folder of frames, an [F, S, T, U, V, 3] array, per-view v
 with a frame slider before the view sliders, read lazily; a click is tagged with the frame shown
 and segments that frame at once. "Track" (Ctrl-T) tracks every object through all frames in the
 worker, each frame showing as it finishes; Save then writes the video result folder, which
---result FOLDER shows again (read lazily; click and Track again to change it).
+--result FOLDER reopens (read lazily; its objects editable with their per-frame prompts).
 
 Needs the viewer extra: pip install 'lfsam[viewer]'.
 """
@@ -64,7 +64,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "path", nargs="?", help="light field: a folder of views, .npz/.npy/.h5/.mat, ..."
     )
-    parser.add_argument("--result", metavar="R.npz", help="reopen this result's objects to edit")
+    parser.add_argument("--result", metavar="RESULT",
+                        help="reopen this result's objects to edit (a result .npz, or a video's "
+                        "result folder)")
     add_model_arguments(parser)
     add_text_arguments(parser)
     add_disparity_argument(parser)

@@ -7,25 +7,37 @@
   but sub-folders or light-field files: one frame each (:mod:`lfsam.video.frames_folder`).
 
 Everything else is a single light field (:func:`lfsam.io.read_lightfield`).
+:func:`input_kind` tells the four kinds of input of the commands apart (a light field, a
+light-field video, a segmentation result, a video's result folder), so that each command can
+say in one line what it was given when it is given one in the wrong role (docs/design.md
+section 2, "Outputs and inputs on the command line").
 """
 
 from __future__ import annotations
 
 import os
+import zipfile
 from pathlib import Path
 
+import numpy as np
+
 from lfsam.errors import LfsamError
-from lfsam.io import is_native
+from lfsam.io import detect_format, is_native
+from lfsam.io.arrays import VIEW_KEYS
 from lfsam.io.grid_folder import list_images
 from lfsam.io.hci4d import is_hci4d
 from lfsam.io.hci_old import is_hci_old
 from lfsam.io.urbanlf import is_urbanlf
 from lfsam.video.arrays import array_video_shape, open_h5, open_npy, open_npz
 from lfsam.video.frames_folder import VIDEO_MARKER, FolderFrames, frame_entries, read_marker
+from lfsam.video.result import RESULT_MARKER
 from lfsam.video.source import LightFieldVideo
 from lfsam.video.view_files import VIDEO_SUFFIXES, ViewVideoFrames
 
-__all__ = ["is_video", "read_video", "video_kind"]
+__all__ = ["INPUT_KINDS", "input_kind", "is_video", "read_video", "video_kind"]
+
+#: The kinds :func:`input_kind` tells apart.
+INPUT_KINDS = ("lightfield", "video", "result", "video-result")
 
 
 def video_kind(path: str | os.PathLike) -> str | None:
@@ -97,3 +109,89 @@ def read_video(path: str | os.PathLike, value_range: int | None = None) -> Light
             "files, or an .npy/.npz/.h5 array [F, S, T, U, V, 3])"
         )
     return LightFieldVideo(source, meta)
+
+
+def _npz_shapes(path: Path) -> dict[str, tuple[int, ...]] | None:
+    """The shapes of an ``.npz``'s arrays from their headers (None if it is not readable)."""
+    shapes = {}
+    try:
+        with zipfile.ZipFile(path) as archive:
+            for name in archive.namelist():
+                if not name.endswith(".npy"):
+                    continue
+                with archive.open(name) as handle:
+                    version = np.lib.format.read_magic(handle)
+                    read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                            else np.lib.format.read_array_header_2_0)
+                    shapes[name[:-4]] = tuple(read(handle)[0])
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile):
+        return None
+    return shapes
+
+
+def _file_kind(path: Path) -> str | None:
+    """:func:`input_kind` of a file."""
+    suffix = path.suffix.lower()
+    if suffix == ".npz":
+        shapes = _npz_shapes(path)
+        if shapes is None:
+            return None
+        views = [name for name, shape in shapes.items()
+                 if name in VIEW_KEYS or (len(shape) in (5, 6) and shape[-1] == 3)]
+        if not views:  # labels without views: a result (any .npz with labels is one)
+            return "result" if "labels" in shapes else None
+    if video_kind(path) is not None:
+        return "video"
+    if suffix == ".npy":
+        try:
+            shape = np.load(path, mmap_mode="r", allow_pickle=False).shape
+        except (OSError, ValueError):
+            return None
+        return "lightfield" if len(shape) == 5 else None
+    try:
+        detect_format(path)
+    except LfsamError:
+        return None
+    return "lightfield"
+
+
+def input_kind(path: str | os.PathLike) -> str | None:
+    """What ``path`` holds, one of :data:`INPUT_KINDS`, from names and headers only.
+
+    ``"result"`` is an ``.npz`` with ``labels`` and no views (:func:`lfsam.result.load_result`),
+    ``"video-result"`` a folder with ``lfsam_video_result.json``
+    (:mod:`lfsam.video.result`), ``"video"`` what :func:`video_kind` finds, ``"lightfield"``
+    anything :func:`lfsam.io.detect_format` recognises (or an ``.npz`` / ``.npy`` with a
+    5-D views array). Used to check that each input of a command is of a kind it takes
+    (docs/design.md section 2, "Outputs and inputs on the command line"; :mod:`lfsam.cli.inputs`).
+
+    Returns
+    -------
+    str or None
+        None for a missing path or one that is none of these (its reader says why).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> np.savez(folder / "r.npz", labels=np.zeros((3, 3, 4, 5), np.int32))
+    >>> np.savez(folder / "lf.npz", views=np.zeros((3, 3, 4, 5, 3), np.uint8))
+    >>> np.savez(folder / "clip.npz", views=np.zeros((2, 3, 3, 4, 5, 3), np.uint8))
+    >>> [input_kind(folder / name) for name in ("r.npz", "lf.npz", "clip.npz", "none.npz")]
+    ['result', 'lightfield', 'video', None]
+    >>> import shutil; shutil.rmtree(folder)
+    """
+    path = Path(path)
+    if path.is_file():
+        return _file_kind(path)
+    if not path.is_dir():
+        return None
+    if (path / RESULT_MARKER).is_file():
+        return "video-result"
+    if video_kind(path) is not None:
+        return "video"
+    try:
+        detect_format(path)
+    except LfsamError:
+        return None
+    return "lightfield"
