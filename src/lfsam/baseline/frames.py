@@ -28,17 +28,12 @@ import numpy as np
 import torch
 
 from lfsam.errors import LfsamError
+from lfsam.segmenters.sam2_adapter import IMAGENET_MEAN, IMAGENET_STD
 
 __all__ = ["FRAME_TRANSFORMS", "IMAGENET_MEAN", "IMAGENET_STD", "init_video_state", "video_frames"]
 
 FRAME_TRANSFORMS = ("video", "image")
 """Names of the frame transforms of :func:`video_frames`."""
-
-IMAGENET_MEAN = (0.485, 0.456, 0.406)
-"""SAM 2's input normalisation mean (``load_video_frames`` and ``SAM2Transforms``)."""
-
-IMAGENET_STD = (0.229, 0.224, 0.225)
-"""SAM 2's input normalisation standard deviation."""
 
 _IMAGE_CHUNK = 8  # views resized together by the "image" transform (bounds the float buffers)
 

@@ -11,7 +11,7 @@ import numpy as np
 from lfsam.cli.common import HelpFormatter, add_device_argument, parse_pair
 from lfsam.cli.inputs import expect_input
 from lfsam.errors import LfsamError
-from lfsam.fileutil import atomic_output, check_output_path, check_writable
+from lfsam.fileutil import atomic_output, check_writable
 from lfsam.io import read_lightfield
 
 # The names of lfsam.disparity.methods.METHODS, default first (kept here so that building the
@@ -108,7 +108,6 @@ def run(args: argparse.Namespace) -> int:
                          ("--preview", args.preview)):
         if path:  # every output, before the light field is read
             check_writable(path, folder=False, option=option)
-            check_output_path(path)
     expect_input(args.path, "disparity", ("lightfield",))
     lightfield = read_lightfield(args.path, format=args.input_format)
     start = time.perf_counter()

@@ -21,7 +21,7 @@ from lfsam.cli.prompts import PROMPT_PARSERS, PromptAction, objects_from_items
 from lfsam.cli.segment_video import run_video
 from lfsam.cli.text import add_text_arguments, check_text_weights, report_text
 from lfsam.errors import LfsamError
-from lfsam.fileutil import check_cache_dir, check_output_path, check_writable
+from lfsam.fileutil import check_cache_dir, check_writable
 from lfsam.io import read_lightfield
 from lfsam.prompts import ObjectPrompts, load_prompts
 from lfsam.result import save_result
@@ -208,7 +208,6 @@ def run(args: argparse.Namespace) -> int:
         raise LfsamError(f"--tracking {args.tracking} applies to light-field videos; "
                          f"{args.path} is a single light field")
     check_writable(args.out, folder=False, option="--out")  # before any reading or model
-    check_output_path(args.out)
     if args.cache is not None:
         check_cache_dir(args.cache)
     check_text_weights(args)  # missing SAM 3 weights: one line now, not after the reading

@@ -14,7 +14,7 @@ from lfsam.cli.common import HelpFormatter
 from lfsam.cli.inputs import expect_input, expect_partner
 from lfsam.cli.show_video import parse_view, run_video
 from lfsam.errors import LfsamError
-from lfsam.fileutil import check_output_path, check_writable
+from lfsam.fileutil import check_writable
 from lfsam.io import read_lightfield
 from lfsam.result import load_result
 
@@ -321,9 +321,6 @@ def _outputs(args: argparse.Namespace) -> tuple[list[tuple[str, Path]], Path | N
     # before anything is read (docs/design.md section 2): the new folder, or every file
     for target in [new_folder] if new_folder is not None else [path for _, path in paths]:
         check_writable(target, folder=target is new_folder, option="--out")
-    if new_folder is None:
-        for _, path in paths:
-            check_output_path(path)
     return paths, new_folder
 
 

@@ -8,7 +8,7 @@ import sys
 import warnings
 
 from lfsam.errors import LfsamError
-from lfsam.fileutil import check_output_path, check_writable
+from lfsam.fileutil import check_writable
 from lfsam.video import read_video
 from lfsam.video.result import load_video_result
 
@@ -37,7 +37,6 @@ def run_video(args: argparse.Namespace) -> int:
         raise LfsamError("--compare, --gt-labels and --mask-outlines take a single light field's "
                          "result, not a video's")
     check_writable(args.out, folder=False, option="--out")  # before anything is read
-    check_output_path(args.out)
     result = load_video_result(args.input)
     source = args.lightfield or result.meta.get("input")
     if source is None:

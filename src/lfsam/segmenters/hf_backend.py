@@ -29,16 +29,16 @@ from lfsam.segmenters.base import ViewEmbedding
 from lfsam.segmenters.hf_build import build_transformers_sam
 from lfsam.segmenters.hf_sam1 import PaddedTransforms, preprocess_padded, view_grid
 from lfsam.segmenters.registry import TRANSFORMERS_FOLDER
-from lfsam.segmenters.sam2_adapter import image_transforms, use_image_transforms
+from lfsam.segmenters.sam2_adapter import (
+    IMAGENET_MEAN,
+    IMAGENET_STD,
+    image_transforms,
+    use_image_transforms,
+)
 from lfsam.segmenters.sam2_backend import Sam2Features, Sam2Segmenter
 from lfsam.segmenters.sam2_build import inference_context
 
-__all__ = ["IMAGENET_MEAN", "IMAGENET_STD", "TransformersSegmenter", "preprocess_views"]
-
-IMAGENET_MEAN = (0.485, 0.456, 0.406)
-"""Normalisation mean of SAM 2's and EdgeTAM's image processors (``Sam2ImageProcessor``)."""
-IMAGENET_STD = (0.229, 0.224, 0.225)
-"""Normalisation standard deviation of the same processors."""
+__all__ = ["TransformersSegmenter", "preprocess_views"]
 
 
 def preprocess_views(views: torch.Tensor, size: int) -> torch.Tensor:

@@ -134,7 +134,11 @@ def folder_family(folder: str | os.PathLike) -> str:
     LfsamError
         Not such a folder, or a model type lfsam does not segment with.
     """
-    config = _read_config(Path(folder).expanduser())
+    return _family_of(_read_config(Path(folder).expanduser()), folder)
+
+
+def _family_of(config: dict[str, Any], folder: str | os.PathLike) -> str:
+    """:func:`folder_family` of an already read ``config.json``."""
     model_type = str(config.get("model_type", ""))
     if model_type not in MODEL_TYPES:
         raise LfsamError(
@@ -276,7 +280,8 @@ def build_transformers_sam(
     folder: Path | None = None
     if checkpoint is not None:
         folder = Path(checkpoint).expanduser()
-        family = folder_family(folder)
+        folder_config = _read_config(folder)
+        family = _family_of(folder_config, folder)
         wanted = model_family(name)
         if wanted is not None and wanted != family:
             raise LfsamError(
@@ -284,7 +289,7 @@ def build_transformers_sam(
                 "leave out --model (the folder's config.json names the model) or pass a "
                 f"{wanted} folder"
             )
-        config = _image_config(family, _read_config(folder))
+        config = _image_config(family, folder_config)
     elif spec is None:
         raise LfsamError(
             f"the model {name!r} takes its architecture and weights from a transformers-format "

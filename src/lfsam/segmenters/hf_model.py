@@ -100,7 +100,6 @@ class TransformersImageModel(nn.Module):
         self.sam_mask_decoder = heads.sam_mask_decoder
         self.no_mem_embed = heads.no_mem_embed
         self.image_size = int(config.prompt_encoder_config.image_size)
-        self.model_type = str(info.get("model_type", config.model_type))
         self.lfsam_info = {
             **info,
             "params": int(sum(p.numel() for p in hf_model.parameters())),

@@ -28,10 +28,10 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from lfsam.segmenters.sam2_adapter import IMAGENET_MEAN, IMAGENET_STD
+
 __all__ = ["PaddedTransforms", "preprocess_padded", "resized_size", "view_grid"]
 
-IMAGENET_MEAN = (0.485, 0.456, 0.406)
-IMAGENET_STD = (0.229, 0.224, 0.225)
 
 
 def resized_size(hw: tuple[int, int], size: int) -> tuple[int, int]:

@@ -36,6 +36,8 @@ from lfsam.segmenters.sam2_decoder import (
 )
 
 __all__ = [
+    "IMAGENET_MEAN",
+    "IMAGENET_STD",
     "SAM2_CLASS_ATTRIBUTES",
     "SAM2_MODULE_ATTRIBUTES",
     "SAM2_PREDICTOR_STATE",
@@ -48,6 +50,13 @@ __all__ = [
     "stability_scores",
     "use_image_transforms",
 ]
+
+IMAGENET_MEAN = (0.485, 0.456, 0.406)
+"""SAM 2's input normalisation mean (``SAM2Transforms``, ``load_video_frames``; also the
+``transformers`` image processors of SAM, SAM 2 and EdgeTAM)."""
+
+IMAGENET_STD = (0.229, 0.224, 0.225)
+"""SAM 2's input normalisation standard deviation (the same places)."""
 
 SAM2_CLASS_ATTRIBUTES: dict[str, tuple[str, ...]] = {
     "sam2.sam2_image_predictor.SAM2ImagePredictor": ("_predict", "reset_predictor", "set_image"),

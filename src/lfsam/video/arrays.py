@@ -21,7 +21,7 @@ from lfsam.errors import LfsamError
 from lfsam.io.arrays import DISPARITY_KEYS, LABEL_KEYS, VIEW_KEYS
 from lfsam.lightfield import LightField
 
-__all__ = ["ArrayFrames", "array_video_shape", "open_h5", "open_npy", "open_npz"]
+__all__ = ["ArrayFrames", "array_video_shape", "npz_shapes", "open_h5", "open_npy", "open_npz"]
 
 
 class ArrayFrames:
@@ -76,6 +76,31 @@ class ArrayFrames:
             self._closer = None
 
 
+def _read_header(handle: Any) -> tuple[tuple[int, ...], bool, np.dtype]:
+    """``(shape, fortran_order, dtype)`` of the ``.npy`` at ``handle``'s position."""
+    version = np.lib.format.read_magic(handle)
+    if version == (1, 0):
+        return np.lib.format.read_array_header_1_0(handle)
+    return np.lib.format.read_array_header_2_0(handle)
+
+
+def npz_shapes(path: str | os.PathLike) -> dict[str, tuple[int, ...]]:
+    """The shape of every array of an ``.npz``, from the members' headers (nothing loaded).
+
+    Raises
+    ------
+    OSError, ValueError, EOFError, zipfile.BadZipFile
+        Not a readable ``.npz`` (callers that only probe catch them).
+    """
+    with zipfile.ZipFile(path) as archive:
+        shapes = {}
+        for name in archive.namelist():
+            if name.endswith(".npy"):
+                with archive.open(name) as handle:
+                    shapes[name[:-4]] = tuple(_read_header(handle)[0])
+    return shapes
+
+
 class ZipMember:
     """One ``.npy`` member of an ``.npz``, indexable by its first axis without loading it."""
 
@@ -83,11 +108,7 @@ class ZipMember:
         self.archive, self.name, self.path = archive, name, path
         info = archive.getinfo(name)
         with archive.open(name) as handle:
-            version = np.lib.format.read_magic(handle)
-            if version == (1, 0):
-                shape, fortran, dtype = np.lib.format.read_array_header_1_0(handle)
-            else:
-                shape, fortran, dtype = np.lib.format.read_array_header_2_0(handle)
+            shape, fortran, dtype = _read_header(handle)
             self.data_offset = handle.tell()
         if fortran or dtype.hasobject:
             raise LfsamError(

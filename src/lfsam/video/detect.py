@@ -28,7 +28,7 @@ from lfsam.io.grid_folder import list_images
 from lfsam.io.hci4d import is_hci4d
 from lfsam.io.hci_old import is_hci_old
 from lfsam.io.urbanlf import is_urbanlf
-from lfsam.video.arrays import array_video_shape, open_h5, open_npy, open_npz
+from lfsam.video.arrays import array_video_shape, npz_shapes, open_h5, open_npy, open_npz
 from lfsam.video.frames_folder import VIDEO_MARKER, FolderFrames, frame_entries, read_marker
 from lfsam.video.result import RESULT_MARKER
 from lfsam.video.source import LightFieldVideo
@@ -111,30 +111,13 @@ def read_video(path: str | os.PathLike, value_range: int | None = None) -> Light
     return LightFieldVideo(source, meta)
 
 
-def _npz_shapes(path: Path) -> dict[str, tuple[int, ...]] | None:
-    """The shapes of an ``.npz``'s arrays from their headers (None if it is not readable)."""
-    shapes = {}
-    try:
-        with zipfile.ZipFile(path) as archive:
-            for name in archive.namelist():
-                if not name.endswith(".npy"):
-                    continue
-                with archive.open(name) as handle:
-                    version = np.lib.format.read_magic(handle)
-                    read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
-                            else np.lib.format.read_array_header_2_0)
-                    shapes[name[:-4]] = tuple(read(handle)[0])
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile):
-        return None
-    return shapes
-
-
 def _file_kind(path: Path) -> str | None:
     """:func:`input_kind` of a file."""
     suffix = path.suffix.lower()
     if suffix == ".npz":
-        shapes = _npz_shapes(path)
-        if shapes is None:
+        try:
+            shapes = npz_shapes(path)
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile):
             return None
         views = [name for name, shape in shapes.items()
                  if name in VIEW_KEYS or (len(shape) in (5, 6) and shape[-1] == 3)]
