@@ -11,13 +11,27 @@ Two parts, each printing its table:
   25): tracking costs at most 10% more than independent frames.
 * ``memory`` — peak resident memory (``ru_maxrss``) of a fresh process tracking a 5x5 video of
   F frames with ``--memory-model`` (default the tiny SAM 2: its video memory), for each F in
-  ``--memory-frames`` (target: flat in F).
+  ``--memory-frames`` (target: flat in F; issue 35: 10 to 100 frames).
+* ``stream`` (issue 35) — a live stream: a writer thread lands the frames of a synthetic 5x5
+  video of ``--stream-size`` (default 240x320, 3 objects, ``--stream-frames`` 30) into a
+  followed folder at ``--rate`` frames per second (written under a hidden name, renamed in)
+  while :func:`lfsam.video.live.segment_stream` segments each as it lands, for each of
+  ``--stream-runs`` (``MODEL:TRACKING``: the video memory or constrained prompts) with random
+  weights, ``--refine-views 1``, ground-truth disparity, the 3 objects clicked in frame 0.
+  Random weights score every object absent after frame 0; with the memory, as in the tests,
+  the object-score bias is raised so the objects stay present and are segmented in every
+  frame, as trained weights would. Printed per model: one encoder pass (median of 5, seconds), the
+  mean seconds per frame spent reading and segmenting it, the sustained rate that allows
+  (1 / mean), the per-frame cost in encoder passes, the latency from arrival to result on
+  disk (median and worst) and the range of objects present in the center view per frame.
+  Targets: EdgeTAM at least 1 frame per second; Hiera-T at most 1.3
+  encoder passes per frame.
 
 Usage::
 
-    python benchmarks/bench_video.py [--parts speed,memory] [--size 96x128] [--grid 9x9]
-        [--frames 6] [--models oracle,sam2-tiny-test] [--settings all,sparse]
-        [--memory-frames 3,6,12]
+    python benchmarks/bench_video.py [--parts speed,memory,stream] [--size 96x128]
+        [--grid 9x9] [--frames 6] [--models oracle,sam2-tiny-test] [--settings all,sparse]
+        [--memory-frames 3,6,12] [--stream-runs edgetam:memory,...] [--rate 1]
 """
 
 from __future__ import annotations
@@ -25,9 +39,12 @@ from __future__ import annotations
 import argparse
 import json
 import resource
+import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -35,11 +52,16 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
+import torch
+
 from lfsam.api import RunOptions, SegmentOptions, segment
 from lfsam.pipeline import PipelineConfig
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.segmenters import load_segmenter
 from lfsam.video import read_video
+from lfsam.video.follow import FrameFollower
+from lfsam.video.live import segment_stream
+from lfsam.video.online import OnlineTracker
 from lfsam.video.synth import generate_video, write_video_frames
 from lfsam.video.track import track_video
 
@@ -135,6 +157,88 @@ def memory_part(args: argparse.Namespace) -> None:
           f"{peaks[-1] - peaks[0]:+.0f} MiB (target: flat)")
 
 
+def keep_objects_present(tracker) -> None:
+    """Raise the memory's object-score bias by 50 (random weights score objects absent)."""
+    memory = tracker._memory
+    model = getattr(memory, "predictor", None) or memory.model
+    decoder = getattr(model, "sam_mask_decoder", None) or model.mask_decoder
+    head = decoder.pred_obj_score_head
+    last = head.layers[-1] if hasattr(head, "layers") else head
+    with torch.no_grad():
+        last.bias += 50.0
+
+
+def land_frames(sources: list[Path], folder: Path, rate: float) -> None:
+    """Land ``sources`` in ``folder`` at ``rate`` frames per second, then END."""
+    start = time.monotonic()
+    for index, source in enumerate(sources):
+        time.sleep(max(0.0, start + index / rate - time.monotonic()))
+        hidden = folder / f".{source.name}.part"
+        shutil.copytree(source, hidden)
+        hidden.rename(folder / source.name)
+    (folder / "END").write_bytes(b"")
+
+
+def stream_part(args: argparse.Namespace, work: Path) -> None:
+    size = parse_size(args.stream_size)
+    source = work / "stream_clip"
+    write_video_frames(generate_video(grid=(5, 5), size=size, frames=args.stream_frames,
+                                      seed=0, num_objects=3), source)
+    frames = sorted(p for p in source.iterdir() if p.name.startswith("frame_"))
+    first = read_video(source).frame(0)
+    print(f"\n## stream: 5x5 views of {size[0]}x{size[1]}, {len(frames)} frames landing at "
+          f"{args.rate:g}/s, 3 objects, --refine-views 1, video memory, ground-truth "
+          "disparity, CPU, random weights\n")
+    print("| model | tracking | encoder pass (s) | s/frame (mean) | sustained frames/s | "
+          "encoder passes per frame | latency median (s) | latency worst (s) | objects |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    objects = [obj for obj in clicks(first) if obj.obj_id != 1]  # label 1: the backdrop
+    for run in args.stream_runs:
+        name, tracking = run.split(":")
+        segmenter = load_segmenter(name, random_weights=True, device="cpu",
+                                   keep_decoder_state=False)
+        view = first.views[first.center][None]
+        segmenter.encode(view)  # warm-up
+        passes = []
+        for _ in range(5):
+            start = time.perf_counter()
+            segmenter.encode(view)
+            passes.append(time.perf_counter() - start)
+        encoder = statistics.median(passes)
+        options = SegmentOptions(pipeline=PipelineConfig(refine_views=1),
+                                 run=RunOptions(progress=False))
+        memory = tracking == "memory"
+        if memory:
+            warm = OnlineTracker(segmenter, disparity="gt", options=options, memory=True)
+            warm.add_prompts(objects)
+            warm.track(first)  # builds the memory's model (not counted)
+            keep_objects_present(warm)
+        tracker = OnlineTracker(segmenter, disparity="gt", options=options, memory=memory)
+        tracker.add_prompts(objects)
+        folder = work / f"in_{name}_{tracking}"
+        folder.mkdir()
+        seconds: list[float] = []
+        present: list[int] = []
+
+        def record(timing, result, seconds=seconds, present=present) -> None:
+            seconds.append(timing.seconds)
+            center = result.labels[tuple(s // 2 for s in result.labels.shape[:2])]
+            present.append(int((np.unique(center) > 0).sum()))
+
+        writer = threading.Thread(target=land_frames, args=(frames, folder, args.rate))
+        writer.start()
+        report = segment_stream(FrameFollower(folder, poll=0.01), tracker,
+                                work / f"out_{name}_{tracking}", on_frame=record)
+        writer.join()
+        mean = statistics.fmean(seconds)
+        lat = report.summary()
+        print(f"| {name} | {tracking} | {encoder:.3f} | {mean:.3f} | {1 / mean:.2f} | "
+              f"{mean / encoder:.2f} | {lat['latency_median_s']:.3f} | "
+              f"{lat['latency_worst_s']:.3f} | {min(present)}-{max(present)} |", flush=True)
+    print("\ntargets: edgetam >= 1 frame/s sustained; sam2.1-hiera-tiny <= 1.3 encoder passes "
+          "per frame")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--parts", default="speed,memory")
@@ -145,6 +249,13 @@ def main() -> None:
     parser.add_argument("--settings", default="all,sparse")
     parser.add_argument("--memory-frames", default="3,6,12")
     parser.add_argument("--memory-model", default="sam2-tiny-test")
+    parser.add_argument("--stream-runs",
+                        default="edgetam:memory,sam2.1-hiera-tiny:memory,"
+                                "sam2.1-hiera-tiny:prompts",
+                        help="MODEL:TRACKING pairs (tracking: memory or prompts)")
+    parser.add_argument("--stream-size", default="240x320")
+    parser.add_argument("--stream-frames", type=int, default=30)
+    parser.add_argument("--rate", type=float, default=1.0, help="frames landing per second")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     args.models = args.models.split(",")
@@ -160,6 +271,9 @@ def main() -> None:
             speed_part(args, work)
         if "memory" in parts:
             memory_part(args)
+        if "stream" in parts:
+            args.stream_runs = args.stream_runs.split(",")
+            stream_part(args, work)
 
 
 if __name__ == "__main__":

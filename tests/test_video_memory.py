@@ -37,7 +37,7 @@ def present(tiny):
 
 
 def _stream(segmenter, images, first, window=None):
-    memory = ReferenceMemory(segmenter, len(images), SHAPE)
+    memory = ReferenceMemory(segmenter, SHAPE)
     if window is not None:
         memory.window = window
     logits = []
@@ -81,7 +81,7 @@ def test_one_frame_at_a_time_with_a_window_equals_the_full_video(present, monkey
 
 
 def test_frames_go_forward_and_only_the_current_one_is_held(tiny):
-    memory = ReferenceMemory(tiny, 3, SHAPE)
+    memory = ReferenceMemory(tiny, SHAPE)
     memory.next_frame(1, np.zeros((*SHAPE, 3), np.uint8))
     with pytest.raises(LfsamError, match="frames go forward"):
         memory.next_frame(0, np.zeros((*SHAPE, 3), np.uint8))
@@ -128,7 +128,7 @@ def test_a_correction_click_changes_the_tracked_mask(present):
     images = rng.integers(0, 256, (2, *SHAPE, 3), dtype=np.uint8)
     first = np.zeros(SHAPE, bool)
     first[10:30, 12:40] = True
-    memory = ReferenceMemory(present, 2, SHAPE)
+    memory = ReferenceMemory(present, SHAPE)
     memory.next_frame(0, images[0])
     memory.add_mask(1, first)
     memory.track()

@@ -21,7 +21,7 @@ import os
 import warnings
 from collections import OrderedDict
 from collections.abc import Sequence
-from dataclasses import fields, is_dataclass
+from dataclasses import fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -148,6 +148,18 @@ class EmbeddingStore:
                 self._remember(key, embedding)
                 self._save(key, embedding)
         return [out[key] for key in keys]
+
+    def put(self, view: View, embedding: ViewEmbedding) -> None:
+        """Take ``view``'s embedding from an encoder pass made elsewhere (the video memory's
+        pass over a frame's center view, docs/design.md section 10): later :meth:`get` calls
+        return it without encoding. Not counted in :attr:`views_encoded`; not written to the
+        disk cache."""
+        key = (int(view[0]), int(view[1]))
+        if embedding.key != key:
+            embedding = replace(embedding, key=key)
+        if key in self._memory:
+            self._bytes -= self._memory.pop(key)[1]
+        self._remember(key, embedding)
 
     def in_memory(self, view: View) -> bool:
         """Whether ``view``'s embedding is held in memory now (a :meth:`get_many` hit)."""

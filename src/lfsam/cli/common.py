@@ -76,6 +76,17 @@ def unit_interval(text: str, what: str = "a number") -> float:
     return value
 
 
+def positive_float(text: str) -> float:
+    """Parse a finite number > 0 (seconds such as ``--follow-timeout``)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return value
+
+
 def probability(text: str) -> float:
     """Parse a probability, a number in [0, 1] (``--oracle-merge``)."""
     return unit_interval(text, "a probability")

@@ -18,6 +18,7 @@ from lfsam.cli.common import (
 from lfsam.cli.inputs import expect_input
 from lfsam.cli.models import add_model_arguments, model_options_from_args
 from lfsam.cli.prompts import PROMPT_PARSERS, PromptAction, objects_from_items
+from lfsam.cli.segment_follow import add_follow_arguments, run_follow
 from lfsam.cli.segment_video import run_video
 from lfsam.cli.text import add_text_arguments, check_text_weights, report_text
 from lfsam.errors import LfsamError
@@ -93,6 +94,8 @@ examples:
   lfsam segment scene --text cup --text-checkpoint ~/models/sam3 --out cups.npz
   lfsam segment clip --point 30,20 --point 50,40#3 --model oracle --disparity gt --out tracked
   lfsam segment clip --point 30,20 --tracking prompts --out tracked   # SAM 2 without its memory
+  lfsam segment frames/ --follow --point 30,20 --model edgetam --refine-views 1 --out live
+                                  # a camera's growing frames folder; ends at frames/END
 """
 
 
@@ -142,6 +145,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     add_refine_views_argument(method)
     add_tracking_argument(method)
+    add_follow_arguments(parser)
     method.add_argument(
         "--occlusion", choices=["semantic", "geometric", "both", "none"], default="semantic",
         help="occluding: SAM 2 feature similarity (paper), z-buffer of the center disparity, "
@@ -201,6 +205,10 @@ def run(args: argparse.Namespace) -> int:
         t_iou=args.t_iou,
         refine_views=args.refine_views,
     )
+    if args.follow:  # issue 35: a frames folder still being written
+        return run_follow(args, config, has_prompts)
+    if args.follow_timeout is not None:
+        raise LfsamError("--follow-timeout goes with --follow")
     expect_input(args.path, "segment", ("lightfield", "video"))
     if args.input_format is None and is_video(args.path):  # issue 25: track through frames
         return run_video(args, config, has_prompts)

@@ -258,21 +258,41 @@ class Sam2Segmenter(Segmenter):
             x = torch.from_numpy(np.ascontiguousarray(chunk)).to(self.device)
             x = x.permute(0, 3, 1, 2).float().div_(255.0)
             x = image_transforms(self._predictor).transforms(x)  # resize + normalise, as set_image
-            vision_feats, feat_sizes = backbone_features(model, model.forward_image(x))
-            if model.directly_add_no_mem_embed:
-                vision_feats[-1] = vision_feats[-1] + model.no_mem_embed
-            batch = len(chunk)
-            levels = [
-                feat.permute(1, 2, 0).reshape(batch, -1, *size)
-                for feat, size in zip(vision_feats, feat_sizes, strict=True)
-            ]
-            views = []
-            for i in range(batch):
-                per_view = [level[i : i + 1] for level in levels]
-                if batch > 1:  # do not keep the whole batch alive through one view
-                    per_view = [level.clone() for level in per_view]
-                views.append(Sam2Features(image_embed=per_view[-1], high_res_feats=per_view[:-1]))
+            return self._features_from_backbone(model.forward_image(x), len(chunk))
+
+    def _features_from_backbone(self, backbone_out: dict[str, Any],
+                                batch: int) -> list[Sam2Features]:
+        """Per-view :class:`Sam2Features` of ``SAM2Base.forward_image``'s output for ``batch``
+        views (``_prepare_backbone_features`` and ``no_mem_embed``, as ``set_image``)."""
+        model = self.model
+        vision_feats, feat_sizes = backbone_features(model, backbone_out)
+        if model.directly_add_no_mem_embed:
+            vision_feats[-1] = vision_feats[-1] + model.no_mem_embed
+        levels = [
+            feat.permute(1, 2, 0).reshape(batch, -1, *size)
+            for feat, size in zip(vision_feats, feat_sizes, strict=True)
+        ]
+        views = []
+        for i in range(batch):
+            per_view = [level[i : i + 1] for level in levels]
+            if batch > 1:  # do not keep the whole batch alive through one view
+                per_view = [level.clone() for level in per_view]
+            views.append(Sam2Features(image_embed=per_view[-1], high_res_feats=per_view[:-1]))
         return views
+
+    def embedding_from_backbone(
+        self, backbone_out: dict[str, Any], image_size: tuple[int, int],
+        key: tuple[int, int] | None = None,
+    ) -> ViewEmbedding:
+        """The embedding of one view from an image-encoder pass made elsewhere:
+        ``forward_image``'s output for that view's tensor as :meth:`encode` transforms it (SAM
+        2's video memory encodes each frame's center view once and shares it, docs/design.md
+        section 10). Equal to ``encode(view[None])[0]``; counted in :attr:`encode_calls`."""
+        with inference_context(self.device, precision=self.precision):
+            features = self._features_from_backbone(backbone_out, 1)[0]
+        self.encode_calls += 1
+        return ViewEmbedding(image_size=(int(image_size[0]), int(image_size[1])), key=key,
+                             data=features)
 
     # --- on-disk cache ------------------------------------------------------------------------
     def cache_identity(self) -> str:

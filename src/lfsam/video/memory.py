@@ -6,7 +6,12 @@ the center view of every light field. :class:`ReferenceMemory` drives it one fra
 (the light-field pipeline segments each frame from those masks before the next frame is read):
 
 - :meth:`ReferenceMemory.next_frame` hands it frame f's center view (the only frame image it
-  holds: the state's ``images`` is a one-frame window, :class:`_CurrentFrame`);
+  holds: the state's ``images`` is a one-frame window, :class:`_CurrentFrame`; no frame count
+  is needed up front, so a live stream works: the state's ``num_frames`` grows with each
+  frame). It runs the image encoder on it once, keeps the output where SAM 2 looks for it
+  (``cached_features``) and returns the light-field segmenter's embedding of the same pass
+  (:meth:`~lfsam.segmenters.sam2_backend.Sam2Segmenter.embedding_from_backbone`), so the
+  frame's center view is encoded once for both (issue 35);
 - :meth:`ReferenceMemory.add_mask` conditions an object on a mask at this frame
   (``add_new_mask``: an object's start or a re-prompt);
 - :meth:`ReferenceMemory.track` runs the memory on this frame for every object
@@ -40,10 +45,10 @@ from lfsam.baseline.frames import init_video_state, video_frames
 from lfsam.baseline.predictor import quiet_sam2_video, video_predictor_for
 from lfsam.baseline.video import MASK_THRESHOLD
 from lfsam.errors import LfsamError
-from lfsam.segmenters.base import Segmenter
+from lfsam.segmenters.base import Segmenter, ViewEmbedding
 from lfsam.segmenters.sam2_build import inference_context
 
-__all__ = ["ReferenceMemory", "has_video_memory"]
+__all__ = ["ReferenceMemory", "has_video_memory", "reference_memory_for"]
 
 
 def has_video_memory(segmenter: Segmenter) -> bool:
@@ -57,17 +62,48 @@ def has_video_memory(segmenter: Segmenter) -> bool:
     return True
 
 
-class _CurrentFrame:
-    """The state's ``images``: F frames long, holding only the current frame's tensor."""
+def reference_memory_for(segmenter: Segmenter, view_shape: tuple[int, int],
+                         required: bool = False) -> Any:
+    """The video memory of ``segmenter`` over center views of ``view_shape``: Meta's SAM 2
+    (:class:`ReferenceMemory`) or a transformers SAM 2 / EdgeTAM video checkpoint
+    (:class:`lfsam.video.hf_memory.TransformersReferenceMemory`); None for a segmenter without
+    one (the oracle, SAM v1), or an :class:`LfsamError` naming the fix when ``required``."""
+    if has_video_memory(segmenter):
+        return ReferenceMemory(segmenter, view_shape)
+    from lfsam.segmenters.hf_backend import TransformersSegmenter
 
-    def __init__(self, num_frames: int, device: torch.device) -> None:
-        self.num_frames = num_frames
+    if isinstance(segmenter, TransformersSegmenter):
+        try:  # TODO(issue 35): helper's module
+            from lfsam.video.hf_memory import (
+                TransformersReferenceMemory,
+                has_transformers_video_memory,
+            )
+        except ImportError:
+            has_transformers_video_memory = None
+        if has_transformers_video_memory is not None and has_transformers_video_memory(
+                segmenter):
+            return TransformersReferenceMemory(segmenter, view_shape)
+        problem = f"the {segmenter.name!r} model has no video memory here"
+        if required:
+            raise LfsamError(problem)
+        return None
+    if required:
+        raise LfsamError(f"the {segmenter.name!r} segmenter has no video memory; track with "
+                         "a SAM 2 or EdgeTAM --model, or with --tracking prompts")
+    return None
+
+
+class _CurrentFrame:
+    """The state's ``images``: as long as the frames seen so far, holding only the current
+    frame's tensor."""
+
+    def __init__(self, device: torch.device) -> None:
         self.device = device
         self.index = -1
         self.tensor: torch.Tensor | None = None
 
     def __len__(self) -> int:
-        return self.num_frames
+        return self.index + 1
 
     def __getitem__(self, index: int) -> torch.Tensor:
         if index != self.index or self.tensor is None:
@@ -82,16 +118,16 @@ class ReferenceMemory:
     ----------
     segmenter : Segmenter
         A SAM 2 image segmenter; the video predictor shares its weights.
-    num_frames : int
-        Frames in the video.
     view_shape : (U, V)
         Masks are returned at this size.
     """
 
-    def __init__(self, segmenter: Segmenter, num_frames: int, view_shape: tuple[int, int]) -> None:
+    def __init__(self, segmenter: Segmenter, view_shape: tuple[int, int]) -> None:
+        self.segmenter = segmenter
         self.predictor = video_predictor_for(segmenter)
         self.device = torch.device(self.predictor.device)
-        self.frames = _CurrentFrame(num_frames, self.device)
+        self.view_shape = (int(view_shape[0]), int(view_shape[1]))
+        self.frames = _CurrentFrame(self.device)
         self.state: dict[str, Any] = init_video_state(self.predictor, self.frames, view_shape)
         model = self.predictor
         #: Frames of per-object outputs kept behind the current one (lossless, see module doc).
@@ -105,14 +141,34 @@ class ReferenceMemory:
         """Objects the memory tracks (in the order they were added)."""
         return list(self.state["obj_ids"])
 
-    def next_frame(self, index: int, image: np.ndarray) -> None:
-        """Load frame ``index``'s center view ``(U, V, 3)`` uint8 (frames come in order)."""
+    def next_frame(self, index: int, image: np.ndarray) -> ViewEmbedding | None:
+        """Load frame ``index``'s center view ``(U, V, 3)`` uint8 (frames come in order) and
+        encode it once.
+
+        Returns
+        -------
+        ViewEmbedding or None
+            The light-field segmenter's embedding of ``image`` from this encoder pass (give it
+            to the pipeline: :meth:`lfsam.embeddings.EmbeddingStore.put`); None when the
+            segmenter computes in another precision than the memory (bfloat16), which then
+            encodes the view on its own.
+        """
         if index <= self.frame:
             raise LfsamError(f"frames go forward: frame {index} after frame {self.frame}")
-        tensor = video_frames(np.asarray(image)[None], int(self.predictor.image_size),
-                              self.device, "image")[0]
+        image = np.asarray(image)
+        tensor = video_frames(image[None], int(self.predictor.image_size), self.device,
+                              "image")[0]
         self.frames.index, self.frames.tensor, self.frame = index, tensor, index
+        self.state["num_frames"] = index + 1
         self.state["cached_features"] = {}
+        if getattr(self.segmenter, "autocast", None) is not None:
+            return None
+        batch = tensor[None]
+        with inference_context(self.device):
+            backbone_out = self.predictor.forward_image(batch)
+        self.state["cached_features"] = {index: (batch, backbone_out)}
+        return self.segmenter.embedding_from_backbone(backbone_out, image.shape[:2],
+                                                      key=None)
 
     def add_mask(self, obj_id: int, mask: np.ndarray) -> None:
         """Condition ``obj_id`` on ``mask`` (U, V) at the current frame."""

@@ -24,14 +24,15 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-from collections.abc import Iterator, Sequence
+import shutil
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from lfsam.errors import LfsamError
-from lfsam.fileutil import atomic_folder_output
+from lfsam.fileutil import atomic_folder_output, atomic_output
 from lfsam.prompts import ObjectPrompts, prompts_from_json, prompts_to_json
 from lfsam.result import SegmentationResult, load_result, save_result
 
@@ -39,7 +40,9 @@ __all__ = [
     "RESULT_MARKER",
     "FrameLabels",
     "VideoResult",
+    "check_live_folder",
     "is_video_result",
+    "live_video_result_writer",
     "load_video_result",
     "video_result_writer",
 ]
@@ -112,6 +115,23 @@ class _Writer:
             self.categories.setdefault(int(key), str(phrase))
         self.frames += 1
 
+    def manifest(self, meta: dict[str, Any] | None, objects: Sequence[ObjectPrompts] | None,
+                 complete: bool | None = None) -> dict[str, Any]:
+        """The manifest of the frames written so far (``complete`` only for live folders)."""
+        manifest = {
+            "format": FORMAT,
+            "version": 1,
+            "frames": self.frames,
+            "grid": self.grid,
+            "view_size": self.view_size,
+            "object_ids": sorted(self.object_ids),
+            "meta": {**(meta or {}),
+                     **({} if objects is None else {"objects": self.object_entries(objects)})},
+        }
+        if complete is not None:
+            manifest["complete"] = bool(complete)
+        return manifest
+
     def object_entries(self, objects: Sequence[ObjectPrompts]) -> list[dict[str, Any]]:
         """``meta["objects"]`` (see the module docstring): ``objects``' prompts, the other ids
         of the labels as automatic masks, each with its category if a frame gave one."""
@@ -162,18 +182,92 @@ def video_result_writer(path: str | os.PathLike, meta: dict[str, Any] | None = N
         yield writer
         if writer.frames == 0:
             raise LfsamError("a video result needs at least one frame")
-        manifest = {
-            "format": FORMAT,
-            "version": 1,
-            "frames": writer.frames,
-            "grid": writer.grid,
-            "view_size": writer.view_size,
-            "object_ids": sorted(writer.object_ids),
-            "meta": {**(meta or {}),
-                     **({} if objects is None else {"objects": writer.object_entries(objects)})},
-        }
-        (tmp / RESULT_MARKER).write_text(json.dumps(manifest, indent=1, default=str),
-                                         encoding="utf-8")
+        (tmp / RESULT_MARKER).write_text(json.dumps(writer.manifest(meta, objects), indent=1,
+                                                    default=str), encoding="utf-8")
+
+
+def check_live_folder(path: str | os.PathLike) -> Path:
+    """Check that a live video result can be written to ``path``: a new name or an empty
+    folder, in an existing parent folder (a live result is written in place, so an earlier
+    result is never overwritten).
+
+    Raises
+    ------
+    LfsamError
+        One line naming the problem and the fix.
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise LfsamError(f"{str(path)!r} is a file; a followed stream writes a folder (one "
+                         "result per frame): give a new folder name")
+    if not path.exists():
+        check_result_folder(path)  # the suffix and the parent folder
+    elif any(path.iterdir()):
+        raise LfsamError(
+            f"{str(path)!r} is not empty; a followed stream writes its frames into --out as "
+            "they are done, so give a new folder name (or remove the old one)"
+        )
+    return path
+
+
+class _LiveWriter(_Writer):
+    """Writes each frame into the result folder itself and updates the manifest after it."""
+
+    def __init__(self, folder: Path, meta: dict[str, Any],
+                 objects: Callable[[], Sequence[ObjectPrompts]] | None) -> None:
+        super().__init__(folder)
+        self.meta = meta
+        self.objects = objects
+
+    def write(self, result: SegmentationResult) -> None:
+        """Append the next frame (file written atomically), then publish it in the manifest."""
+        super().write(result)
+        self.publish(complete=False)
+
+    def publish(self, complete: bool) -> None:
+        """Write the manifest of the frames so far, atomically."""
+        objects = None if self.objects is None else self.objects()
+        text = json.dumps(self.manifest(self.meta, objects, complete=complete), indent=1,
+                          default=str)
+        with atomic_output(self.folder / RESULT_MARKER) as tmp:
+            Path(tmp).write_text(text, encoding="utf-8")
+
+
+@contextlib.contextmanager
+def live_video_result_writer(
+    path: str | os.PathLike, meta: dict[str, Any] | None = None,
+    objects: Callable[[], Sequence[ObjectPrompts]] | None = None,
+) -> Iterator[_LiveWriter]:
+    """Write a video result frame by frame *in place*, readable while it grows (a followed
+    stream, issue 35).
+
+    Each frame's file is written atomically and then the manifest is rewritten atomically with
+    ``"complete": false``, so :func:`load_video_result` sees exactly the frames done so far at
+    any moment (also after a crash or a kill). On leaving the block, whatever ended it (the
+    stream's end, an error, Ctrl-C), the manifest is written once more with ``"complete":
+    true``; a folder that received no frame is removed.
+
+    Parameters
+    ----------
+    path : path-like
+        The result folder (:func:`check_live_folder`: new or empty).
+    meta : dict, optional
+        The manifest's ``meta``, read at every frame (so it may be completed meanwhile).
+    objects : callable, optional
+        Returns the objects' prompts so far (they may grow during the stream), kept as
+        ``meta["objects"]``.
+    """
+    path = check_live_folder(path)
+    created = not path.exists()
+    path.mkdir(exist_ok=True)
+    writer = _LiveWriter(path, meta if meta is not None else {}, objects)
+    try:
+        yield writer
+    finally:
+        if writer.frames:
+            writer.publish(complete=True)
+        elif created:
+            shutil.rmtree(path, ignore_errors=True)
 
 
 class FrameLabels:
@@ -208,6 +302,8 @@ class VideoResult:
         self.view_shape = tuple(int(x) for x in manifest["view_size"])
         self.object_ids = [int(i) for i in manifest.get("object_ids", [])]
         self.meta: dict[str, Any] = manifest.get("meta") or {}
+        #: False while a followed stream is still writing the folder (issue 35).
+        self.complete = bool(manifest.get("complete", True))
         self.labels = FrameLabels(self)
 
     def __len__(self) -> int:

@@ -1,0 +1,105 @@
+"""``lfsam segment FOLDER --follow``: segment a light-field camera's frames as they are written
+(docs/design.md section 10, issue 35); called by :mod:`lfsam.cli.segment`."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+import numpy as np
+
+from lfsam.cli.common import TRACKING_MODES, positive_float
+from lfsam.cli.models import model_options_from_args
+from lfsam.cli.prompts import objects_from_items
+from lfsam.errors import LfsamError
+from lfsam.fileutil import check_cache_dir, check_writable
+from lfsam.prompts import load_prompts
+
+__all__ = ["add_follow_arguments", "run_follow"]
+
+
+def add_follow_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--follow``, ``--follow-timeout S`` and ``--poll S``."""
+    group = parser.add_argument_group(
+        "live streams (a frames folder that is still growing)")
+    group.add_argument(
+        "--follow", action="store_true",
+        help="PATH is a frames folder a camera is still writing: segment each frame as it "
+        "lands (frames count once they are there, so rename complete frames in), write its "
+        "result into --out at once and print its latency; ends at a file named END in PATH, "
+        "after --follow-timeout, or on Ctrl-C, and --out then holds every frame done",
+    )
+    group.add_argument(
+        "--follow-timeout", type=positive_float, default=None, metavar="S",
+        help="with --follow: stop after S seconds without a new frame (default: wait for END "
+        "or Ctrl-C)",
+    )
+    group.add_argument(
+        "--poll", type=positive_float, default=0.05, metavar="S",
+        help="with --follow: seconds between looks at the folder (default 0.05)",
+    )
+
+
+def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
+    """Follow ``args.path``; exit 0 when the stream ends by END or the timeout, 130 on
+    Ctrl-C (the frames done are in ``--out`` either way)."""
+    from lfsam.api import RunOptions, SegmentOptions
+    from lfsam.video.follow import FrameFollower, check_follow_folder
+    from lfsam.video.live import segment_stream
+    from lfsam.video.online import OnlineTracker
+    from lfsam.video.result import check_live_folder
+
+    if args.method != "lfsam":
+        raise LfsamError("--follow tracks with --method lfsam only")
+    if args.text:
+        raise LfsamError("--follow takes clicks, boxes or --auto (not --text yet)")
+    check_follow_folder(args.path)
+    check_writable(args.out, folder=True, option="--out", inside=True)
+    check_live_folder(args.out)
+    if args.cache is not None:
+        check_cache_dir(args.cache)
+    model_options = model_options_from_args(args)
+    options = SegmentOptions(
+        pipeline=config, model=model_options,
+        run=RunOptions(method=args.method, references=args.references, cache_dir=args.cache,
+                       progress=False),
+    )
+    objects = []
+    if has_prompts:
+        objects = load_prompts(args.prompts) if args.prompts else []
+        first = max((o.obj_id for o in objects), default=0) + 1
+        objects += objects_from_items(args.prompt_items, first_id=first)
+    # the model is loaded before the first frame is waited for (the oracle: per frame)
+    model = "oracle" if model_options.name == "oracle" else model_options.build(
+        keep_decoder_state=False)
+    tracker = OnlineTracker(model, disparity=args.disparity, options=options,
+                            memory=TRACKING_MODES[args.tracking], auto=not has_prompts)
+    tracker.add_prompts(objects)
+    follower = FrameFollower(args.path, timeout=args.follow_timeout, poll=args.poll)
+    if not args.quiet:
+        print(f"following {args.path} (END file, --follow-timeout or Ctrl-C ends it)",
+              file=sys.stderr, flush=True)
+
+    def show(timing, result) -> None:
+        if not args.quiet:
+            ids = [int(i) for i in np.unique(result.labels) if i > 0]
+            print(f"frame {timing.index} ({timing.name}): {timing.latency:.2f} s from arrival "
+                  f"to result ({timing.seconds:.2f} s segmenting), objects {ids}",
+                  file=sys.stderr, flush=True)
+
+    def skip(line: str) -> None:
+        print(line, file=sys.stderr, flush=True)
+
+    report = segment_stream(follower, tracker, args.out, value_range=args.value_range,
+                            on_frame=show, on_skip=skip)
+    summary = report.summary()
+    if not args.quiet or report.ended_by == "interrupted":
+        how = {"END": "END file", "timeout": "no new frame for --follow-timeout",
+               "interrupted": "Ctrl-C", "stopped": "stopped"}.get(report.ended_by, "")
+        where = f"{args.out} holds them" if report.frames else "nothing was written"
+        print(f"stream ended ({how}) after {report.frames} frames; {where}", file=sys.stderr)
+    if not args.quiet:
+        print(json.dumps(summary), file=sys.stdout)
+    return 130 if report.ended_by == "interrupted" else 0

@@ -1,0 +1,167 @@
+"""Segmenting a live light-field stream: frames segmented as a camera writes them
+(docs/design.md section 10, issue 35; ``lfsam segment FOLDER --follow``, the viewer's Follow).
+
+:func:`segment_stream` joins the three parts: :class:`lfsam.video.follow.FrameFollower` yields
+each frame as it lands, :class:`lfsam.video.online.OnlineTracker` segments it at once (ids and
+video memory kept), and :func:`lfsam.video.result.live_video_result_writer` writes its result
+into the result folder before the next frame is looked at (each file atomic; the folder reads
+as a valid result of the frames so far at any moment).
+
+A frame that cannot be read (damaged, half-written by a writer that does not rename, another
+grid or view size) is read once more after :data:`RETRY_SECONDS`, then skipped: one line
+through ``on_skip``, listed in the result's ``meta["skipped"]``; the stream goes on and nothing
+already written changes. Frame indices (of the result and of prompts' ``#F``) count the frames
+segmented. Ctrl-C (``KeyboardInterrupt``) drops the frame in progress and ends the stream like
+``END``: ``ended_by`` says ``"interrupted"``.
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from lfsam.errors import LfsamError
+from lfsam.io import read_lightfield
+from lfsam.lightfield import LightField
+from lfsam.result import SegmentationResult
+from lfsam.version import __version__
+from lfsam.video.follow import ArrivedFrame, FrameFollower
+from lfsam.video.online import OnlineTracker
+from lfsam.video.result import live_video_result_writer
+
+__all__ = ["RETRY_SECONDS", "FrameTiming", "StreamReport", "segment_stream"]
+
+#: Seconds before a frame that could not be read is read once more.
+RETRY_SECONDS = 0.5
+
+
+@dataclass(frozen=True)
+class FrameTiming:
+    """When one frame of a stream was done.
+
+    Attributes
+    ----------
+    index : int
+        The frame's index in the result.
+    name : str
+        Its entry's name in the followed folder.
+    latency : float
+        Seconds from its arrival to its result on disk.
+    seconds : float
+        Seconds spent reading and segmenting it.
+    """
+
+    index: int
+    name: str
+    latency: float
+    seconds: float
+
+
+@dataclass
+class StreamReport:
+    """How a followed stream went."""
+
+    out: Path
+    frames: int = 0
+    ended_by: str | None = None
+    skipped: list[dict[str, str]] = field(default_factory=list)
+    latencies: list[float] = field(default_factory=list)
+    object_ids: list[int] = field(default_factory=list)
+
+    def summary(self) -> dict[str, Any]:
+        """Frames, skipped frames, how it ended and latency median and worst (seconds)."""
+        lat = self.latencies
+        return {
+            "out": str(self.out), "frames": self.frames, "skipped": len(self.skipped),
+            "ended_by": self.ended_by, "objects": self.object_ids,
+            "latency_median_s": round(statistics.median(lat), 3) if lat else None,
+            "latency_worst_s": round(max(lat), 3) if lat else None,
+        }
+
+
+def _read_frame(arrived: ArrivedFrame, value_range: int | None) -> LightField:
+    """The frame's light field, read once more after :data:`RETRY_SECONDS` if it fails."""
+    try:
+        return read_lightfield(arrived.path, value_range=value_range)
+    except (LfsamError, OSError, ValueError):
+        time.sleep(RETRY_SECONDS)
+        return read_lightfield(arrived.path, value_range=value_range)
+
+
+def segment_stream(
+    follower: FrameFollower,
+    tracker: OnlineTracker,
+    out: str | os.PathLike,
+    *,
+    value_range: int | None = None,
+    on_frame: Callable[[FrameTiming, SegmentationResult], None] | None = None,
+    on_skip: Callable[[str], None] | None = None,
+) -> StreamReport:
+    """Segment every frame ``follower`` yields, writing each result into ``out`` at once.
+
+    Parameters
+    ----------
+    follower : FrameFollower
+        The followed frames folder (it decides when the stream ends).
+    tracker : OnlineTracker
+        Holds the model, options, prompts and memory (prompts may be added between frames,
+        e.g. from ``on_frame``).
+    out : path-like
+        The live result folder (:func:`lfsam.video.result.check_live_folder`: new or empty).
+    value_range : int, optional
+        Passed to :func:`lfsam.io.read_lightfield` for each frame.
+    on_frame : callable, optional
+        ``on_frame(timing, result)`` after each frame's result is on disk, in this thread.
+    on_skip : callable, optional
+        ``on_skip(message)`` with one line for each frame skipped.
+
+    Returns
+    -------
+    StreamReport
+        ``ended_by`` is ``"END"``, ``"timeout"``, ``"stopped"`` or ``"interrupted"``; an
+        exception other than a frame's own (a model error, a full disk) propagates after the
+        frames done so far are published.
+    """
+    report = StreamReport(Path(out))
+    meta: dict[str, Any] = {
+        "method": "lfsam-video", "input": str(follower.folder), "model": tracker.name,
+        "prompt_mode": "auto" if tracker.auto else "prompts", "package_version": __version__,
+        "disparity": tracker.disparity, "follow": True, "skipped": report.skipped,
+        "ended_by": None,
+    }
+    with live_video_result_writer(out, meta=meta, objects=lambda: tracker.prompts) as writer:
+        try:
+            for arrived in follower:
+                start = time.perf_counter()
+                try:
+                    lf = _read_frame(arrived, value_range)
+                    result = tracker.track(lf)
+                except LfsamError as exc:
+                    line = f"frame {arrived.path.name} skipped: {exc}"
+                    report.skipped.append({"name": arrived.path.name, "error": str(exc)})
+                    if on_skip is not None:
+                        on_skip(line)
+                    continue
+                result.meta["frame_source"] = arrived.path.name
+                meta["tracking"] = tracker.tracking
+                meta["frames"] = writer.frames + 1
+                writer.write(result)
+                timing = FrameTiming(writer.frames - 1, arrived.path.name,
+                                     time.time() - arrived.arrived,
+                                     time.perf_counter() - start)
+                report.latencies.append(timing.latency)
+                report.frames = writer.frames
+                if on_frame is not None:
+                    on_frame(timing, result)
+            report.ended_by = follower.ended_by
+        except KeyboardInterrupt:
+            report.ended_by = "interrupted"
+        meta["ended_by"] = report.ended_by
+        meta["latency"] = {k: v for k, v in report.summary().items() if k.startswith("latency")}
+        report.object_ids = sorted(writer.object_ids)
+    return report

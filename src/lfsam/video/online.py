@@ -1,0 +1,420 @@
+"""Online tracking: a light-field video segmented one frame at a time, as frames come
+(docs/design.md section 10, issue 35).
+
+:class:`OnlineTracker` takes one light field per call (:meth:`~OnlineTracker.track`) with no
+frame count up front, keeps the objects' ids, their prompts and the video memory between calls,
+and returns that frame's :class:`~lfsam.result.SegmentationResult` at once. Prompts (clicks and
+boxes, each tagged with the frame it belongs to) can be added before any frame
+(:meth:`~OnlineTracker.add_prompts`). Memory and time per frame stay flat however long the
+stream runs: SAM 2's memory keeps a bounded window (:mod:`lfsam.video.memory`), constrained
+prompts keep one template per object, and nothing else is kept per frame.
+:func:`lfsam.video.track.track_video` is a loop over it.
+
+Each frame is segmented across its views by the light-field pipeline
+(:class:`lfsam.predictor.LightFieldPredictor`, with every option of
+:class:`lfsam.api.SegmentOptions` passed through unchanged). Each object's reference-view mask
+at frame f + 1 comes from frame f:
+
+- with a segmenter that has a video memory (SAM 2), through that memory over the sequence of
+  center views (:class:`lfsam.video.memory.ReferenceMemory`): an object is conditioned on its
+  center-view mask where the user prompts it (the light-field pipeline segments that frame
+  from the user's prompts, as a single light field), the memory tracks it in every later frame,
+  negative clicks at a later frame are correction clicks there (center view), and each frame's
+  light field is then segmented from the memory's masks given as masks
+  (:meth:`LightFieldPredictor.add_mask`); an empty mask leaves the object out of that frame.
+  The memory encodes each frame's center view once and hands the pipeline that embedding (one
+  encoder pass per refined view per frame);
+- with segmenters without memory (the oracle), through constrained prompts
+  (:mod:`lfsam.video.carry`): its frame-f mask and pixels are matched into frame f + 1, and the
+  segmenter is prompted there with a point at the deepest matching pixel (and, for SAM 2, a box
+  around the carried mask); the user's negative clicks of earlier frames stay (those landing on
+  the carried mask are dropped; those given in the frame itself always stay, and the carried
+  point keeps away from them). An answer is rejected (the object is *lost* in that frame: empty
+  masks) when it holds less than half of the carried pixels, is more than :data:`MAX_GROWTH`
+  times larger than the object was, or lies mostly on an object already placed in that frame.
+  A lost object is searched for over the whole view in every later frame with its last
+  template, and keeps its id when it comes back.
+
+Objects start at the first frame of their prompts (absent before); prompts given at a later
+frame replace the carried ones there. ``auto=True`` finds the objects of the first frame
+(:class:`lfsam.generator.LightFieldMaskGenerator`).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from lfsam.api import SegmentOptions
+from lfsam.errors import LfsamError
+from lfsam.generator import LightFieldMaskGenerator
+from lfsam.lightfield import LightField
+from lfsam.predictor import LightFieldPredictor
+from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt, validate_objects
+from lfsam.result import SegmentationResult
+from lfsam.segmenters.base import Segmenter
+from lfsam.video.carry import Template, carry
+from lfsam.video.memory import reference_memory_for
+from lfsam.video.prompts import frame_of, negatives_since, prompts_at, start_frame
+from lfsam.video.source import check_frame
+
+__all__ = ["MAX_GROWTH", "OnlineTracker"]
+
+#: An answer more than this many times larger than the object's carried mask is rejected.
+MAX_GROWTH = 4.0
+#: Carried objects are searched within this fraction of the view's larger side.
+SEARCH_FRACTION = 0.3
+#: Frames a stream may reach (prompt frames are checked against it).
+_MAX_FRAMES = 2**31
+
+
+@dataclass
+class _Track:
+    """What is known of one object after the latest frame."""
+
+    view: tuple[int, int]
+    template: Template | None = None
+    lost: bool = False
+
+
+class OnlineTracker:
+    """Track objects through a light-field video given one frame at a time.
+
+    Parameters
+    ----------
+    model : str or Segmenter, optional
+        A model name (default ``options.model.name``; ``"oracle"`` is built per frame from
+        that frame's labels) or a ready segmenter.
+    disparity : {"estimate", "gt"}
+        Where each frame's disparity comes from.
+    options : SegmentOptions, optional
+        Pipeline, model and run options, passed through to every frame.
+    memory : bool, optional
+        Track with the segmenter's video memory (True) or constrained prompts (False); default:
+        the memory where the segmenter has one, prompts for the others.
+    auto : bool
+        Find the objects of the first frame automatically (prompts may be added besides, with
+        other ids).
+
+    Examples
+    --------
+    >>> from lfsam.synth import random_scene
+    >>> from lfsam.prompts import ObjectPrompts, PointPrompt
+    >>> scene = random_scene(grid=(3, 3), size=(48, 64), seed=0)
+    >>> tracker = OnlineTracker("oracle", disparity="gt")
+    >>> tracker.add_prompts([ObjectPrompts(1, (PointPrompt(20.0, 24.0),))])
+    >>> result = tracker.track(scene)  # frame 0; call again with each new frame
+    >>> result.labels.shape, tracker.frames_done
+    ((3, 3, 48, 64), 1)
+    """
+
+    def __init__(self, model: str | Segmenter | None = None, *, disparity: str = "estimate",
+                 options: SegmentOptions | None = None, memory: bool | None = None,
+                 auto: bool = False) -> None:
+        options = options or SegmentOptions()
+        if not isinstance(disparity, str) or disparity not in ("estimate", "gt"):
+            raise LfsamError("a light-field video takes --disparity estimate or gt (per frame)")
+        if options.run.method != "lfsam":
+            raise LfsamError("light-field videos are tracked with --method lfsam only")
+        self.options = options
+        self.disparity = disparity
+        self.memory_option = memory
+        self.auto = bool(auto)
+        self.name = model.name if isinstance(model, Segmenter) else (model or options.model.name)
+        self._per_frame = not isinstance(model, Segmenter) and self.name == "oracle"
+        self.segmenter: Segmenter | None = model if isinstance(model, Segmenter) else None
+        self._model_options = options.model if isinstance(model, Segmenter) or model is None \
+            else replace(options.model, name=self.name)
+        #: Frames tracked so far (the next frame's index).
+        self.frames_done = 0
+        #: ``"sam2-memory"`` or ``"constrained-prompts"`` once the first frame is in.
+        self.tracking: str | None = None
+        self.grid_shape: tuple[int, int] | None = None
+        self.view_shape: tuple[int, int] | None = None
+        self._objects: dict[int, ObjectPrompts] = {}
+        self._tracks: dict[int, _Track] = {}
+        self._memory: Any = None
+        self._radius = 0
+        self._posted: list[ObjectPrompts] = []
+        self._posted_lock = threading.Lock()
+
+    # --- prompts -----------------------------------------------------------------------------
+    @property
+    def prompts(self) -> list[ObjectPrompts]:
+        """The prompted objects with every prompt given so far (frames kept), in the order
+        they were first given."""
+        return list(self._objects.values())
+
+    @property
+    def object_ids(self) -> list[int]:
+        """Every object's id: the prompted ones and those found automatically."""
+        return sorted({*self._objects, *self._tracks, *(
+            self._memory.object_ids if self._memory is not None else ())})
+
+    def add_prompts(self, objects: Iterable[ObjectPrompts], frame: int | None = None) -> None:
+        """Add objects' prompts: clicks and boxes, each at its frame (``frame`` tags them all
+        with one frame; default: as tagged, untagged = 0).
+
+        Prompts of a known id join that object's (a box replaces its box); a frame already
+        tracked cannot take prompts. Checked at once (against the video's grid and view size
+        once the first frame is in).
+
+        Raises
+        ------
+        LfsamError
+            A prompt for a frame already tracked, an object with only negative clicks, or one
+            outside the grid or view (one line).
+        """
+        merged = dict(self._objects)
+        for obj in objects:
+            if frame is not None:
+                obj = ObjectPrompts(obj.obj_id, tuple(replace(p, frame=int(frame))
+                                                      for p in obj.points),
+                                    None if obj.box is None else replace(obj.box,
+                                                                         frame=int(frame)))
+            tagged = [*obj.points, *([obj.box] if obj.box is not None else [])]
+            early = [frame_of(p) for p in tagged if frame_of(p) < self.frames_done]
+            if early:
+                raise LfsamError(
+                    f"object {obj.obj_id}: frame {min(early)} is tracked already; prompts go on "
+                    f"frame {self.frames_done} or later")
+            if obj.obj_id in self._tracks and obj.obj_id not in self._objects:
+                raise LfsamError(f"object {obj.obj_id} was found automatically; give the new "
+                                 "object another id")
+            old = merged.get(obj.obj_id)
+            if old is not None:
+                obj = ObjectPrompts(obj.obj_id, (*old.points, *obj.points),
+                                    obj.box if obj.box is not None else old.box)
+            merged[obj.obj_id] = obj
+        if self.grid_shape is not None:
+            validate_objects(list(merged.values()), self.grid_shape, self.view_shape,
+                             _MAX_FRAMES)
+            if self._memory is not None:
+                _check_corrections(merged.values(), _center(self.grid_shape))
+        self._objects = merged
+
+    def post_prompts(self, objects: Iterable[ObjectPrompts]) -> None:
+        """Hand over prompts for the next frame :meth:`track` starts, from any thread (the
+        viewer's clicks while a stream runs in its worker): they are added then, tagged with
+        that frame, as :meth:`add_prompts` adds them (posted prompts that do not fit are left
+        out, with the reason in that frame's ``meta["refused_prompts"]``). Returns at once."""
+        with self._posted_lock:
+            self._posted.extend(objects)
+
+    # --- frames ------------------------------------------------------------------------------
+    def track(self, lightfield: LightField) -> SegmentationResult:
+        """Segment the next frame: every object's masks over all its views.
+
+        Returns
+        -------
+        SegmentationResult
+            The frame's result (``meta["frame"]`` is its index).
+
+        Raises
+        ------
+        LfsamError
+            A frame whose grid or view size differs from the first frame's (nothing changes:
+            the stream may go on with the next frame), or prompts that do not fit the first
+            frame.
+        """
+        lf = lightfield
+        index = self.frames_done
+        with self._posted_lock:
+            posted, self._posted = self._posted, []
+        refused = None
+        if posted:
+            try:
+                self.add_prompts(posted, frame=index)
+            except LfsamError as exc:  # the frame goes on without them
+                refused = str(exc)
+        if self.grid_shape is None:
+            validate_objects(list(self._objects.values()), lf.grid_shape, lf.view_shape,
+                             _MAX_FRAMES)
+        else:
+            check_frame(lf, index, self.grid_shape, self.view_shape, "the stream")
+        segmenter = self._segmenter_for(lf)
+        if self.grid_shape is None:
+            self._memory = _memory_for(segmenter, self.memory_option, lf.view_shape)
+            if self._memory is not None:
+                _check_corrections(self._objects.values(), lf.center)
+            self.tracking = "sam2-memory" if self._memory is not None else "constrained-prompts"
+            self.grid_shape, self.view_shape = lf.grid_shape, lf.view_shape
+            self._radius = max(8, int(SEARCH_FRACTION * max(lf.view_shape)))
+        options = self.options
+        predictor = LightFieldPredictor(
+            segmenter, options.pipeline, cache_dir=options.run.cache_dir,
+            memory_budget_mb=options.run.memory_budget_mb, progress=False,
+        )
+        predictor.set_lightfield(lf, disparity=self.disparity)
+        first_auto = self.auto and index == 0
+        if self._memory is not None:
+            _memory_frame(self._memory, predictor, lf, index, self._objects, first_auto,
+                          options.run.references)
+        else:
+            if first_auto:
+                LightFieldMaskGenerator(predictor, options.run.references).generate()
+                for obj_id in predictor.object_ids:
+                    view, mask, _ = predictor.predict_reference(obj_id)
+                    self._tracks[obj_id] = _Track(view, Template.from_mask(lf.views[view], mask))
+            placed = np.zeros(lf.view_shape, bool)
+            found = [] if first_auto else [i for i in sorted(self._tracks)
+                                           if i not in self._objects]
+            for obj_id in [*found, *self._objects]:
+                placed |= _segment_object(predictor, lf, index, obj_id, self._objects.get(obj_id),
+                                          self._tracks, self._radius, placed,
+                                          segmenter.name != "oracle")
+        result = predictor.to_result()
+        result.meta["frame"] = index
+        if refused is not None:
+            result.meta["refused_prompts"] = refused
+        self.frames_done += 1
+        return result
+
+    def _segmenter_for(self, lf: LightField) -> Segmenter:
+        if self._per_frame or self.segmenter is None:
+            segmenter = self._model_options.build(lf, keep_decoder_state=False)
+            if not self._per_frame:
+                self.segmenter = segmenter
+            return segmenter
+        return self.segmenter
+
+
+def _center(grid: tuple[int, int]) -> tuple[int, int]:
+    return (grid[0] // 2, grid[1] // 2)
+
+
+def _memory_for(segmenter: Segmenter, memory: bool | None, view_shape: tuple[int, int]) -> Any:
+    """The segmenter's video memory for this run, or None (constrained prompts)."""
+    if memory is False:
+        return None
+    return reference_memory_for(segmenter, view_shape, required=bool(memory))
+
+
+def _check_corrections(objects: Iterable[ObjectPrompts], center: tuple[int, int]) -> None:
+    """With a video memory, a negative click at a frame where its object has no positive
+    prompt is a correction click in the center view (checked before any work)."""
+    for obj in objects:
+        starts = {frame_of(p) for p in obj.points if p.positive}
+        if obj.box is not None:
+            starts.add(frame_of(obj.box))
+        for p in obj.points:
+            if (not p.positive and frame_of(p) not in starts and p.view is not None
+                    and tuple(p.view) != center):
+                raise LfsamError(
+                    f"object {obj.obj_id}: with SAM 2's video memory a correction click at a "
+                    f"later frame goes in the center view {center}, not {tuple(p.view)}")
+
+
+def _center_mask(predictor: LightFieldPredictor, lf: LightField, obj_id: int) -> np.ndarray:
+    """An object's step-1 mask in the center view (its final mask there when it was prompted
+    in another view)."""
+    view, mask, _ = predictor.predict_reference(obj_id)
+    return mask if view == lf.center else predictor.masks_in_view([obj_id], lf.center)[0]
+
+
+def _memory_frame(memory: Any, predictor: LightFieldPredictor, lf: LightField, index: int,
+                  objects: dict[int, ObjectPrompts], first_auto: bool, references: Any) -> None:
+    """One frame tracked with the video memory (see the module docstring): prompted objects
+    from their prompts, the others from the memory's masks."""
+    embedding = memory.next_frame(index, lf.views[lf.center])
+    if embedding is not None:
+        predictor.engine.store.put(lf.center, embedding)
+    prompted: set[int] = set()
+    if first_auto:
+        LightFieldMaskGenerator(predictor, references).generate()
+        prompted = set(predictor.object_ids)
+    for obj in objects.values():
+        own = prompts_at(obj, index)
+        if own is not None and own.has_positive:
+            earlier = [p for p in negatives_since(obj, index) if p not in own.points]
+            predictor.set_object(own.with_points(earlier))
+            prompted.add(obj.obj_id)
+    for obj_id in sorted(prompted):
+        memory.add_mask(obj_id, _center_mask(predictor, lf, obj_id))
+    masks = memory.track()
+    for obj in objects.values():
+        own = prompts_at(obj, index)
+        if own is None or obj.obj_id in prompted or obj.obj_id not in masks:
+            continue
+        fresh = [p for p in own.points if not p.positive]
+        if fresh:
+            masks = memory.correct(obj.obj_id, [(p.x, p.y) for p in fresh])
+    for obj_id, mask in masks.items():
+        if obj_id not in prompted and mask.any():
+            predictor.add_mask(obj_id, mask, lf.center)
+    memory.forget()
+
+
+def _carried_prompts(obj_id: int, track: _Track, image: np.ndarray, negatives, fresh,
+                     radius: int, use_box: bool) -> tuple[ObjectPrompts, np.ndarray, int] | None:
+    """The constrained prompts of a carried object: ``negatives`` of earlier frames are
+    dropped where they land on the carried mask, ``fresh`` ones (given in this frame) never."""
+    avoid = tuple((p.x, p.y) for p in fresh)
+    found = carry(track.template, image, None if track.lost else radius, avoid=avoid)
+    if found is None:
+        return None
+    view = track.view
+    kept = [p for p in negatives
+            if p in fresh or not found.mask[round(p.y), round(p.x)]]
+    points = (PointPrompt(*found.point, True, view), *(PointPrompt(p.x, p.y, False, view)
+                                                       for p in kept))
+    box = BoxPrompt(*found.box, view=view) if use_box else None
+    return ObjectPrompts(obj_id, points, box), found.mask, int(found.mask.sum())
+
+
+def _accept(mask: np.ndarray, carried: np.ndarray | None, expected: int,
+            placed: np.ndarray) -> bool:
+    """Whether a reference-view answer is the carried object (see the module docstring)."""
+    area = int(mask.sum())
+    if area == 0:
+        return False
+    if carried is not None:
+        if (mask & carried).sum() < 0.5 * min(carried.sum(), area):
+            return False
+        if area > MAX_GROWTH * max(expected, 1) + 50:
+            return False
+    return (mask & placed).sum() <= 0.5 * area
+
+
+def _segment_object(predictor: LightFieldPredictor, lf: LightField, index: int, obj_id: int,
+                    obj: ObjectPrompts | None, tracks: dict[int, _Track], radius: int,
+                    placed: np.ndarray, use_box: bool) -> np.ndarray:
+    """Add one object to this frame's predictor (or leave it out); its reference mask."""
+    empty = np.zeros(lf.view_shape, bool)
+    if obj is not None and (start_frame(obj) is None or index < start_frame(obj)):
+        return empty
+    own = None if obj is None else prompts_at(obj, index)
+    negatives = () if obj is None else negatives_since(obj, index)
+    track = tracks.get(obj_id)
+    carried_mask, expected = None, 0
+    if own is not None and own.has_positive:
+        earlier = [p for p in negatives if p not in own.points]
+        prompt = own.with_points(earlier)
+    elif track is not None and track.template is not None:
+        fresh = () if own is None else tuple(p for p in own.points if not p.positive)
+        carried = _carried_prompts(obj_id, track, lf.views[track.view], negatives, fresh,
+                                   radius, use_box)
+        if carried is None:
+            track.lost = True
+            return empty
+        prompt, carried_mask, expected = carried
+        expected = max(expected, int(track.template.mask.sum()))
+    else:
+        return empty
+    predictor.set_object(prompt)
+    view, mask, _ = predictor.predict_reference(obj_id)
+    if view != lf.center and carried_mask is None:
+        placed_here = np.zeros_like(placed)
+    else:
+        placed_here = placed
+    if not _accept(mask, carried_mask, expected, placed_here):
+        predictor.remove_object(obj_id)
+        if track is not None:
+            track.lost = True
+        return empty
+    tracks[obj_id] = _Track(view, Template.from_mask(lf.views[view], mask))
+    return mask if view == lf.center else empty
