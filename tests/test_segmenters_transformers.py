@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 import torch
 
+import lfsam
 from lfsam.cli.main import main
 from lfsam.errors import LfsamError
 from lfsam.io import write_lightfield
@@ -276,11 +277,12 @@ def test_tiny_edgetam_tracks_a_video_with_prompts(tmp_path, capsys):
     code = main(["segment", str(video), "--model", "edgetam-tiny-test", "--point", "20,20",
                  "--disparity", "gt", "--out", str(out), "--quiet", "--device", "cpu"])
     assert code == 0, capsys.readouterr().err
+    assert lfsam.load_result(out).meta["tracking"] == "edgetam-memory"  # issue 35: its memory
     code = main(["segment", str(video), "--model", "edgetam-tiny-test", "--point", "20,20",
-                 "--tracking", "memory", "--disparity", "gt", "--out", str(tmp_path / "m"),
+                 "--tracking", "prompts", "--disparity", "gt", "--out", str(tmp_path / "m"),
                  "--quiet", "--device", "cpu"])
-    assert code == 2
-    assert "video memory" in _one_line_error(capsys)
+    assert code == 0, capsys.readouterr().err
+    assert lfsam.load_result(tmp_path / "m").meta["tracking"] == "constrained-prompts"
 
 
 # --- what a user sees -----------------------------------------------------------------------

@@ -40,7 +40,7 @@ def __getattr__(name: str):
         from lfsam.predictor import LightFieldPredictor
 
         return LightFieldPredictor
-    if name in ("LightFieldVideo", "read_video"):
+    if name in ("LightFieldVideo", "read_video", "OnlineTracker"):
         from lfsam import video
 
         return getattr(video, name)
@@ -57,6 +57,7 @@ __all__ = [
     "LightFieldPredictor",
     "LightFieldVideo",
     "ModelOptions",
+    "OnlineTracker",
     "RunOptions",
     "SegmentOptions",
     "SegmentationResult",

@@ -7,11 +7,16 @@ import signal
 import sys
 from typing import Any
 
-from lfsam.cli.common import HelpFormatter, add_disparity_argument, add_refine_views_argument
+from lfsam.cli.common import (
+    HelpFormatter,
+    add_disparity_argument,
+    add_refine_views_argument,
+    positive_float,
+)
 from lfsam.cli.models import add_model_arguments, model_options_from_args
 from lfsam.cli.text import add_text_arguments, check_text_weights
 from lfsam.errors import LfsamError
-from lfsam.fileutil import check_cache_dir
+from lfsam.fileutil import check_cache_dir, check_writable
 from lfsam.io import read_lightfield
 from lfsam.result import load_result
 from lfsam.video import is_video, read_video
@@ -36,6 +41,13 @@ and segments that frame at once. "Track" (Ctrl-T) tracks every object through al
 worker, each frame showing as it finishes; Save then writes the video result folder, which
 --result FOLDER reopens (read lazily; its objects editable with their per-frame prompts).
 
+A live stream (--follow, or "Follow a frames folder…" in the dock): PATH is a folder a
+light-field camera is writing frames into (renamed in when complete; it may be empty). Each frame
+is segmented as it lands, in the background, and shown with its masks and its latency; a click
+on the shown frame starts a new object, segmented from the next frame on. "Stop following", a
+file named END in PATH or --follow-timeout ends the stream; --out (default PATH_live) then holds
+every frame done, shown as a video when the stream ends.
+
 Needs the viewer extra: pip install 'lfsam[viewer]'.
 """
 
@@ -48,6 +60,7 @@ examples:
   lfsam view scene --result result.npz --model oracle    # reopen a result and correct it
   lfsam view scene --model oracle --disparity gt --text disc   # every disc, found at start
   lfsam view clip --model oracle --disparity gt          # a video (lfsam synth clip --frames 6)
+  lfsam view incoming --follow --out live --model oracle --disparity gt   # a live stream
   lfsam view                                             # empty viewer; File > Open a light field
 """
 
@@ -62,7 +75,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=HelpFormatter,
     )
     parser.add_argument(
-        "path", nargs="?", help="light field: a folder of views, .npz/.npy/.h5/.mat, ..."
+        "path", nargs="?", help="light field: a folder of views, .npz/.npy/.h5/.mat, ...; a "
+        "video; with --follow, the frames folder a camera is writing"
     )
     parser.add_argument("--result", metavar="RESULT",
                         help="reopen this result's objects to edit (a result .npz, or a video's "
@@ -73,7 +87,55 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_refine_views_argument(parser)
     parser.add_argument("--cache", metavar="DIR", help="embedding cache folder")
     parser.add_argument("--format", dest="input_format", help="input format (default: detect)")
+    follow = parser.add_argument_group("a live stream (a frames folder that is still growing)")
+    follow.add_argument(
+        "--follow", action="store_true",
+        help="PATH is a frames folder a light-field camera is still writing (it may be empty): "
+        "segment and show each frame as it lands; clicks start objects from the next frame on",
+    )
+    follow.add_argument("--out", metavar="FOLDER",
+                        help="with --follow: the live result folder, new or empty (default "
+                        "PATH_live next to PATH)")
+    follow.add_argument("--follow-timeout", type=positive_float, default=None, metavar="S",
+                        help="with --follow: end after S seconds without a new frame (default: "
+                        "a file named END or Stop ends it)")
     parser.set_defaults(func=run)
+
+
+def check_follow(args: argparse.Namespace) -> None:
+    """Check ``--follow`` and its options before anything opens (one line each; the viewer's
+    Follow, docs/design.md section 10).
+
+    Raises
+    ------
+    LfsamError
+        ``--out`` or ``--follow-timeout`` without ``--follow``; with it, no folder, a missing
+        one, ``--result``, ``--text``, a disparity file, or an ``--out`` that is not a new or
+        empty folder.
+    """
+    from lfsam.video.follow import check_follow_folder
+    from lfsam.video.result import check_live_folder
+
+    if not getattr(args, "follow", False):
+        if getattr(args, "out", None) is not None or getattr(args, "follow_timeout", None):
+            raise LfsamError("--out and --follow-timeout go with --follow: "
+                             "lfsam view FOLDER --follow --out RESULT")
+        return
+    if not args.path:
+        raise LfsamError("--follow watches a frames folder: lfsam view FOLDER --follow")
+    if args.result:
+        raise LfsamError("--follow writes a new result into --out; to reopen a followed result "
+                         "afterwards: lfsam view FOLDER --result RESULT")
+    if getattr(args, "text", None):
+        raise LfsamError("--follow takes clicks in the viewer, not --text")
+    if args.disparity not in ("estimate", "gt"):
+        raise LfsamError("--follow takes --disparity estimate or gt (one per frame), not a file")
+    folder = check_follow_folder(args.path)
+    if args.out is None:  # PATH_live (or PATH_live_2, ...) is made next to PATH
+        check_writable(folder.resolve().parent, folder=True, option="--out", inside=True)
+    else:
+        check_writable(args.out, folder=True, option="--out", inside=True)
+        check_live_folder(args.out)
 
 
 def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
@@ -88,17 +150,19 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
     from lfsam.viewer import require_napari
     from lfsam.viewer.native_libraries import preload_native_libraries
 
+    check_follow(args)
     require_napari()
     if args.cache:
         check_cache_dir(args.cache)
     check_text_weights(args)
     preload_native_libraries()  # before napari draws with OpenGL (native_libraries docstring)
     video = None
-    if args.path and args.input_format is None and is_video(args.path):
+    following = bool(getattr(args, "follow", False))
+    if args.path and not following and args.input_format is None and is_video(args.path):
         video = read_video(args.path)
     lightfield = (
         read_lightfield(args.path, format=args.input_format)
-        if args.path and video is None else None
+        if args.path and video is None and not following else None
     )
     if args.result and lightfield is None and video is None:
         raise LfsamError("--result needs its light field: give the light field's path too")
@@ -141,6 +205,8 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
         widget.open_result(result)
     for text in getattr(args, "text", None) or []:
         widget.find(text.phrase, view=text.view)
+    if following:
+        widget.follow.start(args.path, args.out, timeout=args.follow_timeout)
     return viewer, widget
 
 
@@ -165,6 +231,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         napari.run()
     finally:
+        widget.follow.stop(wait=30)  # the frame being segmented is finished and kept
         waker.stop()
         for sig, handler in previous.items():
             signal.signal(sig, handler)

@@ -76,22 +76,24 @@ def edgetam_config() -> Any:
     return EdgeTamConfig(vision_config=EdgeTamVisionConfig(backbone_config=_repvit("repvit_m1")))
 
 
-def tiny_edgetam_config() -> Any:
-    """A tiny EdgeTAM (0.1 M parameters, 256-pixel input) of the real classes (docs/design.md
-    section 6): a RepViT of one block per stage (widths 8-64), FPN and SAM heads 32 wide."""
+def tiny_edgetam_config(width: int = 32) -> Any:
+    """A tiny EdgeTAM (0.1 M parameters at width 32, 256-pixel input) of the real classes
+    (docs/design.md section 6): a RepViT of one block per stage (widths 8-64), FPN and SAM heads
+    ``width`` wide (32: ``edgetam-tiny-test``; 128: a tiny video checkpoint ``transformers`` can
+    save and load, :func:`lfsam.segmenters.hf_video_build.tiny_edgetam_video_config`)."""
     from transformers import EdgeTamConfig, EdgeTamVisionConfig
 
     vision = EdgeTamVisionConfig(
         backbone_config=_repvit("repvit_m1", embed_dim=(8, 16, 32, 64), depth=(1, 1, 1, 1)),
         backbone_channel_list=[64, 32, 16, 8],
         backbone_feature_sizes=[[64, 64], [32, 32], [16, 16]],
-        fpn_hidden_size=32,
+        fpn_hidden_size=width,
     )
     return EdgeTamConfig(
         vision_config=vision,
-        prompt_encoder_config={"hidden_size": 32, "image_size": 256},
-        mask_decoder_config={"hidden_size": 32, "mlp_dim": 64, "num_attention_heads": 2,
-                             "iou_head_hidden_dim": 32},
+        prompt_encoder_config={"hidden_size": width, "image_size": 256},
+        mask_decoder_config={"hidden_size": width, "mlp_dim": 2 * width, "num_attention_heads": 2,
+                             "iou_head_hidden_dim": width},
     )
 
 

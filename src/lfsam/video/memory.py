@@ -73,17 +73,12 @@ def reference_memory_for(segmenter: Segmenter, view_shape: tuple[int, int],
     from lfsam.segmenters.hf_backend import TransformersSegmenter
 
     if isinstance(segmenter, TransformersSegmenter):
-        try:  # TODO(issue 35): helper's module
-            from lfsam.video.hf_memory import (
-                TransformersReferenceMemory,
-                has_transformers_video_memory,
-            )
-        except ImportError:
-            has_transformers_video_memory = None
-        if has_transformers_video_memory is not None and has_transformers_video_memory(
-                segmenter):
+        from lfsam.segmenters.hf_video_build import video_memory_problem
+        from lfsam.video.hf_memory import TransformersReferenceMemory
+
+        problem = video_memory_problem(segmenter.model)
+        if problem is None:
             return TransformersReferenceMemory(segmenter, view_shape)
-        problem = f"the {segmenter.name!r} model has no video memory here"
         if required:
             raise LfsamError(problem)
         return None

@@ -131,7 +131,8 @@ class OnlineTracker:
             else replace(options.model, name=self.name)
         #: Frames tracked so far (the next frame's index).
         self.frames_done = 0
-        #: ``"sam2-memory"`` or ``"constrained-prompts"`` once the first frame is in.
+        #: ``"sam2-memory"``, ``"edgetam-memory"`` or ``"constrained-prompts"`` once the first
+        #: frame is in.
         self.tracking: str | None = None
         self.grid_shape: tuple[int, int] | None = None
         self.view_shape: tuple[int, int] | None = None
@@ -241,7 +242,7 @@ class OnlineTracker:
             self._memory = _memory_for(segmenter, self.memory_option, lf.view_shape)
             if self._memory is not None:
                 _check_corrections(self._objects.values(), lf.center)
-            self.tracking = "sam2-memory" if self._memory is not None else "constrained-prompts"
+            self.tracking = _tracking_label(segmenter, self._memory)
             self.grid_shape, self.view_shape = lf.grid_shape, lf.view_shape
             self._radius = max(8, int(SEARCH_FRACTION * max(lf.view_shape)))
         options = self.options
@@ -281,6 +282,15 @@ class OnlineTracker:
                 self.segmenter = segmenter
             return segmenter
         return self.segmenter
+
+
+def _tracking_label(segmenter: Segmenter, memory: Any) -> str:
+    """``meta["tracking"]``: ``sam2-memory`` (Meta's SAM 2, or a transformers SAM 2),
+    ``edgetam-memory``, or ``constrained-prompts``."""
+    if memory is None:
+        return "constrained-prompts"
+    info = getattr(getattr(segmenter, "model", None), "lfsam_info", None) or {}
+    return "edgetam-memory" if info.get("model_type") == "edgetam" else "sam2-memory"
 
 
 def _center(grid: tuple[int, int]) -> tuple[int, int]:

@@ -15,7 +15,8 @@ section 8). This module:
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -181,6 +182,16 @@ class LayerKeeper:
         finally:
             self._adding = False
         return self.layers
+
+    @contextmanager
+    def aside(self) -> Iterator[None]:
+        """Add layers in this block without offering them to the widget (the layers of a
+        followed stream, :mod:`lfsam.viewer.follow_dock`, are not its light field)."""
+        adding, self._adding = self._adding, True
+        try:
+            yield
+        finally:
+            self._adding = adding
 
     def _on_inserted(self, event: Any) -> None:
         if self.image_layer is None and not self._adding:

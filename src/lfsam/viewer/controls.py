@@ -169,6 +169,17 @@ class DockControls:
         )
         self.stop_track_button.setVisible(False)
         self.stop_track_button.setEnabled(False)
+        #: A live stream (docs/design.md section 10): a frames folder a camera is writing.
+        self.follow_button = QPushButton("Follow a frames folder…")
+        self.follow_button.setToolTip(
+            "Segment a light-field camera's frames as they land in a folder (renamed in when "
+            "complete; a file named END ends the stream): the latest frame and its masks are "
+            "shown, a click starts a new object from the next frame on"
+        )
+        self.stop_follow_button = QPushButton("Stop following")
+        self.stop_follow_button.setToolTip("End the stream after the frame being segmented; "
+                                           "the result folder keeps every frame done")
+        self.stop_follow_button.setEnabled(False)
         self.save_button = QPushButton("Save result…")
         self.export_button = QPushButton("Export…")
         self.progress = QProgressBar()
@@ -209,6 +220,7 @@ class DockControls:
         layout.addWidget(self.open_labels_button)
         layout.addLayout(_row(self.view_buttons.values()))
         layout.addLayout(_row([self.track_button, self.stop_track_button]))
+        layout.addLayout(_row([self.follow_button, self.stop_follow_button]))
         layout.addLayout(_row([self.save_button, self.export_button]))
         layout.addWidget(self.progress)
         layout.addWidget(self.status)

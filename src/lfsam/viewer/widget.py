@@ -45,6 +45,7 @@ from lfsam.viewer import controls as C
 from lfsam.viewer import layers as L
 from lfsam.viewer import worker as W
 from lfsam.viewer.adoption import LayerKeeper, lightfield_of, result_to_reopen, video_of
+from lfsam.viewer.follow_dock import FollowController
 from lfsam.viewer.native_libraries import preload_native_libraries
 from lfsam.viewer.plugin_io import SESSION_KEY
 from lfsam.viewer.session import DISPARITY_SOURCES, ViewerSession
@@ -144,6 +145,7 @@ class LightFieldWidget(VideoDock, QWidget):
             c.progress, deliver=self._on_event, error=self._error, status=self._set_status,
             finished=self._on_work_finished, segment=self._segment_now, parent=self,
         )
+        self.follow = FollowController(self)  # a camera's growing frames folder (section 10)
         self._connect_controls()
         self.keeper = LayerKeeper(napari_viewer, adopt=self._adopt)
         self.layers: dict[str, Any] = self.keeper.layers
@@ -180,6 +182,7 @@ class LightFieldWidget(VideoDock, QWidget):
             (c.open_labels_button, self._open_selected_labels),
             (c.save_button, self._save_dialog), (c.export_button, self._export_dialog),
             (c.track_button, self.track), (c.stop_track_button, self.stop_tracking),
+            (c.follow_button, self.follow.ask), (c.stop_follow_button, self.follow.stop),
         ):
             button.clicked.connect(lambda _=False, a=action: a())
         c.find_edit.returnPressed.connect(lambda: self.find())
@@ -661,6 +664,7 @@ class LightFieldWidget(VideoDock, QWidget):
     def closeEvent(self, event: Any) -> None:
         """Stop reacting to the viewer when the dock widget closes."""
         self.keeper.closing = True
+        self.follow.stop()
         super().closeEvent(event)
 
 
