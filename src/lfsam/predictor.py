@@ -129,7 +129,16 @@ class LightFieldPredictor:
         section 3.7); objects refined under another setting are refined again at the next
         :meth:`predict` (their step-1 masks, coarse masks and the embeddings stay), e.g. to
         finish the views a sparse pass filled."""
-        config = replace(self.config, refine_views=setting)
+        self._reconfigure(refine_views=setting)
+
+    def set_consensus(self, on: bool) -> None:
+        """Turn the multi-view consensus on or off from now on (docs/design.md section 3.9);
+        objects are refined again at the next :meth:`predict` (their step-1 masks, coarse
+        masks and the embeddings stay)."""
+        self._reconfigure(consensus=bool(on))
+
+    def _reconfigure(self, **changes: Any) -> None:
+        config = replace(self.config, **changes)
         if config != self.config:
             self.config = config
             if self._engine is not None:

@@ -60,6 +60,13 @@ def build_result(
         "categories": {str(i): objects[i].category for i in ids if objects[i].category},
     }
 
+    replaced = [objects[i].refined.replaced for i in ids]
+    if ids and all(flags is not None for flags in replaced):  # the consensus ran (3.9)
+        meta["consensus_replaced"] = int(sum(int(flags.sum()) for flags in replaced))
+        meta["consensus_replaced_views"] = [
+            [i, int(s), int(t)] for i, flags in zip(ids, replaced, strict=True)
+            for s, t in zip(*np.nonzero(flags), strict=True)]
+
     def stacked(attr: str, empty: np.ndarray | None) -> np.ndarray | None:
         return np.stack([getattr(objects[i].refined, attr) for i in ids]) if ids else empty
 

@@ -179,6 +179,17 @@ def add_refine_views_argument(parser: argparse.ArgumentParser | argparse._Argume
     )
 
 
+def add_consensus_argument(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """``--consensus`` (docs/design.md section 3.9): the multi-view vote after refinement."""
+    parser.add_argument(
+        "--consensus", action="store_true",
+        help="multi-view consensus: after refinement, each view's mask of each object is voted "
+        "with the refined masks of the nearest views, carried by disparity (a segmenter's "
+        "error in one view is outvoted; result meta consensus_replaced counts the masks it "
+        "replaced); about 2x the work of a sparse fill",
+    )
+
+
 #: ``--tracking`` values and the ``memory`` argument of :func:`lfsam.video.track.track_video`.
 TRACKING_MODES = {"auto": None, "memory": True, "prompts": False}
 

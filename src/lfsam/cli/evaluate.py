@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 from lfsam.cli.common import (
     TRACKING_MODES,
     HelpFormatter,
+    add_consensus_argument,
     add_disparity_argument,
     add_refine_views_argument,
     add_tracking_argument,
@@ -102,6 +103,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="row of paper Table 2: no refinement or occluding, refinement only, or both",
     )
     add_refine_views_argument(parser)
+    add_consensus_argument(parser)
     add_tracking_argument(parser)
     parser.add_argument(
         "--references",
@@ -146,6 +148,8 @@ def method_label(args: argparse.Namespace) -> str:
         details.append(f"references {args.references}")
     if getattr(args, "refine_views", "all") != "all":
         details.append(f"refine views {args.refine_views}")
+    if getattr(args, "consensus", False):
+        details.append("consensus")
     if getattr(args, "text", None):
         details.append("text " + ", ".join(repr(t.phrase) for t in args.text))
     return f"{head} ({', '.join(details)})"
@@ -186,8 +190,11 @@ def run(args: argparse.Namespace) -> int:
 
     if args.refine_views != "all" and args.method != "lfsam":
         raise LfsamError(f"--refine-views {args.refine_views} needs --method lfsam")
+    if args.consensus and args.method != "lfsam":
+        raise LfsamError("--consensus needs --method lfsam")
     options = SegmentOptions(
-        pipeline=PipelineConfig.from_ablation(args.ablation, refine_views=args.refine_views)
+        pipeline=PipelineConfig.from_ablation(args.ablation, refine_views=args.refine_views,
+                                              consensus=args.consensus)
         if args.method == "lfsam"
         else PipelineConfig(),
         model=model_options_from_args(args),

@@ -8,6 +8,7 @@ import sys
 
 from lfsam.cli.common import (
     HelpFormatter,
+    add_consensus_argument,
     add_disparity_argument,
     add_refine_views_argument,
     add_tracking_argument,
@@ -144,6 +145,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--no-refine", action="store_true", help="skip refinement (keep the propagated masks)"
     )
     add_refine_views_argument(method)
+    add_consensus_argument(method)
     add_tracking_argument(method)
     add_follow_arguments(parser)
     method.add_argument(
@@ -204,6 +206,7 @@ def run(args: argparse.Namespace) -> int:
         t_sim=args.t_sim,
         t_iou=args.t_iou,
         refine_views=args.refine_views,
+        consensus=args.consensus,
     )
     if args.follow:  # issue 35: a frames folder still being written
         return run_follow(args, config, has_prompts)

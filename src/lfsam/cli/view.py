@@ -9,6 +9,7 @@ from typing import Any
 
 from lfsam.cli.common import (
     HelpFormatter,
+    add_consensus_argument,
     add_disparity_argument,
     add_refine_views_argument,
     positive_float,
@@ -32,7 +33,9 @@ other kind), Shift-C clear, Ctrl-Z / Ctrl-Shift-Z undo/redo prompt edits. Draw a
 "box prompts" for a box. "Segment everything" runs the automatic mode; "Find" takes a phrase
 and adds every instance in the view shown as an object (SAM 3; --text PHRASE does it at start).
 The Views / EPI buttons switch between the views and the epipolar-plane images through the
-current pixel row or column.
+current pixel row or column. The "Consensus" box (--consensus) votes each view's masks with its
+nearest views' masks, carried by disparity, so one view's wrong answer is outvoted; toggling it
+refines the objects again.
 Save writes a normal lfsam result (prompts included, so it reopens editable with --result).
 
 A light-field video (a folder of frames, an [F, S, T, U, V, 3] array, per-view videos) opens
@@ -85,6 +88,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_text_arguments(parser)
     add_disparity_argument(parser)
     add_refine_views_argument(parser)
+    add_consensus_argument(parser)
     parser.add_argument("--cache", metavar="DIR", help="embedding cache folder")
     parser.add_argument("--format", dest="input_format", help="input format (default: detect)")
     follow = parser.add_argument_group("a live stream (a frames folder that is still growing)")
@@ -192,6 +196,7 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
         cache_dir=args.cache,
         segmenter_options=model.segmenter_keywords(),
         refine_views=getattr(args, "refine_views", "all"),
+        consensus=bool(getattr(args, "consensus", False)),
         text_options={
             "text_model": model.text_model,
             "text_checkpoint": model.text_checkpoint,

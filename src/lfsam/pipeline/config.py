@@ -56,6 +56,11 @@ class PipelineConfig:
         paper), ``"sparse"`` (about one in six, :func:`lfsam.pipeline.sparse.sparse_view_count`)
         or that many views spread over the grid; every other view is filled from the refined
         views nearest to it (:mod:`lfsam.pipeline.fill`). A string of digits is read as N.
+    consensus : bool
+        Multi-view consensus (docs/design.md section 3.9): after refinement, each refined
+        view's mask of each object is voted by its own and its nearest refined views' masks,
+        carried by disparity (:mod:`lfsam.pipeline.voting`); a refined mask the vote changes
+        beyond recognition is replaced and counted (result ``meta["consensus_replaced"]``).
 
     Raises
     ------
@@ -73,6 +78,7 @@ class PipelineConfig:
     fill_holes: bool = True
     encode_batch_size: int | None = None
     refine_views: str | int = "all"
+    consensus: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "refine_views", check_refine_views(self.refine_views))

@@ -12,7 +12,6 @@ their stages are up to date, is the caller's (:class:`lfsam.predictor.LightField
 
 from __future__ import annotations
 
-import math
 from collections import Counter, OrderedDict, defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
@@ -25,10 +24,8 @@ from lfsam.disparity.views import ViewDisparities
 from lfsam.embeddings import EmbeddingStore
 from lfsam.lightfield import LightField
 from lfsam.pipeline.config import PipelineConfig
-from lfsam.pipeline.fill import fill_from_sources
 from lfsam.pipeline.fusion import fuse_labels
 from lfsam.pipeline.initial import initial_segmentation
-from lfsam.pipeline.mask_disparity import matched_disparity, unseen_by_estimate
 from lfsam.pipeline.objects import (
     Clicks,
     ObjectTable,
@@ -43,6 +40,7 @@ from lfsam.pipeline.occlusion import semantic_occlusion, source_features, unifor
 from lfsam.pipeline.propagation import ForwardWarp, forward_warp, propagate_masks
 from lfsam.pipeline.refinement import refine_masks
 from lfsam.pipeline.sparse import nearest_sources, refined_views
+from lfsam.pipeline.voting import ViewVoter
 from lfsam.result import pack_masks
 from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
 from lfsam.timing import StageTimer
@@ -102,14 +100,10 @@ class StreamingEngine:
             segmenter, lightfield.views, cache_dir=cache_dir, memory_budget_mb=memory_budget_mb
         )
         self._disp_tensors: dict[tuple[View, bool], torch.Tensor] = {}
-        self._holes: dict[View, torch.Tensor] = {}
         self._warps: OrderedDict[tuple[View, View, bool], ForwardWarp] = OrderedDict()
         self._base: frozenset[View] | None = None
-        # refined masks of fill sources, unpacked, within one pass (:meth:`run`, :meth:`_fill`)
-        self._sources: dict[tuple[View, tuple[int, ...]], torch.Tensor] = {}
-        # disparities matched from the masks of objects the estimate does not see, per
-        # (object, its fill sources), within one pass (:meth:`_own_disparity`)
-        self._own: dict[tuple[int, tuple[View, ...]], float | None] = {}
+        #: The fill and the consensus: votes of refined views (:mod:`lfsam.pipeline.voting`).
+        self.voter = ViewVoter(self)
         self._base_key: tuple[bool, str | int] | None = None
         self._warp_bytes = 0
 
@@ -340,6 +334,7 @@ class StreamingEngine:
         lf = self.lightfield
         config = self.config
         refine = refine and config.refine
+        consensus = refine and config.consensus
         out = {i: ObjectViews.empty(lf.grid_shape, lf.view_shape) for i in ids}
         coarse_out = {i: out[i].copy() for i in ids}
         views = list(lf.view_indices(present_only=True))
@@ -392,11 +387,20 @@ class StreamingEngine:
                 with self.timer("encode"):
                     embeddings = dict(zip(others, self.store.get_many(others), strict=True))
             for view in batch:
-                done(view, self.view_step(
+                final = self.view_step(
                     objects, view, ids, embeddings.get(view), refine, out, coarse_out,
                     stage="refine",
-                ))
+                )
+                if not consensus:
+                    done(view, final)
         self._clear_sources()
+        if consensus:  # every refined view is in: each is voted with its neighbours
+            refined = {i: out[i].copy() for i in ids}
+            for view in refined_here:
+                self.consensus_step(objects, view, ids, refined, out)
+                here = [i for i in ids if self.refines(view, objects[i].reference.view)]
+                done(view, self._unpacked(view, here, out))
+            self._clear_sources()
         for view in filled_here:
             done(view, self.view_step(
                 objects, view, ids, None, refine, out, coarse_out, stage="fill"
@@ -462,7 +466,8 @@ class StreamingEngine:
                     coarse_bits = pack_masks(coarse)
                 for k, i in enumerate(members):
                     coarse_out[i].bits[view] = coarse_bits[k]
-                masks = self._fill(view, ref_view, members, coarse, out) if refine else coarse
+                masks = (self.voter.fill(view, ref_view, members, coarse, out) if refine
+                         else coarse)
                 if refine:
                     with self.timer("fuse"):
                         bits = pack_masks(masks)
@@ -514,94 +519,41 @@ class StreamingEngine:
                 final[i] = outcome.masks[k]
         return final
 
-    def _fill(
-        self,
-        view: View,
-        ref_view: View,
-        members: list[int],
-        coarse: torch.Tensor,
-        out: dict[int, ObjectViews],
-    ) -> torch.Tensor:
-        """The final masks in ``view`` of objects with reference view ``ref_view`` that are
-        not refined there: carried from their refined sources (:mod:`lfsam.pipeline.fill`),
-        whose masks ``out`` holds; ``coarse`` where no source sees a pixel. An object the
-        center's estimate does not see is carried with its own disparity, matched from its
-        masks in the sources (:meth:`_own_disparity`), and filled alone."""
+    def consensus_step(self, objects: Mapping[int, TrackedObject], view: View, ids: list[int],
+                       refined: dict[int, ObjectViews], out: dict[int, ObjectViews]) -> None:
+        """The multi-view consensus in a refined ``view`` (docs/design.md section 3.9): each
+        object refined here (not in its own reference view) takes the vote of its refined
+        masks here and in the nearest refined views (``refined``: the masks as refinement left
+        them, read by every vote), written into ``out`` with its replaced flag."""
+        groups: dict[View, list[int]] = defaultdict(list)
+        for i in ids:
+            groups[objects[i].reference.view].append(i)
+        for ref_view, members in groups.items():
+            for i in members:
+                if out[i].replaced is None:
+                    out[i].replaced = np.zeros(self.lightfield.grid_shape, dtype=bool)
+            if ref_view == view or not self.refines(view, ref_view):
+                continue
+            masks, replaced = self.voter.consensus(view, ref_view, members, refined)
+            with self.timer("fuse"):
+                bits = pack_masks(masks)
+                flags = replaced.cpu().numpy()
+            for k, i in enumerate(members):
+                out[i].bits[view] = bits[k]
+                out[i].replaced[view] = flags[k]
+
+    def _unpacked(self, view: View, ids: list[int],
+                  table: dict[int, ObjectViews]) -> dict[int, torch.Tensor]:
+        """Each object's mask in ``view`` from the packed ``table``, on the device."""
         height, width = self.lightfield.view_shape
-        sources = self.fill_sources(view, ref_view)
-        with self.timer("fill"):
-            masks = []
-            for source in sources:
-                key = (source, tuple(members))
-                if key not in self._sources:  # each source serves several filled views
-                    packed = np.stack([out[i].bits[source] for i in members])
-                    bits = np.unpackbits(packed, axis=1, count=height * width).astype(bool)
-                    self._sources[key] = torch.from_numpy(
-                        bits.reshape(-1, height, width)
-                    ).to(self.device)
-                masks.append(self._sources[key])
-            disparities = [self.disparity(source, carried=True) for source in sources]
-            warps = [self.warp(source, view, carried=True) for source in sources]
-            distances = [math.hypot(s - view[0], t - view[1]) for s, t in sources]
-            tolerance = self.config.zbuffer_tolerance
-            guide = self.gray(view)
-            filled = fill_from_sources(
-                masks, disparities, warps, distances, coarse, tolerance, guide=guide
-            ).masks
-            for n, i in enumerate(members):
-                own = self._own_disparity(i, sources, [m[n] for m in masks], disparities)
-                if own is None:
-                    continue
-                # this object's pixels carried with its own disparity, the rest as they are
-                carried = [torch.where(m[n], torch.full_like(d, own), d)
-                           for m, d in zip(masks, disparities, strict=True)]
-                own_warps = [forward_warp(d, view[0] - s, view[1] - t)
-                             for d, (s, t) in zip(carried, sources, strict=True)]
-                filled[n] = fill_from_sources(
-                    [m[n:n + 1] for m in masks], carried, own_warps, distances,
-                    coarse[n:n + 1], tolerance, guide=guide,
-                ).masks[0]
-            return filled
-
-    def _own_disparity(
-        self,
-        object_id: int,
-        sources: list[View],
-        masks: list[torch.Tensor],
-        disparities: list[torch.Tensor],
-    ) -> float | None:
-        """The disparity an object is carried with out of its fill ``sources`` when the
-        center's estimate does not see it (:func:`lfsam.pipeline.mask_disparity.
-        unseen_by_estimate` over the sources whose carried disparity is that estimate warped):
-        matched from its refined ``masks`` there and the sources' carried ``disparities``
-        (:func:`lfsam.pipeline.mask_disparity.matched_disparity`); None to carry it with the
-        sources' disparity (docs/design.md section 3.7)."""
-        key = (object_id, tuple(sources))
-        if key not in self._own:
-            warped = [k for k, source in enumerate(sources)
-                      if self.disparities.warps_center(source)]
-            holes = [self._carried_holes(sources[k]) for k in warped]
-            own = None
-            if warped and unseen_by_estimate([masks[k] for k in warped], holes):
-                own = matched_disparity(
-                    masks, disparities, sources, self.config.zbuffer_tolerance
-                )
-            self._own[key] = own
-        return self._own[key]
-
-    def _carried_holes(self, view: View) -> torch.Tensor:
-        """:meth:`lfsam.disparity.views.ViewDisparities.carried_holes` on the device (cached
-        with the carried disparities)."""
-        if view not in self._holes:
-            self._holes[view] = torch.tensor(
-                self.disparities.carried_holes(view), device=self.device
-            )
-        return self._holes[view]
+        packed = np.stack([table[i].bits[view] for i in ids])
+        bits = np.unpackbits(packed, axis=1, count=height * width).astype(bool)
+        masks = torch.from_numpy(bits.reshape(len(ids), height, width)).to(self.device)
+        return {i: masks[k] for k, i in enumerate(ids)}
 
     def _clear_sources(self) -> None:
-        """Forget the fill sources' masks (and what was matched from them)."""
-        self._sources.clear()
-        self._own.clear()
+        """Forget the voting views' masks (and what was matched from them)."""
+        self.voter.clear()
 
     def gray(self, view: View) -> torch.Tensor:
         """The view's gray image in [0, 1] on the device (the fill's guide)."""
@@ -613,7 +565,8 @@ class StreamingEngine:
     ) -> np.ndarray:
         """The objects ``ids``' final masks in one view (steps 1-4, or 1-3 without
         refinement), ``(N, U, V)`` bool; computed for this view only (and, for objects not
-        refined here, in their fill sources) and not stored."""
+        refined here, in their fill sources; with the consensus, in the voters of the refined
+        views it needs) and not stored: the masks :meth:`run` gives that view."""
         lf = self.lightfield
         height, width = lf.view_shape
         if not ids:
@@ -622,27 +575,38 @@ class StreamingEngine:
         out = {i: ObjectViews.empty(lf.grid_shape, lf.view_shape, iou=0.0) for i in ids}
         coarse = {i: out[i].copy() for i in ids}
         refine = self.config.refine
+        consensus = refine and self.config.consensus
         references = {objects[i].reference.view for i in ids}
-        if refine and not all(self.refines(view, r) for r in references):
-            for ref_view in references:
-                if self.refines(view, ref_view):
-                    continue
+        voted: dict[View, list[View]] = {}  # reference view -> refined views to vote in
+        for ref_view in references:
+            members = [i for i in ids if objects[i].reference.view == ref_view]
+            if self.refines(view, ref_view) or not refine:
+                targets = [view] if self.refines(view, ref_view) else []
+            else:
+                targets = self.fill_sources(view, ref_view)
+            needed = list(targets)
+            if consensus:
+                voted[ref_view] = [t for t in targets if t != ref_view]
+                for target in voted[ref_view]:
+                    needed += [v for v in self.voter.consensus_voters(target, ref_view)
+                               if v not in needed]
+                if voted[ref_view]:  # an object's own disparity is matched there
+                    needed += [v for v in self.voter.match_views(ref_view) if v not in needed]
+            for source in needed:
+                embedding = (self.embedding(source) if source != ref_view
+                             and self.config.needs_view_encoding else None)
+                self.view_step(objects, source, members, embedding, refine, out, coarse)
+        if consensus:
+            refined = {i: out[i].copy() for i in ids}
+            for ref_view, targets in voted.items():
                 members = [i for i in ids if objects[i].reference.view == ref_view]
-                for source in self.fill_sources(view, ref_view):
-                    embedding = self.embedding(source) if source != ref_view else None
-                    self.view_step(objects, source, members, embedding, True, out, coarse)
+                for target in targets:
+                    self.consensus_step(objects, target, members, refined, out)
+            self._clear_sources()
+        if refine and not all(self.refines(view, r) for r in references):
             self._clear_sources()
             self.view_step(objects, view, ids, None, refine, out, coarse, stage="fill")
             self._clear_sources()
-        if any(self.refines(view, r) for r in references):
-            embedding = (
-                self.embedding(view)
-                if self.config.needs_view_encoding and any(
-                    view != r and self.refines(view, r) for r in references
-                )
-                else None
-            )
-            self.view_step(objects, view, ids, embedding, refine, out, coarse)
         final = out if refine else coarse
         packed = np.stack([final[i].bits[view] for i in ids])
         bits = np.unpackbits(packed, axis=1, count=height * width)

@@ -112,6 +112,8 @@ def fill_from_sources(
     fallback: torch.Tensor,
     tolerance: float,
     guide: torch.Tensor | None = None,
+    agree: Sequence[torch.Tensor | None] | None = None,
+    contested: float = 0.0,
 ) -> FillOutcome:
     """The masks of one view carried from refined source views (module docstring).
 
@@ -134,6 +136,10 @@ def fill_from_sources(
     guide : (U, V) float tensor, optional
         This view's gray image in [0, 1]: the vote is guided-filtered with it (step 3); None
         thresholds the vote as it is.
+    agree : sequence of K (U, V) bool tensors or None, optional
+        Where each source's landed surface is the one this view shows (the multi-view
+        consensus, docs/design.md section 3.9): a landed pixel outside it counts as unseen by
+        that source. None (or a None entry): every landed pixel counts.
 
     Returns
     -------
@@ -156,6 +162,9 @@ def fill_from_sources(
     """
     view_size = (int(fallback.shape[-2]), int(fallback.shape[-1]))
     status = source_knowledge(warps, view_size).to(fallback.device)
+    for j, where in enumerate(agree or ()):
+        if where is not None:
+            status[j] = torch.where((status[j] == _LANDED) & ~where, 0, status[j])
     best = status.max(dim=0).values if len(status) else torch.zeros(view_size, dtype=torch.int64)
     voters = (status == best) & (best > 0)
     weights = torch.as_tensor(
@@ -176,19 +185,20 @@ def fill_from_sources(
     share = torch.where(seen, votes / total.clamp(min=1e-12), fallback.to(torch.float32))
     decided = share > 0.5
     if guide is not None:
-        _guide_contested(decided, share, guide.to(share))
+        _guide_contested(decided, share, guide.to(share), contested)
     masks = torch.where(seen, decided, fallback)
     return FillOutcome(masks=masks, voters=voters)
 
 
-def _guide_contested(decided: torch.Tensor, share: torch.Tensor, guide: torch.Tensor) -> None:
+def _guide_contested(decided: torch.Tensor, share: torch.Tensor, guide: torch.Tensor,
+                     margin: float = 0.0) -> None:
     """Step 3 of the module docstring, in place on ``decided``: each object's vote is
     guided-filtered within the bounding box of its contested pixels plus the filter's reach,
     and the contested pixels take the filtered answer. A pixel's filtered value depends only on
     the vote within ``2 * GUIDE_RADIUS`` of it, so any box holding that reach gives the same
     answer: when the objects' boxes overlap much (masks covering most of the view), their votes
     are filtered together in one box (one batched filter), else box by box."""
-    contested = (share > 0) & (share < 1)  # where the sources disagree
+    contested = (share > margin) & (share < 1 - margin)  # where the sources disagree
     rows, cols = contested.any(dim=2), contested.any(dim=1)
     objects = torch.nonzero(rows.any(dim=1), as_tuple=True)[0].tolist()
     boxes = {k: _reach_box(rows[k], cols[k]) for k in objects}

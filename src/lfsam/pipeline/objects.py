@@ -56,6 +56,8 @@ class ObjectViews:
     bits: np.ndarray  # (S, T, ceil(U V / 8)) uint8
     fallback: np.ndarray  # (S, T) bool
     iou: np.ndarray  # (S, T) float32
+    #: (S, T) bool: refined masks the multi-view consensus replaced (None without it)
+    replaced: np.ndarray | None = None
 
     @classmethod
     def empty(
@@ -71,7 +73,8 @@ class ObjectViews:
 
     def copy(self) -> ObjectViews:
         """An independent copy."""
-        return ObjectViews(self.bits.copy(), self.fallback.copy(), self.iou.copy())
+        return ObjectViews(self.bits.copy(), self.fallback.copy(), self.iou.copy(),
+                           None if self.replaced is None else self.replaced.copy())
 
 
 @dataclass(frozen=True)

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Container, Iterable, Sequence
 
 from qtpy.QtWidgets import (
+    QCheckBox,
     QComboBox,
     QFileDialog,
     QFormLayout,
@@ -83,6 +84,8 @@ class DockControls:
         Untrained weights chosen (when there is no checkpoint).
     refine_views : str or int
         The "Refine views" box's choice (docs/design.md section 3.7): ``all``, ``sparse`` or N.
+    consensus : bool
+        The "Consensus" box's state: the multi-view consensus (docs/design.md section 3.9).
     """
 
     def __init__(
@@ -96,6 +99,7 @@ class DockControls:
         checkpoint: str | None = None,
         random_weights: bool = False,
         refine_views: str | int = "all",
+        consensus: bool = False,
     ) -> None:
         self.model_box = QComboBox()
         self.model_box.addItems(list(models))
@@ -126,6 +130,16 @@ class DockControls:
             "Views SAM 2 refines: all (the paper) or sparse (about one in six, spread over the "
             "grid; the others take the masks of the refined views nearest to them). Choosing "
             "all after a sparse pass refines the remaining views"
+        )
+        #: The multi-view consensus (docs/design.md section 3.9); its ``clicked`` signal is the
+        #: user's toggle (:meth:`show_consensus` sets it silently).
+        self.consensus_box = QCheckBox()
+        self.consensus_box.setChecked(bool(consensus))
+        self.consensus_box.setToolTip(
+            "Multi-view consensus: after refinement, each view's mask of each object is voted "
+            "with the masks of its nearest views, carried by disparity, so one view's wrong "
+            "answer is outvoted by its neighbours' (costs more: about twice the work of a "
+            "sparse fill). Toggling it refines the objects again"
         )
         self.load_button = QPushButton("Load model")
         self.polarity_label = QLabel()
@@ -193,6 +207,15 @@ class DockControls:
         """Show ``setting`` in the "Refine views" box (an N is added as an item)."""
         _choose_item(self.refine_box, str(setting))
 
+    @property
+    def consensus(self) -> bool:
+        """Whether the "Consensus" box is checked (docs/design.md section 3.9)."""
+        return self.consensus_box.isChecked()
+
+    def show_consensus(self, on: bool) -> None:
+        """Check or uncheck the "Consensus" box (no ``clicked`` signal)."""
+        self.consensus_box.setChecked(bool(on))
+
     def _lay_out(self) -> QVBoxLayout:
         form = QFormLayout()
         form.addRow("Model", self.model_box)
@@ -200,6 +223,7 @@ class DockControls:
         form.addRow("Disparity", self.disparity_box)
         form.addRow("Everything from", self.references_box)
         form.addRow("Refine views", self.refine_box)
+        form.addRow("Consensus", self.consensus_box)
         grid = QGridLayout()
         prompt_buttons = [
             self.segment_button, self.commit_button, self.toggle_button, self.clear_button,

@@ -224,7 +224,8 @@ class FollowController(QObject):
 
     def _tracker(self, auto: bool) -> OnlineTracker:
         """A tracker with the dock's model (built as Track builds it), disparity, refine views,
-        "Everything from" views (``auto``) and embedding cache."""
+        consensus (docs/design.md section 3.9), "Everything from" views (``auto``) and
+        embedding cache."""
         from lfsam.api import ModelOptions, RunOptions, SegmentOptions
 
         widget = self.widget
@@ -242,7 +243,9 @@ class FollowController(QObject):
             seed=int(keys.get("seed") or 0), precision=keys.get("precision") or "auto")
         run = RunOptions(references=widget.references_box.currentText(), progress=False,
                          cache_dir=None if widget._cache_dir is None else str(widget._cache_dir))
-        options = SegmentOptions(PipelineConfig(refine_views=widget._refine_views), model, run)
+        pipeline = PipelineConfig(refine_views=widget._refine_views,
+                                  consensus=widget.controls.consensus)  # sections 3.7, 3.9
+        options = SegmentOptions(pipeline, model, run)
         return _showing_tracker()(None, disparity=disparity, options=options, auto=auto)
 
     # --- the stream's thread ---------------------------------------------------------------------

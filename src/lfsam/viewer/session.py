@@ -237,6 +237,8 @@ class ViewerSession:
         Further keywords of :func:`lfsam.segmenters.load_segmenter` (e.g. ``oracle_options``).
     refine_views : str or int
         Which views SAM 2 refines (docs/design.md section 3.7): ``"all"``, ``"sparse"`` or N.
+    consensus : bool
+        The multi-view consensus after refinement (docs/design.md section 3.9).
     text_options : dict
         The text detector of :meth:`find` (docs/design.md section 9): ``text_model`` (default
         the oracle with the oracle segmenter, else ``sam3``), ``text_checkpoint``,
@@ -250,6 +252,7 @@ class ViewerSession:
     segmenter_options: dict[str, Any] = field(default_factory=dict)
     text_options: dict[str, Any] = field(default_factory=dict)
     refine_views: str | int = "all"
+    consensus: bool = False
     predictor: Any = None
     current_id: int = 1
     committed: set[int] = field(default_factory=set)
@@ -301,9 +304,7 @@ class ViewerSession:
         if segmenter is None:
             segmenter = load_segmenter(self.model, lightfield=lightfield,
                                        **self.segmenter_keywords())
-        predictor = LightFieldPredictor(
-            segmenter, PipelineConfig(refine_views=self.refine_views), cache_dir=self.cache_dir
-        )
+        predictor = LightFieldPredictor(segmenter, self.pipeline_config(), cache_dir=self.cache_dir)
         predictor.set_lightfield(lightfield, disparity=self.disparity)
         return predictor
 
@@ -314,6 +315,28 @@ class ViewerSession:
         self.refine_views = check_refine_views(setting)
         if self.predictor is not None:
             self.predictor.set_refine_views(self.refine_views)
+
+    def pipeline_config(self) -> PipelineConfig:
+        """The pipeline settings of every predictor, track and stream of this session: the
+        refined views (docs/design.md section 3.7) and the consensus (section 3.9)."""
+        return PipelineConfig(refine_views=self.refine_views, consensus=self.consensus)
+
+    def set_consensus(self, on: bool) -> bool:
+        """Turn the multi-view consensus (docs/design.md section 3.9) on or off from now on; a
+        loaded predictor refines its objects again at the next prediction
+        (``LightFieldPredictor.set_consensus``).
+
+        Returns
+        -------
+        bool
+            Whether the setting changed while a model with objects is loaded, i.e. whether the
+            objects should be predicted again to show it.
+        """
+        on = bool(on)
+        changed, self.consensus = on != self.consensus, on
+        if self.predictor is not None:
+            self.predictor.set_consensus(on)
+        return changed and self.loaded and bool(self.object_ids)
 
     def refined_summary(self) -> str | None:
         """E.g. ``"13 of 81 views refined (sparse)"``; None when every view is refined."""

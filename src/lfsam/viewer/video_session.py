@@ -301,7 +301,6 @@ class VideoSession(ViewerSession):
             No object, a disparity file, or ``track_video``'s errors.
         """
         from lfsam.api import ModelOptions, RunOptions, SegmentOptions
-        from lfsam.pipeline.config import PipelineConfig
         from lfsam.video.track import track_video
 
         self._check_disparity()
@@ -317,7 +316,7 @@ class VideoSession(ViewerSession):
             model_options = ModelOptions(name=ORACLE, oracle=keywords.get("oracle_options"),
                                          seed=int(keywords.get("seed") or 0))
         options = SegmentOptions(
-            pipeline=PipelineConfig(refine_views=self.refine_views),
+            pipeline=self.pipeline_config(),  # refine views and consensus (sections 3.7, 3.9)
             model=model_options,
             run=RunOptions(cache_dir=None if self.cache_dir is None else str(self.cache_dir),
                            progress=False),

@@ -89,6 +89,8 @@ class LightFieldWidget(VideoDock, QWidget):
         Load the model as soon as a light field is known.
     video : LightFieldVideo, optional
         A light-field video instead of ``lightfield`` (docs/design.md section 10).
+    consensus : bool
+        The "Consensus" box's initial state: the multi-view vote (docs/design.md section 3.9).
     """
 
     #: Emitted with every status line the dock shows (``lfsam view`` echoes them on stderr).
@@ -107,6 +109,7 @@ class LightFieldWidget(VideoDock, QWidget):
         autoload: bool = True,
         refine_views: str | int = "all",
         video: Any = None,
+        consensus: bool = False,
     ) -> None:
         super().__init__()
         from lfsam.segmenters import available_models
@@ -134,6 +137,7 @@ class LightFieldWidget(VideoDock, QWidget):
             checkpoint=self._options.get("checkpoint"),
             random_weights=bool(self._options.get("random_weights")),
             refine_views=refine_views,
+            consensus=consensus,
         )
         self.setLayout(c.layout)
         # the controls callers read through the widget
@@ -171,6 +175,7 @@ class LightFieldWidget(VideoDock, QWidget):
         c.refine_box.activated.connect(
             lambda _index: self.set_refine_views(c.refine_box.currentText())
         )
+        c.consensus_box.clicked.connect(self.set_consensus)
         for button, action in (
             (c.segment_button, self.segment), (c.commit_button, self.commit),
             (c.clear_button, self.clear), (c.undo_button, self.undo), (c.redo_button, self.redo),
@@ -222,6 +227,7 @@ class LightFieldWidget(VideoDock, QWidget):
             segmenter_options=dict(self._options),
             text_options=dict(self._text_options),
             refine_views=self._refine_views,
+            consensus=self.controls.consensus,
             **extra,
         )
         self.keeper.show(shown, layer, self._keymap())
@@ -380,6 +386,17 @@ class LightFieldWidget(VideoDock, QWidget):
         session.set_refine_views(setting)
         if session.loaded and session.object_ids:
             self.work.when_idle(lambda: self._predict_all(f"refining {setting} views"))
+
+    def set_consensus(self, on: bool) -> None:
+        """Turn the multi-view consensus on or off (docs/design.md section 3.9) once the worker
+        is idle; the objects are then refined again in it (``ViewerSession.set_consensus``)."""
+        self.controls.show_consensus(on)
+
+        def run() -> None:
+            if self.session is not None and self.session.set_consensus(on):
+                self._predict_all(f"refining {'with' if on else 'without'} consensus")
+
+        self.work.when_idle(run)
 
     def _reload(self) -> None:
         """Load the model again if it is loaded (its name, weights or disparity changed)."""
