@@ -55,9 +55,16 @@ CASES = {
         "sparse speed-up over all",
     ),
     "bench_video.py": (
-        ["--grid", "3x3", "--size", "24x32", "--frames", "2", "--models", "oracle",
-         "--settings", "all", "--memory-frames", "2,3", "--memory-model", "oracle"],
-        "peak RSS growth",
+        ["--parts", "speed,memory,stream", "--grid", "3x3", "--size", "24x32", "--frames", "2",
+         "--models", "oracle", "--settings", "all", "--memory-frames", "2,3",
+         "--memory-model", "oracle", "--stream-runs", "sam2-tiny-test:memory",
+         "--stream-size", "32x40", "--stream-frames", "2", "--rate", "20"],
+        "targets: edgetam >= 1 frame/s",
+    ),
+    "bench_consensus.py": (
+        ["--seeds", "1", "--hidden", "0", "--size", "32x48", "--answers", "exact",
+         "--cost-model", "sam2-tiny-test"],
+        "target: ratio <= 1.15",
     ),
     "bench_references.py": (
         ["--model", "sam2-tiny-test", "--answers", "oracle", "--points-per-side", "16",
