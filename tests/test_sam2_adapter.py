@@ -105,6 +105,12 @@ def _sam2_private_names() -> set[str]:
     return {n for n in names if not n.startswith("__")}
 
 
+#: (module, name) pairs that are another library's private name spelled as one of sam2's:
+#: transformers' ``EdgeTamVideoModel._use_mask_as_output``, wrapped by hf_video_build to fix its
+#: object-score shape (docs/design.md section 10).
+NOT_SAM2 = {("segmenters/hf_video_build.py", "_use_mask_as_output")}
+
+
 def test_no_other_module_touches_sam2_private_names():
     sam2_private = _sam2_private_names()
     assert {"_predict", "_features", "_prepare_backbone_features"} <= sam2_private  # sanity
@@ -120,7 +126,7 @@ def test_no_other_module_touches_sam2_private_names():
             elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("sam2"):
                 private = [a.name for a in node.names if a.name.startswith("_")]
                 name = private[0] if private else None
-            if name:
+            if name and (str(path.relative_to(SRC)), name) not in NOT_SAM2:
                 offenders.append(f"{path.relative_to(SRC)}:{node.lineno} {name}")
     assert not offenders, (
         "only lfsam.segmenters.sam2_adapter may touch private names of sam2: "

@@ -102,9 +102,9 @@ class OnlineTracker:
 
     Examples
     --------
-    >>> from lfsam.synth import random_scene
+    >>> from lfsam.synth import generate_scene
     >>> from lfsam.prompts import ObjectPrompts, PointPrompt
-    >>> scene = random_scene(grid=(3, 3), size=(48, 64), seed=0)
+    >>> scene = generate_scene(grid=(3, 3), size=(48, 64), seed=0)
     >>> tracker = OnlineTracker("oracle", disparity="gt")
     >>> tracker.add_prompts([ObjectPrompts(1, (PointPrompt(20.0, 24.0),))])
     >>> result = tracker.track(scene)  # frame 0; call again with each new frame
