@@ -179,7 +179,9 @@ def fill_from_sources(
         if not bool(voters[j].any()):
             continue
         keep = warp.visible(disparity, tolerance)
-        carried = fill_warp_holes(splat_masks(masks, warp, keep), masks, warp, keep)
+        carried = splat_masks(masks, warp, keep)
+        if bool((voters[j] & (status[j] == _HOLE)).any()):  # its holes vote somewhere
+            carried = fill_warp_holes(carried, masks, warp, keep)
         votes += carried.to(torch.float32) * cast[j]
     seen = best > 0
     share = torch.where(seen, votes / total.clamp(min=1e-12), fallback.to(torch.float32))
