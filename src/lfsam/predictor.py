@@ -126,18 +126,17 @@ class LightFieldPredictor:
 
     def set_refine_views(self, setting: str | int) -> None:
         """Refine ``"all"`` views, ``"sparse"`` or N of them from now on (docs/design.md
-        section 3.7); objects refined under another setting are refined again at the next
-        :meth:`predict` (their step-1 masks, coarse masks and the embeddings stay), e.g. to
-        finish the views a sparse pass filled."""
-        self._reconfigure(refine_views=setting)
+        section 3.7), e.g. ``"all"`` to finish the views a sparse pass filled."""
+        self._refine_again(refine_views=setting)
 
     def set_consensus(self, on: bool) -> None:
-        """Turn the multi-view consensus on or off from now on (docs/design.md section 3.9);
-        objects are refined again at the next :meth:`predict` (their step-1 masks, coarse
-        masks and the embeddings stay)."""
-        self._reconfigure(consensus=bool(on))
+        """The multi-view consensus on or off from now on (docs/design.md section 3.9)."""
+        self._refine_again(consensus=bool(on))
 
-    def _reconfigure(self, **changes: Any) -> None:
+    def _refine_again(self, **changes: Any) -> None:
+        """Change settings of refinement only: objects refined under other settings are
+        refined again at the next :meth:`predict` (step-1 and coarse masks and the embeddings
+        stay)."""
         config = replace(self.config, **changes)
         if config != self.config:
             self.config = config
@@ -227,16 +226,10 @@ class LightFieldPredictor:
         labels = [1] * len(points) if labels is None else [int(x) for x in labels]
         if len(labels) != len(points):
             raise LfsamError(f"object {obj_id}: {len(points)} points but {len(labels)} labels")
-        current = self._table.objects.get(obj_id)
-        base = (
-            current.prompts
-            if current is not None and current.prompts is not None
-            else ObjectPrompts(int(obj_id))
-        )
-        new = base.with_points(
-            PointPrompt(x, y, label == 1, view)
-            for (x, y), label in zip(points, labels, strict=True)
-        )
+        base = getattr(self._table.objects.get(obj_id), "prompts", None) or ObjectPrompts(
+            int(obj_id))
+        new = base.with_points(PointPrompt(x, y, label == 1, view)
+                               for (x, y), label in zip(points, labels, strict=True))
         if box is not None:
             new = new.with_box(BoxPrompt(*map(float, box), view=view))
         self.set_object(new)
@@ -249,10 +242,8 @@ class LightFieldPredictor:
         validate_objects([prompts], lf.grid_shape, lf.view_shape)
         for view in prompts.views(lf.center):
             if not lf.present[view]:
-                raise LfsamError(
-                    f"object {prompts.obj_id}: view {view[0]},{view[1]} is absent from this "
-                    "light field; prompt a view that exists"
-                )
+                raise LfsamError(f"object {prompts.obj_id}: view {view[0]},{view[1]} is absent "
+                                 "from this light field; prompt a view that exists")
         self._table.put(prompts.obj_id, TrackedObject(prompts=prompts))
         self._labels_cache.clear()
 

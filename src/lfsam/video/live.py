@@ -149,7 +149,6 @@ def segment_stream(
                     continue
                 result.meta["frame_source"] = arrived.path.name
                 meta["tracking"] = tracker.tracking
-                meta["frames"] = writer.frames + 1
                 writer.write(result)
                 timing = FrameTiming(writer.frames - 1, arrived.path.name,
                                      time.time() - arrived.arrived,

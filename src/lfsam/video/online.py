@@ -239,7 +239,8 @@ class OnlineTracker:
             check_frame(lf, index, self.grid_shape, self.view_shape, "the stream")
         segmenter = self._segmenter_for(lf)
         if self.grid_shape is None:
-            self._memory = _memory_for(segmenter, self.memory_option, lf.view_shape)
+            self._memory = None if self.memory_option is False else reference_memory_for(
+                segmenter, lf.view_shape, required=bool(self.memory_option))
             if self._memory is not None:
                 _check_corrections(self._objects.values(), lf.center)
             self.tracking = _tracking_label(segmenter, self._memory)
@@ -295,13 +296,6 @@ def _tracking_label(segmenter: Segmenter, memory: Any) -> str:
 
 def _center(grid: tuple[int, int]) -> tuple[int, int]:
     return (grid[0] // 2, grid[1] // 2)
-
-
-def _memory_for(segmenter: Segmenter, memory: bool | None, view_shape: tuple[int, int]) -> Any:
-    """The segmenter's video memory for this run, or None (constrained prompts)."""
-    if memory is False:
-        return None
-    return reference_memory_for(segmenter, view_shape, required=bool(memory))
 
 
 def _check_corrections(objects: Iterable[ObjectPrompts], center: tuple[int, int]) -> None:
