@@ -66,6 +66,10 @@ CASES = {
          "--cost-model", "sam2-tiny-test"],
         "target: ratio <= 1.15",
     ),
+    "bench_objects3d.py": (
+        ["--scenes", "1", "--size", "48x64", "--parts", "synthetic"],
+        "| median depth relative error |",
+    ),
     "bench_references.py": (
         ["--model", "sam2-tiny-test", "--answers", "oracle", "--points-per-side", "16",
          "--grid", "3x3", "--size", "48x64", "--modes", "corners", "--rounds", "1",

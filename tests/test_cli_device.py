@@ -19,6 +19,8 @@ DEVICE_COMMANDS = {
     "segment": ["segment", "SCENE", "--auto", "--model", "oracle", "--disparity", "gt",
                 "--out", "OUT/r.npz", "--quiet"],
     "metrics": ["metrics", "RESULT", "--gt", "SCENE"],
+    "export": ["export", "RESULT", "--to", "ply", "--lightfield", "SCENE", "--out", "OUT/ply"],
+    "objects": ["objects", "RESULT", "--lightfield", "SCENE"],
     "evaluate": ["evaluate", "DATASET", "--model", "oracle", "--disparity", "gt",
                  "--out", "OUT/ev"],
     "demo": ["demo", "--out", "OUT/demo", "--quiet"],

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 
 from lfsam.cli.common import HelpFormatter
-from lfsam.cli.inputs import expect_input, expect_partner
+from lfsam.cli.inputs import expect_input, expect_partner, video_with_result
+from lfsam.cli.objects import add_3d_arguments, measure_options
 from lfsam.errors import LfsamError
 from lfsam.export import EXPORT_FORMATS, check_export_target, export_result, export_video
 from lfsam.fileutil import check_writable
@@ -23,6 +24,11 @@ Export a segmentation result (.npz from `lfsam segment`) into a folder, for the 
   coco   annotations.json: COCO instances, one image per view (grid position in view_row,
          view_col), one RLE annotation per object and view, track_id = object id in every view
   npy    labels.npy [S, T, U, V] int32, masks.npy [K, S, T, U, V] bool, ids.npy [K], present.npy
+  ply    object_NNNN.ply: one coloured point cloud per object (x y z red green blue, binary
+         little-endian; metres in the center view camera's frame: x right, y down, z forward)
+         and objects.json (each object's measures, as `lfsam objects --json`); needs
+         --lightfield and a camera (--camera, or the light field's own); pixels whose disparity
+         confidence is below --min-confidence are left out
 
 A light-field video's result folder (from `lfsam segment VIDEO`) is exported frame by frame:
 png, masks and npy into frame_FFFF/ folders (frame_0000/view_SS_TT.png ...), coco as one
@@ -41,6 +47,8 @@ examples:
   lfsam export result.npz --to coco --out coco/ --force
   lfsam export result.npz --to masks --out masks/ --lightfield scene
   lfsam export video_result/ --to coco --out coco/
+  lfsam export result.npz --to ply --lightfield scene --out clouds/
+  lfsam export result.npz --to ply --lightfield LF --camera camera.json --disparity gt --out clouds/
 """
 
 
@@ -54,14 +62,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=HelpFormatter,
     )
     parser.add_argument("result", metavar="RESULT.npz", help="result with labels [S, T, U, V]")
-    parser.add_argument("--to", required=True, choices=EXPORT_FORMATS, help="output format")
+    parser.add_argument("--to", required=True, choices=(*EXPORT_FORMATS, "ply"),
+                        help="output format")
     parser.add_argument("--out", required=True, metavar="DIR", help="output folder")
     parser.add_argument(
         "--force", action="store_true", help="replace --out if it is a non-empty folder"
     )
     parser.add_argument(
-        "--lightfield", metavar="PATH", help="check the result against this light field"
+        "--lightfield", metavar="PATH",
+        help="check the result against this light field (needed for --to ply: its colours and "
+        "disparity)"
     )
+    add_3d_arguments(parser.add_argument_group("point clouds (--to ply)"))
     parser.set_defaults(func=run)
 
 
@@ -71,6 +83,8 @@ def run(args: argparse.Namespace) -> int:
     check_export_target(args.out, args.force)
     kind = expect_input(args.result, "export", ("result", "video-result"))
     expect_partner(args.lightfield, args.result, kind, "export", "--lightfield")
+    if args.to == "ply":
+        return _run_ply(args, kind)
     if is_video_result(args.result):
         return _run_video(args)
     result = load_result(args.result)
@@ -91,14 +105,37 @@ def run(args: argparse.Namespace) -> int:
 def _run_video(args: argparse.Namespace) -> int:
     """Export a video result folder frame by frame."""
     video = load_video_result(args.result)
-    if args.lightfield:
-        from lfsam.video import read_video
-
-        with read_video(args.lightfield) as frames:
-            if tuple(frames.shape) != tuple(video.shape):
-                raise LfsamError(f"{args.result} has labels {video.shape}, {args.lightfield} "
-                                 f"is a video of {tuple(frames.shape)}")
+    if args.lightfield:  # checked against its video
+        with video_with_result(args.result, args.lightfield):
+            pass
     out = export_video(iter(video), args.out, args.to, force=args.force)
     frames, s_count, t_count = video.shape[:3]
     print(f"wrote {args.to} export of {frames} frames of {s_count} x {t_count} views to {out}")
+    return 0
+
+
+def _run_ply(args: argparse.Namespace, kind: str | None) -> int:
+    """One PLY per object (per frame of a video) from the result, its light field and a camera."""
+    from lfsam.objects3d import export_point_clouds, objects_in_3d, resolve_camera
+
+    if not args.lightfield:
+        raise LfsamError("--to ply needs --lightfield LF: the light field the result was "
+                         "computed on (its colours and disparity make the points)")
+    if kind == "video-result":
+        with video_with_result(args.result, args.lightfield) as (video_result, frames):
+            options = measure_options(args)
+            found = [objects_in_3d(result, lf, **options)
+                     for result, lf in zip(video_result, frames, strict=True)]
+        out = export_point_clouds(found, args.out, force=args.force)
+        count = sum(len(f.measures) for f in found)
+        print(f"wrote {count} point clouds over {len(found)} frames to {out}")
+        return 0
+    lightfield = read_lightfield(args.lightfield)
+    camera = resolve_camera(lightfield, args.camera)  # before the long work
+    options = {**measure_options(args), "camera": camera}
+    found = objects_in_3d(load_result(args.result), lightfield, **options)
+    out = export_point_clouds(found, args.out, force=args.force)
+    points = sum(len(c.xyz) for c in found.clouds.values())
+    print(f"wrote {len(found.measures)} point clouds ({points} points; disparity "
+          f"{found.disparity_source}) to {out}")
     return 0

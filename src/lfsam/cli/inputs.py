@@ -17,6 +17,7 @@ and what it takes, instead of a reader's complaint about an array's shape
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 from collections.abc import Collection
@@ -178,3 +179,24 @@ def expect_dataset(path: str | os.PathLike | None) -> None:
         "its own and give that folder"
         + ("" if kind in ("lightfield", "video") else ", or score it with lfsam metrics")
     )
+
+
+@contextlib.contextmanager
+def video_with_result(result_path: str | os.PathLike, video_path: str | os.PathLike):
+    """Open a video's result folder and its light-field video together, checked to match:
+    yields ``(VideoResult, LightFieldVideo)``.
+
+    Raises
+    ------
+    LfsamError
+        One line when the result's labels and the video differ in shape.
+    """
+    from lfsam.video import read_video
+    from lfsam.video.result import load_video_result
+
+    result = load_video_result(result_path)
+    with read_video(video_path) as video:
+        if tuple(video.shape) != tuple(result.shape):
+            raise LfsamError(f"{result_path} has labels {result.shape}, {video_path} is a "
+                             f"video of {tuple(video.shape)}")
+        yield result, video

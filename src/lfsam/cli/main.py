@@ -31,6 +31,7 @@ SUBCOMMANDS = [
     "segment",
     "metrics",
     "export",
+    "objects",
     "evaluate",
     "show",
     "demo",

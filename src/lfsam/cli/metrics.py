@@ -7,11 +7,10 @@ import json
 import math
 
 from lfsam.cli.common import HelpFormatter, add_device_argument, bounded_int
-from lfsam.cli.inputs import expect_input, expect_partner
-from lfsam.errors import LfsamError
+from lfsam.cli.inputs import expect_input, expect_partner, video_with_result
 from lfsam.io import read_lightfield
 from lfsam.result import load_result
-from lfsam.video.result import is_video_result, load_video_result
+from lfsam.video.result import is_video_result
 
 DESCRIPTION = """\
 Score a segmentation result with the paper's metrics (section 4.1) and print them as JSON.
@@ -116,13 +115,8 @@ def _clean(metrics: dict) -> dict:
 def _run_video(args: argparse.Namespace) -> int:
     """Score a video result frame by frame against a video with ground truth."""
     from lfsam.metrics.temporal import evaluate_frames
-    from lfsam.video import read_video
 
-    result = load_video_result(args.result)
-    with read_video(args.gt) as video:
-        if tuple(video.shape) != tuple(result.shape):
-            raise LfsamError(f"{args.result} has labels {result.shape}, {args.gt} is a video "
-                             f"of {tuple(video.shape)}")
+    with video_with_result(args.result, args.gt) as (result, video):
         pairs = ((result.frame(f), video.frame(f)) for f in range(len(result)))
         scores = evaluate_frames(pairs, device=args.device, min_area=args.min_area)
     scores["frames"] = [_clean(row) for row in scores["frames"]]

@@ -183,6 +183,7 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
 
     import napari
 
+    from lfsam.viewer.objects3d_dock import ObjectsDock
     from lfsam.viewer.widget import LightFieldWidget
 
     model = model_options_from_args(args)
@@ -203,7 +204,10 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
             "text_threshold": model.text_threshold,
         },
     )
-    viewer.window.add_dock_widget(widget, name="lfsam", area="right")
+    dock = viewer.window.add_dock_widget(widget, name="lfsam", area="right")
+    viewer.window.add_dock_widget(ObjectsDock(viewer, widget), name="lfsam 3D", area="right",
+                                  tabify=True)  # a tab beside the lfsam dock (section 11)
+    dock.raise_()  # the lfsam dock's tab in front
     if result is not None and video is not None:
         widget.show_tracked(result)
     elif result is not None:

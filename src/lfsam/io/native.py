@@ -10,8 +10,10 @@ Layout of a scene folder (version 1)::
 
 ``lfsam_scene.json`` holds ``format: "lfsam-scene"``, ``version``, ``grid`` [S, T],
 ``view_size`` [U, V], ``center``, ``views`` (the file-name pattern), ``disparity`` and ``labels``
-(``"all views"``, ``"center"`` or null), optional ``categories`` (label id -> category name,
-e.g. ``{"2": "brick disc"}``; docs/design.md section 9), the disparity ``convention`` in words,
+(``"all views"``, ``"center"`` or null), optional ``camera`` (focal length in pixels, baseline
+and focus distance in metres: :mod:`lfsam.camera`, docs/design.md section 11), optional
+``categories`` (label id -> category name, e.g. ``{"2": "brick disc"}``; docs/design.md section
+9), the disparity ``convention`` in words,
 and ``meta`` (free JSON: where the scene came from, the orientation applied on import,
 generator settings). Disparity is always in the package's convention (docs/design.md section
 1), so a scene converted from any data set reads back without further checks.
@@ -162,7 +164,8 @@ def write_native(lf: LightField, path: str | os.PathLike, compress_level: int = 
         "categories": None if lf.categories is None else categories_to_json(lf.categories),
         "present": None if lf.is_complete else lf.present.tolist(),
         "convention": CONVENTION,
-        "meta": json_safe(lf.meta),
+        "camera": json_safe(lf.meta.get("camera")),
+        "meta": json_safe({k: v for k, v in lf.meta.items() if k != "camera"}),
     }
     with atomic_folder_output(path, mode=0o755) as tmp:
         write_view_grid(lf.views, tmp, pattern, compress_level=compress_level)
@@ -266,6 +269,8 @@ def read_native(path: str | os.PathLike) -> LightField:
     if old_source is not None or old_format is not None:
         meta["converted_from"] = f"{old_format or '?'}: {old_source or '?'}"
     meta.update(source=str(folder), format="lfsam")
+    if description.get("camera") is not None:
+        meta["camera"] = description["camera"]
     return LightField(
         views, disparity=disparity, labels=labels, meta=meta, present=present,
         categories=categories if labels is not None else None,

@@ -20,6 +20,7 @@ import torch
 import torch.nn.functional as F
 from tqdm import tqdm
 
+from lfsam.camera import synthetic_camera
 from lfsam.devices import resolve_device
 from lfsam.lightfield import LightField
 from lfsam.synth.raster import region, zbuffer
@@ -178,6 +179,8 @@ def render_scene(
     }
     if seed is not None:
         meta["seed"] = int(seed)
+    if "disparity_range" in spec.meta:  # metres for the disparities (docs/design.md section 11)
+        meta["camera"] = synthetic_camera(spec.size, spec.meta["disparity_range"]).to_json()
     categories = {obj.label: obj.category for obj in objects if obj.label != 0}
     return LightField(
         views, disparity=disparity, labels=labels, meta=meta, categories=categories or None
