@@ -45,6 +45,11 @@ def write_ply(
     -------
     Path
 
+    Raises
+    ------
+    ValueError
+        If ``xyz`` and ``rgb`` are not both ``(N, 3)`` (the caller's arrays are wrong).
+
     Examples
     --------
     >>> import tempfile, numpy as np

@@ -142,7 +142,13 @@ def object_points(
 
 
 def merge_points(parts: list[ObjectPoints]) -> ObjectPoints:
-    """One object's points from several views, concatenated (pixels summed)."""
+    """One object's points from several views, concatenated (pixels summed).
+
+    Raises
+    ------
+    ValueError
+        If ``parts`` is empty (the caller has nothing to merge).
+    """
     if not parts:
         raise ValueError("nothing to merge")
     references = [p.reference_disparity for p in parts]
