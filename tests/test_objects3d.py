@@ -195,3 +195,23 @@ def test_video_trajectory_of_objects_moving_in_depth(tmp_path, capsys):
     data = json.loads((tmp_path / "t.json").read_text())
     assert len(data["frames"]) == 4 and data["trajectories"]
     assert (tmp_path / "t.csv").read_text().startswith("id,category,frame,x_m,y_m,z_m")
+
+
+def test_ply_export_of_a_video_and_without_light_field(tmp_path, capsys):
+    frames = list(generate_video(grid=(3, 3), size=(32, 40), frames=2, seed=2, num_objects=1))
+    video = write_video_frames(iter(frames), tmp_path / "video")
+    assert main(["segment", str(video), "--model", "oracle", "--auto", "--disparity", "gt",
+                 "--out", str(tmp_path / "tracked"), "--quiet"]) == 0
+    out = tmp_path / "clouds"
+    assert main(["export", str(tmp_path / "tracked"), "--to", "ply", "--lightfield", str(video),
+                 "--disparity", "gt", "--out", str(out)]) == 0
+    for index, lf in enumerate(frames):
+        names = sorted(p.name for p in (out / f"frame_{index:04d}").glob("object_*.ply"))
+        assert len(names) == len(np.unique(lf.labels[lf.center]))
+        xyz, _ = read_ply(out / f"frame_{index:04d}" / names[0])
+        assert np.isfinite(xyz).all() and (xyz[:, 2] > 0).all()
+    capsys.readouterr()
+    code = main(["export", str(tmp_path / "tracked"), "--to", "ply", "--out",
+                 str(tmp_path / "none")])
+    assert code == 2 and "--lightfield" in capsys.readouterr().err
+    assert not (tmp_path / "none").exists()
