@@ -162,3 +162,17 @@ def test_synthetic_scenes_carry_a_camera_through_their_folder(tmp_path):
     folder = write_lightfield(lf, tmp_path / "scene")
     assert json.loads((folder / "lfsam_scene.json").read_text())["camera"]["focal_px"] == 48.0
     assert camera_of(read_lightfield(folder).meta) == camera
+
+
+def test_parameters_cfg_beside_a_light_field_of_another_format(tmp_path):
+    from lfsam.objects3d import resolve_camera
+
+    lf = generate_scene(grid=(3, 3), size=(24, 32), seed=0, num_objects=1)
+    del lf.meta["camera"]
+    path = write_lightfield(lf, tmp_path / "scene.npz")
+    loaded = read_lightfield(path)
+    with pytest.raises(LfsamError, match="focal_px"):
+        resolve_camera(loaded)
+    (tmp_path / "parameters.cfg").write_text(HCI_CFG)
+    assert resolve_camera(loaded).focus_distance_m == 8.5
+    assert resolve_camera(loaded, Camera(1.0, 1.0)) == Camera(1.0, 1.0)  # given wins

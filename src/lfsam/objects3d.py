@@ -26,11 +26,18 @@ from typing import Any
 
 import numpy as np
 
-from lfsam.camera import Camera, camera_of, load_camera, missing_camera_message
+from lfsam.camera import (
+    Camera,
+    camera_from_hci,
+    camera_of,
+    load_camera,
+    missing_camera_message,
+)
 from lfsam.disparity.methods import estimate_disparity
 from lfsam.disparity.source import load_disparity_spec, resolve_view_disparity
 from lfsam.errors import LfsamError
 from lfsam.export.folder import atomic_folder
+from lfsam.io.hci4d import read_parameters
 from lfsam.lightfield import LightField, check_result_shape
 from lfsam.result import SegmentationResult
 from lfsam.spatial import (
@@ -100,22 +107,28 @@ def resolve_camera(
     lightfield: LightField, camera: Camera | str | os.PathLike | None = None
 ) -> Camera:
     """The camera to use: ``camera`` (a Camera or a ``--camera`` JSON path), else the light
-    field's own (:func:`lfsam.camera.camera_of`).
+    field's own (:func:`lfsam.camera.camera_of`), else an HCI-style ``parameters.cfg`` beside
+    the light field (in its folder, or next to its file; any format).
 
     Raises
     ------
     LfsamError
-        One line naming the missing parameters when neither gives a camera.
+        One line naming the missing parameters when none gives a camera.
     """
     if isinstance(camera, Camera):
         return camera
     if camera is not None:
         return load_camera(camera)
     found = camera_of(lightfield.meta)
-    if found is None:
-        raise LfsamError(missing_camera_message(str(lightfield.meta.get("source", "the light "
-                                                                          "field"))))
-    return found
+    if found is not None:
+        return found
+    source = lightfield.meta.get("source")
+    if source:
+        path = Path(str(source))
+        cfg = (path if path.is_dir() else path.parent) / "parameters.cfg"
+        if cfg.is_file():
+            return camera_from_hci(read_parameters(cfg))
+    raise LfsamError(missing_camera_message(str(source or "the light field")))
 
 
 def _categories(result: SegmentationResult) -> dict[int, str]:
