@@ -12,6 +12,7 @@ HERE = Path(__file__).resolve().parent
 SCRIPTS = [
     "bench_metrics.py",
     "bench_disparity.py",
+    "bench_objects3d.py",
     "bench_decoder.py",
     "bench_pipeline.py",
     "bench_speed.py",
