@@ -159,7 +159,9 @@ def run(args: argparse.Namespace) -> int:
     camera = resolve_camera(lightfield, args.camera)  # before the long work
     found = objects_in_3d(result, lightfield, progress=_progress(views, "views"),
                           **{**measure_options(args), "camera": camera})
-    print(f"{len(found.measures)} objects of {args.result}; disparity {found.disparity_source}, "
+    count = len(found.measures)
+    print(f"{count} object{'' if count == 1 else 's'} of {args.result}; disparity "
+          f"{found.disparity_source}, "
           f"camera f = {found.camera.focal_px:.1f} px, b = {found.camera.baseline_m:.4g} m"
           + (f", z0 = {found.camera.focus_distance_m:.4g} m"
              if found.camera.focus_distance_m else ", parallel views"))
