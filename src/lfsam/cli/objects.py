@@ -121,9 +121,9 @@ def _write(path: str, text: str) -> None:
 
 
 def measure_options(args: argparse.Namespace) -> dict:
-    """:func:`objects_in_3d`'s options from the command line (says first what will take long)."""
-    if args.disparity == "estimate" and not getattr(args, "_announced", False):
-        args._announced = True
+    """:func:`objects_in_3d`'s options from the command line (called once per run: it says
+    first what will take long)."""
+    if args.disparity == "estimate":
         which = "every view's" if args.views == "all" else "the center view's"
         print(f"estimating {which} disparity (seconds to minutes per view on a CPU; "
               "--disparity gt or FILE.npy skips it)", file=sys.stderr)

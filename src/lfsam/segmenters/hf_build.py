@@ -41,6 +41,7 @@ from lfsam.segmenters.registry import (
 __all__ = [
     "MODEL_TYPES",
     "build_transformers_sam",
+    "check_state_fits",
     "edgetam_config",
     "folder_family",
     "how_to_provide",
@@ -196,17 +197,29 @@ def _load_weights(model: torch.nn.Module, folder: Path, label: str) -> None:
     for key, source in (tied.items() if isinstance(tied, dict) else ()):
         if key not in state and source in state:
             state[key] = state[source]
-    missing = [k for k in expected if k not in state]
-    unexpected = [k for k in state if k not in expected]
-    shaped = [k for k in expected if k in state and state[k].shape != expected[k].shape]
+    check_state_fits(state, expected, [k for k in state if k not in expected],
+                     f"the weights in {str(folder)!r} do not fit {label}")
+    model.load_state_dict(state, strict=True)
+
+
+def check_state_fits(found: dict, wanted: dict, unexpected: list[str], what: str) -> None:
+    """Raise one line unless ``found`` holds every key of ``wanted`` with its shape and
+    ``unexpected`` is empty; ``what`` opens the message ("the weights in 'DIR' do not fit X").
+
+    Raises
+    ------
+    LfsamError
+        Counting the missing, unexpected and differently shaped parameters, with an example.
+    """
+    missing = [k for k in wanted if k not in found]
+    shaped = [k for k in wanted if k in found and found[k].shape != wanted[k].shape]
     if missing or unexpected or shaped:
         example = (missing or unexpected or shaped)[0]
         raise LfsamError(
-            f"the weights in {str(folder)!r} do not fit {label} ({len(missing)} missing, "
-            f"{len(unexpected)} unexpected, {len(shaped)} differently shaped parameters, e.g. "
-            f"{example!r}); pass the folder a transformers save_pretrained wrote for this model"
+            f"{what} ({len(missing)} missing, {len(unexpected)} unexpected, {len(shaped)} "
+            f"differently shaped parameters, e.g. {example!r}); pass the folder a transformers "
+            "save_pretrained wrote for this model"
         )
-    model.load_state_dict(state, strict=True)
 
 
 def _require_packages(name: str) -> None:

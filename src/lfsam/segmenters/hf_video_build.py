@@ -28,7 +28,12 @@ import torch
 from torch import nn
 
 from lfsam.errors import LfsamError
-from lfsam.segmenters.hf_build import _read_config, edgetam_config, tiny_edgetam_config
+from lfsam.segmenters.hf_build import (
+    _read_config,
+    check_state_fits,
+    edgetam_config,
+    tiny_edgetam_config,
+)
 from lfsam.segmenters.registry import TRANSFORMERS_MODELS
 
 __all__ = [
@@ -195,15 +200,8 @@ def _load_memory_weights(video: nn.Module, folder: Path) -> None:
                 f"{str(path)!r} cannot be read ({' '.join(str(exc).split())[:100]}); it is "
                 "corrupt or incomplete: download it again"
             ) from None
-    missing = [k for k in wanted if k not in found]
-    shaped = [k for k in found if found[k].shape != wanted[k].shape]
-    if missing or unexpected or shaped:
-        example = (missing or unexpected or shaped)[0]
-        raise LfsamError(
-            f"the memory weights in {str(folder)!r} do not fit its config.json ({len(missing)} "
-            f"missing, {len(unexpected)} unexpected, {len(shaped)} differently shaped, e.g. "
-            f"{example!r}); pass the folder a transformers save_pretrained wrote"
-        )
+    check_state_fits(found, wanted, unexpected,
+                     f"the memory weights in {str(folder)!r} do not fit its config.json")
     video.load_state_dict(found, strict=False)
 
 

@@ -12,7 +12,7 @@ median depth.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -38,11 +38,6 @@ class OrientedBox:
     def to_json(self) -> dict[str, Any]:
         return {"center_m": _round(self.center), "axes": _round(self.axes, 6),
                 "size_m": _round(self.size)}
-
-    def corners(self) -> np.ndarray:
-        """The 8 corners, (8, 3)."""
-        signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
-        return self.center + (signs * self.size / 2) @ self.axes
 
 
 def _round(array: np.ndarray, digits: int = 5) -> list:
@@ -91,7 +86,6 @@ class ObjectMeasure:
     gt_median_depth_m: float | None = None
     median_abs_depth_error_m: float | None = None
     median_depth_relative_error: float | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready (NaN as null)."""
@@ -115,7 +109,7 @@ class ObjectMeasure:
                 median_abs_depth_error_m=number(self.median_abs_depth_error_m),
                 median_depth_relative_error=number(self.median_depth_relative_error),
             )
-        return {**out, **self.extra}
+        return out
 
 
 def measure_object(

@@ -1,7 +1,8 @@
 """PLY point clouds: binary little-endian ``x y z`` (float32) and ``red green blue`` (uint8).
 
 The format of the Stanford PLY files that Open3D, MeshLab, CloudCompare and ``plyfile`` read
-(Turk, "The PLY polygon file format", 1994). Files are written atomically
+(Turk, "The PLY polygon file format", 1994); ``lfsam export --to ply`` writes one per object
+(docs/design.md section 11). Files are written atomically
 (:func:`lfsam.fileutil.atomic_output`): a failed write leaves no partial file.
 """
 

@@ -307,6 +307,15 @@ class MaskLayers:
             return None
         return np.asarray(self.prediction.masks[obj_id], dtype=bool)
 
+    def composite(self) -> np.ndarray:
+        """Every object as the mask layers show it, ``(S, T, U, V)`` int32: the current object
+        over the committed ones over the automatic ones (a copy)."""
+        labels = np.array(self.array(AUTO), dtype=np.int32)
+        for name in (COMMITTED, CURRENT):
+            layer = np.asarray(self.array(name))
+            labels[layer != 0] = layer[layer != 0]
+        return labels
+
     def shown(self, obj_id: int) -> np.ndarray:
         """Where the committed or automatic layer shows object ``obj_id``, ``(S, T, U, V)``."""
         return (self.array(COMMITTED) == obj_id) | (self.array(AUTO) == obj_id)

@@ -169,10 +169,7 @@ class ObjectsDock(QWidget):
         session = widget.session
         if session is None or L.COMMITTED not in widget.layers:
             raise LfsamError("no light field: open one in the lfsam dock first")
-        labels = np.array(widget.masks.array(L.AUTO), dtype=np.int32)
-        for name in (L.COMMITTED, L.CURRENT):  # the current object on top, as shown
-            layer = np.asarray(widget.masks.array(name))
-            labels[layer != 0] = layer[layer != 0]
+        labels = widget.masks.composite()
         if not labels.any():
             raise LfsamError("no object yet: click one or Segment everything in the lfsam dock")
         lightfield = session.lightfield
