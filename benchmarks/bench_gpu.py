@@ -27,6 +27,9 @@ CUDA one untimed LFSAM run):
   per view = that pass's total seconds / (objects x views). A full run's figure differs only by
   its last, partial pass. ``--baseline-objects 0`` times all N (ceil(N / 15) passes).
 
+``--profile`` adds one LFSAM run under ``torch.profiler`` and prints its kernel launches, host
+synchronisations, host-device copies and the GPU's busy time (docs/performance.md, "GPU (H100)").
+
 Run on a GPU (``make gpu-check`` runs this)::
 
     python benchmarks/bench_gpu.py
@@ -107,6 +110,41 @@ def _timed(device: torch.device, fn):
     return out, time.perf_counter() - start
 
 
+def profile_run(fn, device: torch.device) -> dict[str, float]:
+    """Run ``fn`` once under ``torch.profiler`` and print what the host and the GPU did:
+    kernel launches, stream and device synchronisations, host-device copies (calls), the
+    run's wall time under the profiler, the GPU's busy time (self device time of all events)
+    and the share of it in ``aten::copy_`` (dtype casts and moves)."""
+    from torch.autograd import DeviceType
+    from torch.profiler import ProfilerActivity, profile
+
+    activities = [ProfilerActivity.CPU]
+    if device.type == "cuda":
+        activities.append(ProfilerActivity.CUDA)
+    with profile(activities=activities) as prof:
+        _, wall = _timed(device, fn)
+    events = prof.key_averages()
+
+    def calls(*names: str) -> int:
+        return sum(e.count for e in events if e.key in names)
+
+    on_gpu = [e for e in events if getattr(e, "device_type", None) == DeviceType.CUDA]
+    busy = sum(e.self_device_time_total for e in on_gpu) / 1e6  # the kernels themselves
+    copies = sum(e.self_device_time_total for e in events if e.key == "aten::copy_") / 1e6
+    numbers = {
+        "wall_s": wall,
+        "kernel_launches": calls("cudaLaunchKernel", "cuLaunchKernelEx", "cuLaunchKernel"),
+        "synchronisations": calls("cudaStreamSynchronize", "cudaDeviceSynchronize"),
+        "copies": calls("cudaMemcpyAsync", "cudaMemcpy"),
+        "gpu_busy_s": busy,
+    }
+    print(f"\nprofile of one LFSAM run: {wall:.2f} s under the profiler; "
+          f"{numbers['kernel_launches']} kernel launches, {numbers['synchronisations']} "
+          f"synchronisations, {numbers['copies']} host-device copies; GPU busy {busy:.2f} s "
+          f"({100 * copies / busy if busy else 0:.0f} % of it in aten::copy_)", flush=True)
+    return numbers
+
+
 def _pairs(text: str) -> tuple[int, int]:
     a, b = (int(v) for v in text.lower().split("x"))
     return a, b
@@ -136,6 +174,9 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     parser.add_argument("--no-estimate", action="store_true",
                         help="skip timing the disparity estimate (always skipped with --quick)")
     parser.add_argument("--seed", type=int, default=0, help="scene seed")
+    parser.add_argument("--profile", action="store_true",
+                        help="one more LFSAM run under torch.profiler: kernel launches, host "
+                        "synchronisations, copies and the GPU's busy time")
     args = parser.parse_args(argv)
     preset = QUICK if args.quick else FULL
     grid = _pairs(args.grid or preset["grid"])
@@ -205,6 +246,9 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
         base_ms = 1000 * base_wall / (base.num_masks * num_views)
         passes = math.ceil(n / 15)
 
+    if args.profile:
+        profile_run(lambda: segment(lf, prompts, model=segmenter, disparity=lf.center_disparity,
+                                    options=ours_options), device)
     rss_gib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # KiB on Linux
     rows = [
         ("LFSAM ms per mask per view", f"{ours_ms:.2f}",
