@@ -3,7 +3,7 @@
 LFSAM decodes N prompts per view (refinement, paper section 3.4; docs/design.md section 3.5), so
 the decoder's cost per view is N decoder passes. Meta's batched path repeats the image embedding
 once per prompt and runs the whole two-way transformer and upscaling on N copies of it;
-:func:`lfsam.segmenters.sam2_decoder.decode_prompts` shares the prompt-independent part (see its
+:func:`lfsam.segmenters.sam2.decoder.decode_prompts` shares the prompt-independent part (see its
 module docstring). This script prints, for one encoded view and N prompts (one point and one box
 each, the refinement's prompt shape), with random weights (speed does not depend on them):
 
@@ -34,8 +34,8 @@ import torch
 from sam2.sam2_image_predictor import SAM2ImagePredictor
 
 from lfsam.segmenters import Prompts, load_segmenter
-from lfsam.segmenters.sam2_build import inference_context
-from lfsam.segmenters.sam2_decoder import decode_prompts, default_chunk_size, prepare_image
+from lfsam.segmenters.sam2.build import inference_context
+from lfsam.segmenters.sam2.decoder import decode_prompts, default_chunk_size, prepare_image
 
 
 def best_time(fn: Callable[[], object], repeats: int) -> float:

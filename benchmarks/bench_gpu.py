@@ -9,7 +9,7 @@ light field (:func:`lfsam.synth.generate_scene`) and N positive point prompts on
 one at the deepest pixel of each of the N largest regions (when the scene has fewer regions than
 N, further points are drawn inside the regions, seeded; duplicates only add objects). Views are
 encoded in batches of ``--encode-batch``; on CUDA with bfloat16 support everything runs under
-bf16 autocast (lfsam's :func:`~lfsam.segmenters.sam2_build.inference_context`).
+bf16 autocast (lfsam's :func:`~lfsam.segmenters.sam2.build.inference_context`).
 
 Measured in one run, after a warm-up (one batched encoder pass, the video predictor built, and on
 CUDA one untimed LFSAM run):
@@ -55,7 +55,7 @@ from lfsam.baseline import video_predictor_for
 from lfsam.disparity import resolve_disparity
 from lfsam.pipeline import PipelineConfig
 from lfsam.segmenters import Prompts, load_segmenter
-from lfsam.segmenters.sam2_build import autocast_dtype, resolve_device
+from lfsam.segmenters.sam2.build import autocast_dtype, resolve_device
 from lfsam.synth import generate_scene
 
 FULL = {"grid": "9x9", "size": "480x640", "prompts": 100}

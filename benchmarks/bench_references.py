@@ -49,7 +49,7 @@ from lfsam.metrics import evaluate_result
 from lfsam.pipeline.references import uncovered_points
 from lfsam.segmenters import load_segmenter
 from lfsam.segmenters.oracle import OracleSegmenter
-from lfsam.segmenters.sam2_backend import Sam2Segmenter
+from lfsam.segmenters.sam2.backend import Sam2Segmenter
 from lfsam.synth import generate_scene
 
 

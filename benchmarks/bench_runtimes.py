@@ -1,6 +1,6 @@
 """SAM 2's image encoder on CPU: eager PyTorch against ONNX Runtime and OpenVINO (issue 18).
 
-The encoder is measured exactly as :meth:`lfsam.segmenters.sam2_backend.Sam2Segmenter.encode`
+The encoder is measured exactly as :meth:`lfsam.segmenters.sam2.backend.Sam2Segmenter.encode`
 runs it (``_encode_batch``): SAM 2's transforms (resize to the model's square input, ImageNet
 normalisation) outside, then ``forward_image`` (trunk, neck and the decoder's two 1x1 high-res
 convolutions), ``_prepare_backbone_features`` and ``no_mem_embed`` inside the exported graph.

@@ -78,7 +78,7 @@ def test_bad_frames_are_user_errors(views, transform):
 
 def test_state_matches_sam2_init_state(tmp_path):
     """Our in-memory state has init_state's keys and values (sam2 1.1), frames included."""
-    from lfsam.segmenters.sam2_build import build_sam2_video
+    from lfsam.segmenters.sam2.build import build_sam2_video
 
     predictor = build_sam2_video("sam2-tiny-test", random_weights=True, device="cpu")
     views = _views(count=2)

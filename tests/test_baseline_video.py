@@ -23,7 +23,7 @@ from lfsam.metrics import evaluate_labels
 from lfsam.result import load_result, save_result
 from lfsam.segmenters import Prompts, load_segmenter
 from lfsam.segmenters.oracle import OracleSegmenter
-from lfsam.segmenters.sam2_backend import Sam2Segmenter
+from lfsam.segmenters.sam2.backend import Sam2Segmenter
 from lfsam.synth import generate_scene
 
 GRID, SIZE = (3, 3), (32, 48)

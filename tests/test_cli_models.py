@@ -13,7 +13,7 @@ from lfsam.cli.main import main
 from lfsam.cli.models import add_model_arguments, parse_option, segmenter_from_args
 from lfsam.errors import LfsamError
 from lfsam.segmenters.registry import MODELS
-from lfsam.segmenters.sam2_backend import Sam2Segmenter
+from lfsam.segmenters.sam2.backend import Sam2Segmenter
 
 
 @pytest.fixture

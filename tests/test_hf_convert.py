@@ -1,4 +1,4 @@
-"""Meta SAM 2 -> transformers Sam2Model conversion (lfsam.segmenters.hf_convert).
+"""Meta SAM 2 -> transformers Sam2Model conversion (lfsam.segmenters.transformers.convert).
 
 The same weights in both implementations must give the same image embeddings, low-resolution
 mask logits and IoU predictions. Every weight of the Meta model is perturbed first (seeded), so
@@ -13,12 +13,12 @@ import pytest
 import torch
 
 from lfsam.errors import LfsamError
-from lfsam.segmenters.hf_convert import (
+from lfsam.segmenters.sam2.build import build_sam2, make_image_predictor
+from lfsam.segmenters.transformers.convert import (
     sam2_config_for,
     sam2_state_dict_to_transformers,
     sam2_to_transformers,
 )
-from lfsam.segmenters.sam2_build import build_sam2, make_image_predictor
 
 RTOL = 1e-5
 """Allowed max abs difference relative to the magnitude (at least 1) of the Meta output."""
@@ -298,7 +298,7 @@ def test_the_mapping_names_sammodel_heads():
     no-memory embedding is Sam2Model's alone."""
     from transformers import SamConfig, SamModel, SamVisionConfig
 
-    from lfsam.segmenters.hf_heads import build_meta_heads
+    from lfsam.segmenters.transformers.heads import build_meta_heads
 
     config = SamConfig(
         vision_config=SamVisionConfig(hidden_size=32, num_hidden_layers=1, num_attention_heads=2,

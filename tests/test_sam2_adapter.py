@@ -1,4 +1,4 @@
-"""Private parts of Meta's sam2: all in lfsam.segmenters.sam2_adapter, all present in this sam2.
+"""Private parts of Meta's sam2: all in lfsam.segmenters.sam2.adapter, all present in this sam2.
 
 If a sam2 upgrade removes or renames something the adapter relies on, these tests fail naming the
 adapter module and the attribute, instead of lfsam failing at run time.
@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 
 import lfsam
-from lfsam.segmenters import sam2_adapter
-from lfsam.segmenters.sam2_adapter import (
+from lfsam.segmenters.sam2 import adapter as sam2_adapter
+from lfsam.segmenters.sam2.adapter import (
     SAM2_CLASS_ATTRIBUTES,
     SAM2_MODULE_ATTRIBUTES,
     SAM2_PREDICTOR_STATE,
@@ -30,8 +30,8 @@ SAM2_VERSION = metadata.version("sam2")
 
 def _fail_message(name: str) -> str:
     return (
-        f"lfsam.segmenters.sam2_adapter needs {name}, which the installed sam2 {SAM2_VERSION} "
-        "does not have: adapt src/lfsam/segmenters/sam2_adapter.py to this sam2 or keep sam2 "
+        f"lfsam.segmenters.sam2.adapter needs {name}, which the installed sam2 {SAM2_VERSION} "
+        "does not have: adapt src/lfsam/segmenters/sam2/adapter.py to this sam2 or keep sam2 "
         "within the bound of pyproject.toml"
     )
 
@@ -59,7 +59,7 @@ def test_sam2_modules_have_what_the_adapter_needs(module_name, name):
 
 
 def test_sam2_image_predictor_keeps_the_state_the_adapter_sets():
-    from lfsam.segmenters.sam2_build import build_sam2, make_image_predictor
+    from lfsam.segmenters.sam2.build import build_sam2, make_image_predictor
 
     predictor = make_image_predictor(build_sam2("sam2-tiny-test", device="cpu"))
     missing = missing_sam2_api(predictor)
@@ -106,9 +106,10 @@ def _sam2_private_names() -> set[str]:
 
 
 #: (module, name) pairs that are another library's private name spelled as one of sam2's:
-#: transformers' ``EdgeTamVideoModel._use_mask_as_output``, wrapped by hf_video_build to fix its
+#: transformers' ``EdgeTamVideoModel._use_mask_as_output``, wrapped by transformers.video_build to
+#: fix its
 #: object-score shape (docs/design.md section 10).
-NOT_SAM2 = {("segmenters/hf_video_build.py", "_use_mask_as_output")}
+NOT_SAM2 = {("segmenters/transformers/video_build.py", "_use_mask_as_output")}
 
 
 def test_no_other_module_touches_sam2_private_names():
@@ -129,7 +130,7 @@ def test_no_other_module_touches_sam2_private_names():
             if name and (str(path.relative_to(SRC)), name) not in NOT_SAM2:
                 offenders.append(f"{path.relative_to(SRC)}:{node.lineno} {name}")
     assert not offenders, (
-        "only lfsam.segmenters.sam2_adapter may touch private names of sam2: "
+        "only lfsam.segmenters.sam2.adapter may touch private names of sam2: "
         + ", ".join(offenders)
     )
 
@@ -138,10 +139,10 @@ def test_no_module_imports_private_helpers_of_the_sam2_builder():
     offenders = []
     for path in sorted(SRC.rglob("*.py")):
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            if isinstance(node, ast.ImportFrom) and node.module == "lfsam.segmenters.sam2_build":
+            if isinstance(node, ast.ImportFrom) and node.module == "lfsam.segmenters.sam2.build":
                 offenders += [
                     f"{path.relative_to(SRC)}:{node.lineno} {a.name}"
                     for a in node.names
                     if a.name.startswith("_")
                 ]
-    assert not offenders, f"private helpers of sam2_build imported elsewhere: {offenders}"
+    assert not offenders, f"private helpers of sam2.build imported elsewhere: {offenders}"

@@ -17,8 +17,8 @@ import torch
 
 from lfsam.errors import LfsamError
 from lfsam.segmenters import Prompts, load_segmenter
-from lfsam.segmenters.sam2_build import make_image_predictor
-from lfsam.segmenters.sam2_decoder import (
+from lfsam.segmenters.sam2.build import make_image_predictor
+from lfsam.segmenters.sam2.decoder import (
     LOGIT_CLAMP,
     decode_prompts,
     embed_prompts,
@@ -296,7 +296,7 @@ def test_segmenter_masks_come_from_unclamped_logits(tiny):
     masks show the segmenter post-processes the right tensor; its low-res logits are clamped.
     """
     from lfsam.segmenters.base import ViewEmbedding
-    from lfsam.segmenters.sam2_backend import Sam2Features, Sam2Segmenter
+    from lfsam.segmenters.sam2.backend import Sam2Features, Sam2Segmenter
 
     model = _variant(tiny)
     with torch.no_grad():

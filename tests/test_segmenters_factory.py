@@ -12,7 +12,7 @@ from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.segmenters import Prompts, Segmenter, available_models, load_segmenter
 from lfsam.segmenters.oracle import OracleSegmenter
-from lfsam.segmenters.sam2_backend import Sam2Segmenter
+from lfsam.segmenters.sam2.backend import Sam2Segmenter
 
 
 def test_tiny_model_by_name_is_a_random_weight_sam2_segmenter():

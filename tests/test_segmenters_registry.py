@@ -17,7 +17,7 @@ from lfsam.segmenters.registry import (
     TRANSFORMERS_MODELS,
     get_model_spec,
 )
-from lfsam.segmenters.sam2_build import build_sam2
+from lfsam.segmenters.sam2.build import build_sam2
 
 
 def test_real_models_match_sam2_hub_table():

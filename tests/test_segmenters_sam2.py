@@ -16,8 +16,8 @@ from sam2.automatic_mask_generator import SAM2AutomaticMaskGenerator
 
 from lfsam.errors import LfsamError
 from lfsam.segmenters import Prompts, ViewEmbedding, load_segmenter
-from lfsam.segmenters.sam2_backend import PAPER_AMG_OPTIONS, Sam2Features, Sam2Segmenter
-from lfsam.segmenters.sam2_build import make_image_predictor
+from lfsam.segmenters.sam2.backend import PAPER_AMG_OPTIONS, Sam2Features, Sam2Segmenter
+from lfsam.segmenters.sam2.build import make_image_predictor
 
 U, V = 32, 48  # a non-square view: the resize to the square input stretches each axis
 AMG = {"points_per_side": 4, "pred_iou_thresh": 0.0, "stability_score_thresh": 0.0}

@@ -10,12 +10,12 @@ import pytest
 import torch
 
 from lfsam.errors import LfsamError
+from lfsam.segmenters.hub import hub_cache_dir
 from lfsam.segmenters.registry import TINY_TEST_MODEL
-from lfsam.segmenters.sam2_build import (
+from lfsam.segmenters.sam2.build import (
     build_sam2,
     build_sam2_video,
     cached_checkpoint,
-    hub_cache_dir,
     inference_context,
     load_checkpoint,
     resolve_checkpoint,

@@ -27,14 +27,14 @@ from lfsam.io import write_lightfield
 from lfsam.result import load_result
 from lfsam.segmenters import load_segmenter
 from lfsam.segmenters.base import Prompts
-from lfsam.segmenters.hf_backend import TransformersSegmenter
-from lfsam.segmenters.hf_build import edgetam_config, tiny_edgetam_config
-from lfsam.segmenters.hf_convert import sam2_to_transformers
-from lfsam.segmenters.hf_sam1 import PaddedTransforms, preprocess_padded, view_grid
 from lfsam.segmenters.registry import TRANSFORMERS_MODELS
-from lfsam.segmenters.sam2_adapter import image_transforms
-from lfsam.segmenters.sam2_backend import Sam2Segmenter
-from lfsam.segmenters.sam2_build import build_sam2
+from lfsam.segmenters.sam2.adapter import image_transforms
+from lfsam.segmenters.sam2.backend import Sam2Segmenter
+from lfsam.segmenters.sam2.build import build_sam2
+from lfsam.segmenters.transformers.backend import TransformersSegmenter
+from lfsam.segmenters.transformers.build import edgetam_config, tiny_edgetam_config
+from lfsam.segmenters.transformers.convert import sam2_to_transformers
+from lfsam.segmenters.transformers.sam1 import PaddedTransforms, preprocess_padded, view_grid
 from lfsam.synth import generate_scene
 
 

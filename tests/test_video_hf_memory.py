@@ -10,7 +10,7 @@ import torch
 
 from lfsam.errors import LfsamError
 from lfsam.segmenters import load_segmenter
-from lfsam.segmenters.hf_video_build import (
+from lfsam.segmenters.transformers.video_build import (
     SHARED_MODULES,
     tiny_edgetam_video_config,
     video_model_for,
@@ -277,7 +277,7 @@ def _save_image_only(tmp_path, kind: str):
     """A transformers-format image-only folder: a tiny EdgeTamModel or SAM (v1) SamModel."""
     from transformers import EdgeTamModel, SamConfig, SamModel, SamVisionConfig
 
-    from lfsam.segmenters.hf_build import tiny_edgetam_config
+    from lfsam.segmenters.transformers.build import tiny_edgetam_config
 
     folder = tmp_path / kind
     if kind == "edgetam":

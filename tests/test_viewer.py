@@ -406,7 +406,7 @@ def edgetam_folder(tmp_path_factory):
     import torch
     from transformers import EdgeTamModel
 
-    from lfsam.segmenters.hf_build import tiny_edgetam_config
+    from lfsam.segmenters.transformers.build import tiny_edgetam_config
 
     torch.manual_seed(0)
     model = EdgeTamModel(tiny_edgetam_config())
@@ -441,7 +441,7 @@ def _click_center_segments(qtbot, viewer, widget, scene):
 
 def test_edgetam_model_segments_a_click(make_napari_viewer, qtbot, scene, monkeypatch):
     """The model box on the tiny EdgeTAM (random weights): a click segments an object."""
-    from lfsam.segmenters.hf_backend import TransformersSegmenter
+    from lfsam.segmenters.transformers.backend import TransformersSegmenter
 
     shown = []
     monkeypatch.setattr("lfsam.viewer.widget._notify_error", shown.append)
@@ -463,8 +463,8 @@ def test_weights_folder_item_loads_a_transformers_folder(
 ):
     """"folder…" in the weights box asks for a folder; with the model "transformers" the
     session's segmenter is then the transformers backend on that folder, and clicks segment."""
-    from lfsam.segmenters.hf_backend import TransformersSegmenter
     from lfsam.segmenters.registry import TRANSFORMERS_FOLDER
+    from lfsam.segmenters.transformers.backend import TransformersSegmenter
     from lfsam.viewer import controls as C
 
     asked = []
@@ -519,8 +519,8 @@ def test_view_with_a_checkpoint_folder_shows_transformers(
     from lfsam.cli.main import build_parser
     from lfsam.cli.view import open_viewer
     from lfsam.io import write_lightfield
-    from lfsam.segmenters.hf_backend import TransformersSegmenter
     from lfsam.segmenters.registry import TRANSFORMERS_FOLDER
+    from lfsam.segmenters.transformers.backend import TransformersSegmenter
 
     scene_dir = tmp_path / "scene"
     write_lightfield(scene, scene_dir)

@@ -23,7 +23,8 @@ from lfsam.io import write_lightfield
 from lfsam.metrics import evaluate_labels, evaluate_result
 from lfsam.metrics.report import format_metrics_table
 from lfsam.result import save_result
-from lfsam.segmenters.sam2_build import cached_checkpoint, hub_offline, hub_reachable
+from lfsam.segmenters.hub import hub_offline, hub_reachable
+from lfsam.segmenters.sam2.build import cached_checkpoint
 from lfsam.viz import animation_frames, epi_figure, save_image, view_grid, write_animation
 
 __all__ = ["DemoReport", "choose_segmenter", "run_demo"]

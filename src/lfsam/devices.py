@@ -118,7 +118,7 @@ def default_encode_batch_size(device: str | torch.device) -> int:
     """Views the SAM 2 image encoder takes at once on ``device``: 4 on CUDA, 1 elsewhere.
 
     The single source of this choice: :class:`lfsam.pipeline.PipelineConfig` (``None`` = from the
-    device) and :class:`lfsam.segmenters.sam2_backend.Sam2Segmenter` both ask here.
+    device) and :class:`lfsam.segmenters.sam2.backend.Sam2Segmenter` both ask here.
 
     Examples
     --------
@@ -131,7 +131,7 @@ def default_encode_batch_size(device: str | torch.device) -> int:
 def default_prompt_batch_size(device: str | torch.device) -> int:
     """Prompts of one view the mask decoder takes per call on ``device``: 128 on CUDA, 64
     elsewhere; the single source for refinement (:class:`lfsam.pipeline.PipelineConfig`) and
-    :class:`lfsam.segmenters.sam2_backend.Sam2Segmenter`.
+    :class:`lfsam.segmenters.sam2.backend.Sam2Segmenter`.
 
     Examples
     --------

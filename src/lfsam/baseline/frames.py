@@ -15,7 +15,7 @@ Two frame transforms are offered:
 ``"image"``
     The image predictor's transform (``sam2.utils.transforms.SAM2Transforms``: torchvision
     ``Resize`` of the float view, then ``Normalize``), batched on the model's device: the encoder
-    then sees exactly the tensors LFSAM's :class:`~lfsam.segmenters.sam2_backend.Sam2Segmenter`
+    then sees exactly the tensors LFSAM's :class:`~lfsam.segmenters.sam2.backend.Sam2Segmenter`
     encodes.
 """
 
@@ -28,7 +28,7 @@ import numpy as np
 import torch
 
 from lfsam.errors import LfsamError
-from lfsam.segmenters.sam2_adapter import IMAGENET_MEAN, IMAGENET_STD
+from lfsam.segmenters.sam2.adapter import IMAGENET_MEAN, IMAGENET_STD
 
 __all__ = ["FRAME_TRANSFORMS", "IMAGENET_MEAN", "IMAGENET_STD", "init_video_state", "video_frames"]
 

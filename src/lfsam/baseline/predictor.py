@@ -2,7 +2,7 @@
 
 The baseline and LFSAM must run the same network (paper section 4: both use SAM 2 Hiera-S). The
 video predictor (``SAM2VideoPredictor``, built by
-:func:`lfsam.segmenters.sam2_build.build_sam2_video` with the settings of Meta's
+:func:`lfsam.segmenters.sam2.build.build_sam2_video` with the settings of Meta's
 ``build_sam2_video_predictor``) has the same parameters as the image model ``SAM2Base``; it is
 built once per image model, untrained, and then takes the image model's tensors themselves
 (``load_state_dict(..., assign=True)``): same weights whether they came from a checkpoint or a
@@ -22,7 +22,7 @@ import torch
 from lfsam.errors import LfsamError
 from lfsam.segmenters.base import Segmenter
 from lfsam.segmenters.registry import MODELS
-from lfsam.segmenters.sam2_build import build_sam2_video
+from lfsam.segmenters.sam2.build import build_sam2_video
 
 __all__ = ["quiet_sam2_video", "video_predictor_for"]
 
@@ -35,7 +35,7 @@ def video_predictor_for(segmenter: Segmenter) -> Any:
     Parameters
     ----------
     segmenter : Segmenter
-        A :class:`~lfsam.segmenters.sam2_backend.Sam2Segmenter` (anything with a ``model``
+        A :class:`~lfsam.segmenters.sam2.backend.Sam2Segmenter` (anything with a ``model``
         attribute holding a ``SAM2Base`` built by lfsam).
 
     Returns
@@ -87,7 +87,7 @@ def quiet_sam2_video() -> Iterator[None]:
     skips filling small holes in the tracked masks (``fill_hole_area``, a post-processing step);
     tracking is otherwise the same. Both are restored on exit.
     """
-    from lfsam.segmenters.sam2_adapter import quiet_video_progress
+    from lfsam.segmenters.sam2.adapter import quiet_video_progress
 
     with quiet_video_progress(), warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=r"cannot import name '_C'")

@@ -39,7 +39,7 @@ from lfsam.pipeline.fusion import fuse_labels
 from lfsam.pipeline.initial import SourceMasks, initial_segmentation, validate_prompts
 from lfsam.result import PackedMasks, SegmentationResult
 from lfsam.segmenters.base import Prompts, Segmenter
-from lfsam.segmenters.sam2_build import inference_context
+from lfsam.segmenters.sam2.build import inference_context
 from lfsam.timing import StageTimer
 from lfsam.version import __version__
 
@@ -70,7 +70,7 @@ def video_baseline(
     lightfield : LightField
         Views ``[S, T, U, V, 3]``.
     segmenter : Segmenter
-        A SAM 2 segmenter (:class:`~lfsam.segmenters.sam2_backend.Sam2Segmenter`); its image
+        A SAM 2 segmenter (:class:`~lfsam.segmenters.sam2.backend.Sam2Segmenter`); its image
         model makes the start masks, and the video predictor runs with the same weights
         (:func:`lfsam.baseline.predictor.video_predictor_for`). The oracle cannot track video.
     prompts : sequence of Prompts, optional

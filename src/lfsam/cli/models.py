@@ -26,7 +26,7 @@ from lfsam.segmenters.registry import (
     TRANSFORMERS_FOLDER,
     TRANSFORMERS_MODELS,
 )
-from lfsam.segmenters.sam2_build import PRECISIONS
+from lfsam.segmenters.sam2.build import PRECISIONS
 from lfsam.segmenters.text.registry import TEXT_MODELS, TINY_SAM3_SIZES
 
 __all__ = [
@@ -157,7 +157,7 @@ def model_name_from_args(args: argparse.Namespace) -> str | None:
     """The model the options name: ``--model``; without it, ``transformers`` for a folder
     given with ``--checkpoint DIR`` (docs/design.md section 3.8), else the command's default
     (None where the command chooses itself, as ``lfsam demo`` does)."""
-    from lfsam.segmenters.hf_build import is_transformers_folder
+    from lfsam.segmenters.transformers.build import is_transformers_folder
 
     name = getattr(args, "model", None)
     given = name is not None and not isinstance(name, ModelNotGiven)
@@ -218,8 +218,8 @@ def _row(spec: Any, cached: Any, kind: str, *, default: bool = False,
 
 def list_models() -> dict[str, Any]:
     """What ``lfsam models`` shows, as a JSON-ready dict (no network, no model built)."""
-    from lfsam.segmenters.hub_folder import cached_hub_folder
-    from lfsam.segmenters.sam2_build import autocast_dtype, cached_checkpoint, hub_cache_dir
+    from lfsam.segmenters.hub import cached_hub_folder, hub_cache_dir
+    from lfsam.segmenters.sam2.build import autocast_dtype, cached_checkpoint
     from lfsam.segmenters.text.weights import cached_text_weights
 
     device = resolve_device(None)
@@ -284,13 +284,13 @@ def _table(info: dict[str, Any]) -> str:
 def run(args: argparse.Namespace) -> int:
     """Print the model table (or JSON), or download one model's weights."""
     if args.download:
-        from lfsam.segmenters.sam2_build import resolve_checkpoint
+        from lfsam.segmenters.sam2.build import resolve_checkpoint
 
         if args.download == ORACLE:
             raise LfsamError("the oracle has no weights; choose a SAM 2 model to download")
         if args.download in TRANSFORMERS_MODELS:
-            from lfsam.segmenters.hf_build import how_to_provide
-            from lfsam.segmenters.hub_folder import download_hub_folder
+            from lfsam.segmenters.hub import download_hub_folder
+            from lfsam.segmenters.transformers.build import how_to_provide
 
             spec = TRANSFORMERS_MODELS[args.download]
             folder = download_hub_folder(spec.hub_id, f"model {spec.name}", how_to_provide(spec))

@@ -1,9 +1,9 @@
 """One entry point for every backend: ``load_segmenter(model=...)`` (the CLI's ``--model``).
 
-SAM 2 models are built by :mod:`lfsam.segmenters.sam2_build` and wrapped by
-:class:`~lfsam.segmenters.sam2_backend.Sam2Segmenter`; EdgeTAM and any transformers-format folder
-(``checkpoint`` a directory) by :mod:`lfsam.segmenters.hf_build` and wrapped by
-:class:`~lfsam.segmenters.hf_backend.TransformersSegmenter` (docs/design.md section 3.8);
+SAM 2 models are built by :mod:`lfsam.segmenters.sam2.build` and wrapped by
+:class:`~lfsam.segmenters.sam2.backend.Sam2Segmenter`; EdgeTAM and any transformers-format folder
+(``checkpoint`` a directory) by :mod:`lfsam.segmenters.transformers.build` and wrapped by
+:class:`~lfsam.segmenters.transformers.backend.TransformersSegmenter` (docs/design.md section 3.8);
 ``"oracle"`` gives an :class:`~lfsam.segmenters.oracle.OracleSegmenter` on a light field's
 ground-truth labels.
 """
@@ -81,7 +81,7 @@ def load_segmenter(
         view again; about three times the memory per view). Batch runs, which decode each view
         once, turn it off. The oracle has no such state.
     **sam2_options
-        Further keywords of :class:`~lfsam.segmenters.sam2_backend.Sam2Segmenter`
+        Further keywords of :class:`~lfsam.segmenters.sam2.backend.Sam2Segmenter`
         (``max_prompts_per_batch``, ``encode_batch_size``, ``mask_threshold``).
 
     Raises
@@ -107,15 +107,15 @@ def load_segmenter(
         return OracleSegmenter(lightfield, seed=seed, device=device, **(oracle_options or {}))
     if oracle_options:
         raise LfsamError("oracle options apply only to --model oracle; drop them")
-    from lfsam.segmenters.hf_build import is_transformers_folder
+    from lfsam.segmenters.transformers.build import is_transformers_folder
 
     transformers = model in TRANSFORMERS_MODELS or model == TRANSFORMERS_FOLDER
     if not transformers:
         get_model_spec(model)  # unknown names fail before anything is imported or downloaded
     if transformers or is_transformers_folder(checkpoint):
-        from lfsam.segmenters.hf_backend import TransformersSegmenter as backend
+        from lfsam.segmenters.transformers.backend import TransformersSegmenter as backend
     else:
-        from lfsam.segmenters.sam2_backend import Sam2Segmenter as backend
+        from lfsam.segmenters.sam2.backend import Sam2Segmenter as backend
     return backend.from_name(
         model,
         checkpoint=checkpoint,

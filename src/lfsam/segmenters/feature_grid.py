@@ -16,7 +16,7 @@ needs are then small computations on the grid:
 
 No pixels x C matrix is ever formed, which is what made semantic occluding cost about a tenth of
 a second per view on a CPU. The sampling convention is that of
-:meth:`lfsam.segmenters.sam2_backend.Sam2Segmenter.sample_features`: the view is resized to the
+:meth:`lfsam.segmenters.sam2.backend.Sam2Segmenter.sample_features`: the view is resized to the
 grid without padding, pixel ``r`` of ``U`` rows lies at grid coordinate ``(r + 0.5) h / U - 0.5``
 (``F.interpolate(..., align_corners=False)``), and coordinates beyond the outermost cell centres
 are clamped (``grid_sample(..., padding_mode="border")``).

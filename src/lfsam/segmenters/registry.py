@@ -12,7 +12,8 @@ weights: it runs with random weights (or a checkpoint the tests write) so the wh
 can be exercised in tests on a CPU.
 
 :data:`TRANSFORMERS_MODELS` are the models lfsam runs from Hugging Face ``transformers``
-checkpoints (:mod:`lfsam.segmenters.hf_backend`; docs/design.md section 3.8): EdgeTAM (Zhou et al.
+checkpoints (:mod:`lfsam.segmenters.transformers.backend`; docs/design.md section 3.8): EdgeTAM
+(Zhou et al.
 2025, "EdgeTAM: On-Device Track Anything Model", CVPR 2025), SAM 2's on-device variant with a
 RepViT image encoder, from the hub's transformers-format copy ``yonigozlan/EdgeTAM-hf`` (the
 checkpoint ``transformers``' own EdgeTAM documentation uses), and ``edgetam-tiny-test``, the same

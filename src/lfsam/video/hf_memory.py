@@ -2,8 +2,9 @@
 video (docs/design.md section 10).
 
 The counterpart of :class:`lfsam.video.memory.ReferenceMemory` for the ``transformers`` backend
-(:class:`~lfsam.segmenters.hf_backend.TransformersSegmenter`): ``transformers``'
-``EdgeTamVideoModel`` / ``Sam2VideoModel`` (:func:`lfsam.segmenters.hf_video_build.video_model_for`,
+(:class:`~lfsam.segmenters.transformers.backend.TransformersSegmenter`): ``transformers``'
+``EdgeTamVideoModel`` / ``Sam2VideoModel``
+(:func:`lfsam.segmenters.transformers.video_build.video_model_for`,
 sharing the segmenter's encoder and heads) streamed one center view per frame through its
 inference session (``EdgeTamVideoInferenceSession``), with no frame count known up front:
 
@@ -48,10 +49,14 @@ import torch.nn.functional as F
 
 from lfsam.errors import LfsamError
 from lfsam.segmenters.base import Segmenter, ViewEmbedding
-from lfsam.segmenters.hf_backend import TransformersSegmenter, preprocess_views
-from lfsam.segmenters.hf_video_build import session_class, video_memory_problem, video_model_for
-from lfsam.segmenters.sam2_backend import Sam2Features
-from lfsam.segmenters.sam2_build import inference_context
+from lfsam.segmenters.sam2.backend import Sam2Features
+from lfsam.segmenters.sam2.build import inference_context
+from lfsam.segmenters.transformers.backend import TransformersSegmenter, preprocess_views
+from lfsam.segmenters.transformers.video_build import (
+    session_class,
+    video_memory_problem,
+    video_model_for,
+)
 
 __all__ = ["TransformersReferenceMemory", "has_transformers_video_memory"]
 

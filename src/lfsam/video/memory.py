@@ -10,7 +10,7 @@ the center view of every light field. :class:`ReferenceMemory` drives it one fra
   is needed up front, so a live stream works: the state's ``num_frames`` grows with each
   frame). It runs the image encoder on it once, keeps the output where SAM 2 looks for it
   (``cached_features``) and returns the light-field segmenter's embedding of the same pass
-  (:meth:`~lfsam.segmenters.sam2_backend.Sam2Segmenter.embedding_from_backbone`), so the
+  (:meth:`~lfsam.segmenters.sam2.backend.Sam2Segmenter.embedding_from_backbone`), so the
   frame's center view is encoded once for both (issue 35);
 - :meth:`ReferenceMemory.add_mask` conditions an object on a mask at this frame
   (``add_new_mask``: an object's start or a re-prompt);
@@ -46,7 +46,7 @@ from lfsam.baseline.predictor import quiet_sam2_video, video_predictor_for
 from lfsam.baseline.video import MASK_THRESHOLD
 from lfsam.errors import LfsamError
 from lfsam.segmenters.base import Segmenter, ViewEmbedding
-from lfsam.segmenters.sam2_build import inference_context
+from lfsam.segmenters.sam2.build import inference_context
 
 __all__ = ["ReferenceMemory", "has_video_memory", "reference_memory_for"]
 
@@ -70,10 +70,10 @@ def reference_memory_for(segmenter: Segmenter, view_shape: tuple[int, int],
     one (the oracle, SAM v1), or an :class:`LfsamError` naming the fix when ``required``."""
     if has_video_memory(segmenter):
         return ReferenceMemory(segmenter, view_shape)
-    from lfsam.segmenters.hf_backend import TransformersSegmenter
+    from lfsam.segmenters.transformers.backend import TransformersSegmenter
 
     if isinstance(segmenter, TransformersSegmenter):
-        from lfsam.segmenters.hf_video_build import video_memory_problem
+        from lfsam.segmenters.transformers.video_build import video_memory_problem
         from lfsam.video.hf_memory import TransformersReferenceMemory
 
         problem = video_memory_problem(segmenter.model)

@@ -14,8 +14,12 @@ import os
 from pathlib import Path
 
 from lfsam.errors import LfsamError
-from lfsam.segmenters.hub_folder import cached_hub_folder, download_hub_folder, is_weights_folder
-from lfsam.segmenters.sam2_build import HUB_TIMEOUT_S
+from lfsam.segmenters.hub import (
+    HUB_TIMEOUT_S,
+    cached_hub_folder,
+    download_hub_folder,
+    is_weights_folder,
+)
 from lfsam.segmenters.text.registry import TextModelSpec, get_text_model_spec
 
 __all__ = ["cached_text_weights", "how_to_get", "resolve_text_weights"]

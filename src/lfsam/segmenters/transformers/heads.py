@@ -3,11 +3,11 @@
 ``transformers``' ``Sam2Model`` and ``EdgeTamModel`` carry the prompt encoder and mask decoder of
 SAM 2 (Ravi et al. 2024) under other names: EdgeTAM (Zhou et al. 2025, "EdgeTAM: On-Device
 Track Anything Model") changes the image encoder and the memory, not the heads. lfsam decodes
-with the restructured decoder of :mod:`lfsam.segmenters.sam2_decoder`, which shares a view's
+with the restructured decoder of :mod:`lfsam.segmenters.sam2.decoder`, which shares a view's
 image side across all its prompts (one transformers forward of 16 prompts costs more than one
 EdgeTAM encoder pass on a CPU; docs/performance.md). So the heads' weights are loaded into Meta's
 ``PromptEncoder`` and ``MaskDecoder`` (same arithmetic) by :func:`load_meta_heads`, with the
-one key mapping of :mod:`lfsam.segmenters.hf_convert` (Meta to ``transformers``, the way
+one key mapping of :mod:`lfsam.segmenters.transformers.convert` (Meta to ``transformers``, the way
 ``transformers``' own SAM 2 conversion goes) read backwards.
 
 ``SamModel`` (SAM v1, Kirillov et al. 2023; also SlimSAM and MedSAM checkpoints) has the decoder
@@ -128,7 +128,8 @@ def build_meta_heads(config: Any) -> MetaHeads:
 def load_meta_heads(heads: MetaHeads, hf_state: dict[str, torch.Tensor]) -> None:
     """Load the heads of a ``transformers`` state dict into ``heads`` (every key checked).
 
-    The key mapping is :func:`lfsam.segmenters.hf_convert.sam2_state_dict_to_transformers`'s
+    The key mapping is
+    :func:`lfsam.segmenters.transformers.convert.sam2_state_dict_to_transformers`'s
     (Meta to ``transformers``, in the names of ``heads.hf_class``), read backwards: each Meta
     tensor is filled from the ``transformers`` key it converts to; the rows of ``Sam2Model``'s
     ``prompt_encoder.point_embed`` are Meta's four point embeddings (``SamModel`` keeps them
@@ -141,7 +142,7 @@ def load_meta_heads(heads: MetaHeads, hf_state: dict[str, torch.Tensor]) -> None
         Missing or differently shaped parameters, or two positional matrices that differ (a
         checkpoint lfsam's decoder cannot reproduce).
     """
-    from lfsam.segmenters.hf_convert import sam2_state_dict_to_transformers
+    from lfsam.segmenters.transformers.convert import sam2_state_dict_to_transformers
 
     meta = heads.state_dict(keep_vars=True)
     # the same tensors under transformers' keys

@@ -13,7 +13,7 @@ uses it for the architecture, adding what lfsam needs around it:
   (:func:`inference_context`).
 
 :func:`build_sam2` gives the image model (``SAM2Base``) used by
-:class:`lfsam.segmenters.sam2_backend.Sam2Segmenter`; :func:`build_sam2_video` gives Meta's
+:class:`lfsam.segmenters.sam2.backend.Sam2Segmenter`; :func:`build_sam2_video` gives Meta's
 ``SAM2VideoPredictor`` for the video-tracking baseline (paper section 4).
 """
 
@@ -22,18 +22,17 @@ from __future__ import annotations
 import contextlib
 import os
 import pickle
-import socket
 import warnings
 import zipfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlparse
 
 import torch
 
 from lfsam.devices import resolve_device
 from lfsam.errors import LfsamError
+from lfsam.segmenters.hub import HUB_TIMEOUT_S, hub_cache_dir, hub_offline, hub_reachable
 from lfsam.segmenters.registry import DEFAULT_MODEL, ModelSpec, get_model_spec
 
 __all__ = [
@@ -41,9 +40,6 @@ __all__ = [
     "build_sam2",
     "build_sam2_video",
     "cached_checkpoint",
-    "hub_cache_dir",
-    "hub_offline",
-    "hub_reachable",
     "inference_context",
     "load_checkpoint",
     "make_image_predictor",
@@ -52,10 +48,6 @@ __all__ = [
     "resolve_device",
 ]
 
-HUB_TIMEOUT_S = 3.0
-"""Seconds to wait for the model hub before declaring it unreachable."""
-
-_TRUE = {"1", "on", "yes", "true"}
 
 
 # --- device ---------------------------------------------------------------------------------
@@ -121,45 +113,6 @@ def inference_context(
 
 
 # --- weights --------------------------------------------------------------------------------
-def hub_cache_dir() -> Path:
-    """The Hugging Face hub cache folder, read from the environment at call time.
-
-    Same rule as ``huggingface_hub.constants``: ``HF_HUB_CACHE``, else ``HUGGINGFACE_HUB_CACHE``,
-    else ``$HF_HOME/hub``, else ``$XDG_CACHE_HOME/huggingface/hub``, else
-    ``~/.cache/huggingface/hub``. Read here rather than from ``huggingface_hub.constants``, which
-    freezes the environment at import time.
-    """
-    explicit = os.environ.get("HF_HUB_CACHE") or os.environ.get("HUGGINGFACE_HUB_CACHE")
-    if explicit:
-        return Path(os.path.expandvars(os.path.expanduser(explicit)))
-    home = os.environ.get("HF_HOME") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"),
-        "huggingface",
-    )
-    return Path(os.path.expandvars(os.path.expanduser(home))) / "hub"
-
-
-def hub_offline() -> bool:
-    """Whether downloads are switched off (``HF_HUB_OFFLINE`` or ``TRANSFORMERS_OFFLINE``)."""
-    flags = (os.environ.get("HF_HUB_OFFLINE"), os.environ.get("TRANSFORMERS_OFFLINE"))
-    return any((flag or "").strip().lower() in _TRUE for flag in flags)
-
-
-def hub_reachable(timeout: float = HUB_TIMEOUT_S) -> bool:
-    """A quick TCP check that the hub (or the HTTPS proxy in use) answers within ``timeout``."""
-    proxy = os.environ.get("HTTPS_PROXY") or os.environ.get("https_proxy")
-    url = urlparse(proxy or os.environ.get("HF_ENDPOINT") or "https://huggingface.co")
-    host = url.hostname
-    if not host:
-        return False
-    port = url.port or (443 if url.scheme == "https" else 80)
-    try:
-        with socket.create_connection((host, port), timeout=timeout):
-            return True
-    except OSError:
-        return False
-
-
 def cached_checkpoint(name: str) -> Path | None:
     """The cached checkpoint of model ``name`` in the hub cache, or None (never uses the network).
 
@@ -463,7 +416,7 @@ def make_image_predictor(
     """
     from sam2.sam2_image_predictor import SAM2ImagePredictor
 
-    from lfsam.segmenters.sam2_adapter import fit_feature_sizes
+    from lfsam.segmenters.sam2.adapter import fit_feature_sizes
 
     with warnings.catch_warnings():  # SAM2Transforms uses torch.jit.script (deprecated)
         warnings.filterwarnings("ignore", message=".*torch.jit.script.*", category=FutureWarning)

@@ -1,7 +1,7 @@
 """Meta's SAM 2 image model as a Hugging Face ``transformers`` ``Sam2Model``.
 
 lfsam has two ways to run SAM 2: on Meta's ``sam2`` package (``SAM2Base``,
-:mod:`lfsam.segmenters.sam2_build`) and on ``transformers``' ``Sam2Model``. This module carries
+:mod:`lfsam.segmenters.sam2.build`) and on ``transformers``' ``Sam2Model``. This module carries
 one model's weights from the first to the second, so that parity tests can compare the two
 backends on the same weights, including random ones and the tiny test model ``sam2-tiny-test``
 that has no published checkpoint (docs/design.md section 6). It follows what ``transformers``'
@@ -23,7 +23,7 @@ Three steps, each usable alone:
   requiring every key to be filled with a tensor of the right shape.
 
 The same mapping also names the heads of ``transformers``' ``SamModel`` (SAM v1, SlimSAM,
-MedSAM; ``target="SamModel"``, used by :func:`lfsam.segmenters.hf_heads.load_meta_heads`):
+MedSAM; ``target="SamModel"``, used by :func:`lfsam.segmenters.transformers.heads.load_meta_heads`):
 ``SamModel`` spells three of ``Sam2Model``'s head names differently (:data:`_SAM_V1_NAMES`:
 attention ``out_proj`` for ``o_proj``, the two-way blocks' MLP ``lin1``/``lin2`` for
 ``proj_in``/``proj_out``) and keeps the four point embeddings as four one-row tables
@@ -291,7 +291,7 @@ def sam2_state_dict_to_transformers(
     target : {"Sam2Model", "SamModel"}
         Whose names to write (:data:`TARGETS`). ``SamModel`` (SAM v1's heads as Meta's SAM 2
         modules built without high-resolution features and object scores,
-        :func:`lfsam.segmenters.hf_heads.build_meta_heads`): the renames of
+        :func:`lfsam.segmenters.transformers.heads.build_meta_heads`): the renames of
         :data:`_SAM_V1_NAMES`, the point embeddings kept one table each, and no no-memory
         embedding (an entry ``no_mem_embed`` is dropped; docs/design.md section 3.8).
 

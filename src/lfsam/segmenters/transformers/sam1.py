@@ -28,7 +28,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from lfsam.segmenters.sam2_adapter import IMAGENET_MEAN, IMAGENET_STD
+from lfsam.segmenters.sam2.adapter import IMAGENET_MEAN, IMAGENET_STD
 
 __all__ = ["PaddedTransforms", "preprocess_padded", "resized_size", "view_grid"]
 

@@ -4,7 +4,7 @@ Each view is encoded once (:meth:`Sam2Segmenter.encode`: SAM 2's transforms, ima
 ``_prepare_backbone_features`` and ``no_mem_embed``, exactly as ``SAM2ImagePredictor.set_image``),
 and its embedding then serves every prompt batch (:meth:`~Sam2Segmenter.predict`: what
 ``SAM2ImagePredictor._predict`` computes, by the restructured decoder of
-:mod:`lfsam.segmenters.sam2_decoder` that shares the image side across prompts), automatic mask
+:mod:`lfsam.segmenters.sam2.decoder` that shares the image side across prompts), automatic mask
 generation (:meth:`~Sam2Segmenter.generate`: ``SAM2AutomaticMaskGenerator`` fed the cached
 embedding instead of re-encoding) and the features for semantic occluding
 (:meth:`~Sam2Segmenter.sample_features`, :meth:`~Sam2Segmenter.feature_sums`,
@@ -35,18 +35,18 @@ from lfsam.segmenters.feature_grid import (
     pixel_feature_norms,
 )
 from lfsam.segmenters.registry import DEFAULT_MODEL
-from lfsam.segmenters.sam2_adapter import (
+from lfsam.segmenters.sam2.adapter import (
     CachedFeaturePredictor,
     backbone_features,
     image_transforms,
 )
-from lfsam.segmenters.sam2_build import (
+from lfsam.segmenters.sam2.build import (
     build_sam2,
     inference_context,
     make_image_predictor,
     precision_dtype,
 )
-from lfsam.segmenters.sam2_decoder import default_chunk_size
+from lfsam.segmenters.sam2.decoder import default_chunk_size
 
 __all__ = ["PAPER_AMG_OPTIONS", "CachedFeaturePredictor", "Sam2Features", "Sam2Segmenter"]
 
@@ -78,7 +78,7 @@ class Sam2Features:
         Norm of the upsampled embedding at every pixel (semantic occluding), made on first use.
     decoder_state : ImageState, optional
         The decoder's prompt-independent image side
-        (:func:`lfsam.segmenters.sam2_decoder.prepare_image`), kept when the segmenter's
+        (:func:`lfsam.segmenters.sam2.decoder.prepare_image`), kept when the segmenter's
         :attr:`Sam2Segmenter.keep_decoder_state` is on (interactive use: every edit decodes
         every view again).
     """
@@ -104,7 +104,7 @@ class Sam2Segmenter(Segmenter):
     Parameters
     ----------
     model : SAM2Base
-        From :func:`lfsam.segmenters.sam2_build.build_sam2` (any ``SAM2Base`` works; models not
+        From :func:`lfsam.segmenters.sam2.build.build_sam2` (any ``SAM2Base`` works; models not
         built there are described as far as known).
     amg_options : dict, optional
         Overrides of :data:`PAPER_AMG_OPTIONS` for :meth:`generate`; any keyword of
@@ -122,7 +122,7 @@ class Sam2Segmenter(Segmenter):
     keep_decoder_state : bool
         Keep the decoder's image side with each embedding (above).
     precision : {"auto", "float32", "bfloat16"}
-        The arithmetic (:data:`lfsam.segmenters.sam2_build.PRECISIONS`): ``auto`` is bfloat16
+        The arithmetic (:data:`lfsam.segmenters.sam2.build.PRECISIONS`): ``auto`` is bfloat16
         autocast on CUDA and float32 elsewhere; ``bfloat16`` autocasts on any device (about
         twice as fast on CPUs with native bfloat16; the masks differ slightly from float32's).
 
@@ -183,7 +183,7 @@ class Sam2Segmenter(Segmenter):
         seed: int = 0,
         **kwargs: Any,
     ) -> Sam2Segmenter:
-        """Build the model with :func:`~lfsam.segmenters.sam2_build.build_sam2` and wrap it.
+        """Build the model with :func:`~lfsam.segmenters.sam2.build.build_sam2` and wrap it.
 
         Keyword arguments beyond those of ``build_sam2`` go to :class:`Sam2Segmenter`.
         """
@@ -372,7 +372,7 @@ class Sam2Segmenter(Segmenter):
         Computes what ``SAM2ImagePredictor._predict`` computes (points and boxes merged as
         there: box corners first; a point label of -1 marks padding, for prompts with fewer
         points than others), through :meth:`CachedFeaturePredictor.predict_prompts`, i.e. the
-        decoder of :mod:`lfsam.segmenters.sam2_decoder` that shares the prompt-independent part
+        decoder of :mod:`lfsam.segmenters.sam2.decoder` that shares the prompt-independent part
         across prompts (issue #5). Prompts go through in groups of :attr:`max_prompts_per_batch`
         (which also caps how many the decoder takes at once).
 

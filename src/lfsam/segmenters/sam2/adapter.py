@@ -2,7 +2,7 @@
 
 lfsam runs SAM 2's own modules but reaches past their public API in a few places: to feed the
 image predictor an embedding it already has (so no view is encoded twice), to run its
-post-processing on masks from our batched decoder (:mod:`lfsam.segmenters.sam2_decoder`), to
+post-processing on masks from our batched decoder (:mod:`lfsam.segmenters.sam2.decoder`), to
 read the backbone's multi-scale features, and to silence the video predictor's progress bar.
 Those accesses are the small functions below and the one predictor subclass that must override
 a private method (``SAM2ImagePredictor._predict``, which ``SAM2AutomaticMaskGenerator`` calls).
@@ -27,7 +27,7 @@ import numpy as np
 import torch
 from sam2.sam2_image_predictor import SAM2ImagePredictor
 
-from lfsam.segmenters.sam2_decoder import (
+from lfsam.segmenters.sam2.decoder import (
     DEFAULT_CHUNK_SIZE,
     LOGIT_CLAMP,
     decode_prompts,
@@ -118,7 +118,8 @@ def image_transforms(predictor: SAM2ImagePredictor) -> Any:
 
 def use_image_transforms(predictor: SAM2ImagePredictor, transforms: Any) -> None:
     """Make ``transforms`` (an object with ``SAM2Transforms``' methods, e.g.
-    :class:`lfsam.segmenters.hf_sam1.PaddedTransforms`) the predictor's input, prompt and mask
+    :class:`lfsam.segmenters.transformers.sam1.PaddedTransforms`) the predictor's input, prompt and
+    mask
     geometry."""
     predictor._transforms = transforms
 
@@ -145,11 +146,11 @@ class CachedFeaturePredictor(SAM2ImagePredictor):
 
     - :meth:`use_features` sets an image's embedding without running the encoder.
     - ``SAM2AutomaticMaskGenerator`` calls ``set_image`` on each crop; the first crop is the whole
-      view, whose embedding :meth:`lfsam.segmenters.sam2_backend.Sam2Segmenter.encode` already
+      view, whose embedding :meth:`lfsam.segmenters.sam2.backend.Sam2Segmenter.encode` already
       made (:attr:`cached`). Other crops (``crop_n_layers > 0``) are encoded here and counted in
       :attr:`encoder_passes`.
     - ``_predict`` (what :meth:`predict_prompts` and the generator call) decodes through
-      :func:`lfsam.segmenters.sam2_decoder.decode_prompts`: the same results as Meta's, the image
+      :func:`lfsam.segmenters.sam2.decoder.decode_prompts`: the same results as Meta's, the image
       side shared across the prompts; with a mask input (the generator's optional mask-to-mask
       pass) Meta's own code runs.
     """
@@ -157,7 +158,7 @@ class CachedFeaturePredictor(SAM2ImagePredictor):
     cached: tuple[Any, tuple[int, int]] | None = None
     """``(Sam2Features, (U, V))`` of the view :meth:`set_image` may take without encoding."""
     encoder_passes: int = 0
-    #: Prompts decoded together by :func:`~lfsam.segmenters.sam2_decoder.decode_prompts`.
+    #: Prompts decoded together by :func:`~lfsam.segmenters.sam2.decoder.decode_prompts`.
     decode_chunk_size: int = DEFAULT_CHUNK_SIZE
     image_state: Any = None
     """The prompt-independent part of the decoder for the current image (made once per image)."""

@@ -1,18 +1,21 @@
 """The ``transformers`` backend: EdgeTAM and transformers-format SAM 2 checkpoints behind lfsam's
 :class:`~lfsam.segmenters.base.Segmenter` interface (docs/design.md section 3.8).
 
-:class:`TransformersSegmenter` is :class:`~lfsam.segmenters.sam2_backend.Sam2Segmenter` with
+:class:`TransformersSegmenter` is :class:`~lfsam.segmenters.sam2.backend.Sam2Segmenter` with
 another image encoder: a view is encoded once as ``transformers`` encodes it (its image
 processor's resize of the uint8 view, ImageNet normalisation, ``get_image_embeddings``), and the
 embedding then serves every prompt batch, automatic generation and semantic occluding through
-SAM 2's heads in Meta's modules (:class:`~lfsam.segmenters.hf_model.TransformersImageModel`) and
+SAM 2's heads in Meta's modules
+(:class:`~lfsam.segmenters.transformers.model.TransformersImageModel`) and
 lfsam's batched decoder, which shares a view's image side across its prompts. The masks are those
 of ``transformers``' own processor + model call for the same view and prompt
 (``tests/test_segmenters_transformers.py``).
 
-SAM v1 (``SamModel``) keeps the view's aspect and pads it (:mod:`lfsam.segmenters.hf_sam1`): its
+SAM v1 (``SamModel``) keeps the view's aspect and pads it
+(:mod:`lfsam.segmenters.transformers.sam1`): its
 pixels are ``SamImageProcessor``'s, the predictors' transforms are
-:class:`~lfsam.segmenters.hf_sam1.PaddedTransforms` (prompt coordinates, mask post-processing
+:class:`~lfsam.segmenters.transformers.sam1.PaddedTransforms` (prompt coordinates, mask
+post-processing
 as ``SamProcessor``), and semantic occluding samples only the embedding cells over the view.
 """
 
@@ -26,17 +29,17 @@ import numpy as np
 import torch
 
 from lfsam.segmenters.base import ViewEmbedding
-from lfsam.segmenters.hf_build import build_transformers_sam
-from lfsam.segmenters.hf_sam1 import PaddedTransforms, preprocess_padded, view_grid
 from lfsam.segmenters.registry import TRANSFORMERS_FOLDER
-from lfsam.segmenters.sam2_adapter import (
+from lfsam.segmenters.sam2.adapter import (
     IMAGENET_MEAN,
     IMAGENET_STD,
     image_transforms,
     use_image_transforms,
 )
-from lfsam.segmenters.sam2_backend import Sam2Features, Sam2Segmenter
-from lfsam.segmenters.sam2_build import inference_context
+from lfsam.segmenters.sam2.backend import Sam2Features, Sam2Segmenter
+from lfsam.segmenters.sam2.build import inference_context
+from lfsam.segmenters.transformers.build import build_transformers_sam
+from lfsam.segmenters.transformers.sam1 import PaddedTransforms, preprocess_padded, view_grid
 
 __all__ = ["TransformersSegmenter", "preprocess_views"]
 
@@ -73,9 +76,9 @@ class TransformersSegmenter(Sam2Segmenter):
     Parameters
     ----------
     model : TransformersImageModel
-        From :func:`lfsam.segmenters.hf_build.build_transformers_sam`.
+        From :func:`lfsam.segmenters.transformers.build.build_transformers_sam`.
     **kwargs
-        As :class:`~lfsam.segmenters.sam2_backend.Sam2Segmenter` (``amg_options``,
+        As :class:`~lfsam.segmenters.sam2.backend.Sam2Segmenter` (``amg_options``,
         ``max_prompts_per_batch``, ``encode_batch_size``, ``mask_threshold``,
         ``keep_decoder_state``, ``precision``).
 
@@ -113,7 +116,7 @@ class TransformersSegmenter(Sam2Segmenter):
 
     def _feature_grid(self, embedding: ViewEmbedding) -> torch.Tensor:
         """The embedding; for SAM v1 the top-left ``ceil(h'/16) x ceil(w'/16)`` cells, those
-        over the resized view (:func:`~lfsam.segmenters.hf_sam1.view_grid`).
+        over the resized view (:func:`~lfsam.segmenters.transformers.sam1.view_grid`).
 
         The feature-grid convention (:mod:`lfsam.segmenters.feature_grid`) spreads those cells
         evenly over the view. Where ``h'`` (or ``w'``) is not a multiple of 16, the last row
@@ -140,7 +143,8 @@ class TransformersSegmenter(Sam2Segmenter):
         seed: int = 0,
         **kwargs: Any,
     ) -> TransformersSegmenter:
-        """Build the model with :func:`~lfsam.segmenters.hf_build.build_transformers_sam` and
+        """Build the model with :func:`~lfsam.segmenters.transformers.build.build_transformers_sam`
+        and
         wrap it (further keywords go to the segmenter)."""
         model = build_transformers_sam(
             name, checkpoint=checkpoint, random_weights=random_weights, device=device, seed=seed

@@ -2,7 +2,8 @@
 section 10).
 
 :func:`video_model_for` builds ``transformers``' ``EdgeTamVideoModel`` (or ``Sam2VideoModel``) for
-an image model of :func:`lfsam.segmenters.hf_build.build_transformers_sam`: its memory modules
+an image model of :func:`lfsam.segmenters.transformers.build.build_transformers_sam`: its memory
+modules
 (memory attention, memory encoder, EdgeTAM's spatial perceiver, object-pointer heads, temporal
 encodings) come from the same checkpoint folder, and its vision encoder, prompt encoder, mask
 decoder, Fourier matrix and no-memory embedding *are* the image model's modules (shared, not
@@ -28,13 +29,13 @@ import torch
 from torch import nn
 
 from lfsam.errors import LfsamError
-from lfsam.segmenters.hf_build import (
+from lfsam.segmenters.registry import TRANSFORMERS_MODELS
+from lfsam.segmenters.transformers.build import (
     _read_config,
     check_state_fits,
     edgetam_config,
     tiny_edgetam_config,
 )
-from lfsam.segmenters.registry import TRANSFORMERS_MODELS
 
 __all__ = [
     "SHARED_MODULES",
@@ -95,7 +96,8 @@ def _video_config(image_config: Any, **memory: Any) -> Any:
 
 def edgetam_video_config() -> Any:
     """EdgeTAM's published video architecture (``EdgeTamVideoConfig``): the image model of
-    :func:`~lfsam.segmenters.hf_build.edgetam_config` and ``transformers``' default memory (7
+    :func:`~lfsam.segmenters.transformers.build.edgetam_config` and ``transformers``' default
+    memory (7
     memory frames, 16 object pointers, 2 memory-attention layers, a spatial perceiver of 256 + 256
     latents, 64-channel memories)."""
     return _video_config(edgetam_config())
@@ -103,7 +105,8 @@ def edgetam_video_config() -> Any:
 
 def tiny_edgetam_video_config(width: int = 32) -> Any:
     """A tiny EdgeTAM video model: the image model of
-    :func:`~lfsam.segmenters.hf_build.tiny_edgetam_config` (``width`` wide, 256-pixel input,
+    :func:`~lfsam.segmenters.transformers.build.tiny_edgetam_config` (``width`` wide, 256-pixel
+    input,
     16 x 16 feature map) and a memory: one memory-attention layer ``width`` wide,
     ``width / 2``-channel memories (``transformers`` splits each object pointer into memory-wide
     tokens: the memories must be narrower than the heads), a perceiver of 16 + 16 latents (a
@@ -152,7 +155,8 @@ def video_memory_problem(image_model: nn.Module) -> str | None:
     Parameters
     ----------
     image_model : TransformersImageModel
-        From :func:`~lfsam.segmenters.hf_build.build_transformers_sam` (its ``lfsam_info`` names
+        From :func:`~lfsam.segmenters.transformers.build.build_transformers_sam` (its
+        ``lfsam_info`` names
         the family, the checkpoint folder and whether the weights are random).
     """
     info = dict(getattr(image_model, "lfsam_info", {}) or {})
@@ -259,7 +263,8 @@ def video_model_for(image_model: nn.Module) -> nn.Module:
     Parameters
     ----------
     image_model : TransformersImageModel
-        A SAM 2-family image model of :func:`~lfsam.segmenters.hf_build.build_transformers_sam`.
+        A SAM 2-family image model of
+        :func:`~lfsam.segmenters.transformers.build.build_transformers_sam`.
 
     Returns
     -------

@@ -4,7 +4,8 @@
 :class:`TransformersImageModel` holds the ``transformers`` model (its image encoder runs as
 ``transformers`` runs it: ``get_image_embeddings``, with the decoder's two 1x1 convolutions and
 the no-memory embedding) and SAM 2's prompt encoder and mask decoder rebuilt as Meta's modules
-with the same weights (:mod:`lfsam.segmenters.hf_heads`). It answers what lfsam's SAM 2 code asks
+with the same weights (:mod:`lfsam.segmenters.transformers.heads`). It answers what lfsam's SAM 2
+code asks
 of a ``SAM2Base``: ``image_size``, ``device``, ``sam_prompt_encoder``, ``sam_mask_decoder``,
 ``no_mem_embed``, ``directly_add_no_mem_embed``, ``forward_image`` and
 ``_prepare_backbone_features`` (the automatic generator's extra crops). It has no video memory:
@@ -15,7 +16,7 @@ is the only level (``use_high_res_features_in_sam`` False, ``num_feature_levels`
 ``no_mem_embed`` stays zero and is not added (``directly_add_no_mem_embed`` False), box prompts
 go to the prompt encoder as boxes (``boxes_as_points`` False, as SAM v1's predictors pass them),
 and ``padded_input`` tells the backend that the view is resized by its longest side and padded
-(:mod:`lfsam.segmenters.hf_sam1`; docs/design.md section 3.8).
+(:mod:`lfsam.segmenters.transformers.sam1`; docs/design.md section 3.8).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from typing import Any
 import torch
 from torch import nn
 
-from lfsam.segmenters.hf_heads import build_meta_heads, load_meta_heads
+from lfsam.segmenters.transformers.heads import build_meta_heads, load_meta_heads
 
 __all__ = ["CachedPositions", "TransformersImageModel"]
 
@@ -70,7 +71,7 @@ class TransformersImageModel(nn.Module):
         ``Sam2Model``, ``EdgeTamModel`` or ``SamModel`` (its heads' weights are copied into
         Meta's modules).
     info : dict
-        What :func:`lfsam.segmenters.hf_build.build_transformers_sam` knows of the model
+        What :func:`lfsam.segmenters.transformers.build.build_transformers_sam` knows of the model
         (name, hub_id, checkpoint, model_type, random_weights, seed); ``params`` and
         ``image_size`` are added.
     """

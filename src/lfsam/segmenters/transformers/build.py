@@ -1,7 +1,7 @@
 """Building SAM 2-family (and SAM) models from ``transformers`` checkpoints (docs/design.md
 section 3.8).
 
-The counterpart of :mod:`lfsam.segmenters.sam2_build` for models in Hugging Face format:
+The counterpart of :mod:`lfsam.segmenters.sam2.build` for models in Hugging Face format:
 architecture, weights and device, separated from inference.
 
 - ``edgetam``: the hub's transformers-format EdgeTAM, ``yonigozlan/EdgeTAM-hf``, downloaded once
@@ -14,7 +14,8 @@ architecture, weights and device, separated from inference.
   of video checkpoints are not needed and not loaded.
 
 ``random_weights=True`` builds the architecture untrained and seeded (tests, speed). The model is
-returned as :class:`lfsam.segmenters.hf_model.TransformersImageModel`: the ``transformers`` image
+returned as :class:`lfsam.segmenters.transformers.model.TransformersImageModel`: the
+``transformers`` image
 encoder with SAM 2's heads in Meta's modules, the shape lfsam's SAM 2 code decodes with.
 """
 
@@ -29,7 +30,7 @@ import torch
 
 from lfsam.devices import resolve_device
 from lfsam.errors import LfsamError
-from lfsam.segmenters.hub_folder import download_hub_folder, is_weights_folder
+from lfsam.segmenters.hub import download_hub_folder, is_weights_folder
 from lfsam.segmenters.registry import (
     MODELS,
     TRANSFORMERS_FOLDER,
@@ -81,7 +82,7 @@ def tiny_edgetam_config(width: int = 32) -> Any:
     """A tiny EdgeTAM (0.1 M parameters at width 32, 256-pixel input) of the real classes
     (docs/design.md section 6): a RepViT of one block per stage (widths 8-64), FPN and SAM heads
     ``width`` wide (32: ``edgetam-tiny-test``; 128: a tiny video checkpoint ``transformers`` can
-    save and load, :func:`lfsam.segmenters.hf_video_build.tiny_edgetam_video_config`)."""
+    save and load, :func:`lfsam.segmenters.transformers.video_build.tiny_edgetam_video_config`)."""
     from transformers import EdgeTamConfig, EdgeTamVisionConfig
 
     vision = EdgeTamVisionConfig(
@@ -284,7 +285,7 @@ def build_transformers_sam(
         Unknown name, a folder of another family or model type, weights that do not fit, or no
         weights to be had (one line with the fix).
     """
-    from lfsam.segmenters.hf_model import TransformersImageModel
+    from lfsam.segmenters.transformers.model import TransformersImageModel
 
     _require_packages(name)
     dev = resolve_device(device)

@@ -54,7 +54,7 @@ section 4, keeps that decoder) on B copies of the image. Here:
    image-sized tensors stay in cache.
 
 Everything runs on the model's device in the caller's autocast context (bf16 on CUDA under
-:func:`lfsam.segmenters.sam2_build.inference_context`), without autograd.
+:func:`lfsam.segmenters.sam2.build.inference_context`), without autograd.
 """
 
 from __future__ import annotations
@@ -598,7 +598,7 @@ def decode_prompts(
 
     Same result as Meta's prompt encoder + ``MaskDecoder.forward`` (``repeat_image`` over the
     prompts) up to rounding, computed with the image side shared across prompts (module
-    docstring). Run it under :func:`~lfsam.segmenters.sam2_build.inference_context` (or at least
+    docstring). Run it under :func:`~lfsam.segmenters.sam2.build.inference_context` (or at least
     ``torch.no_grad``) like the rest of the backend.
 
     Parameters
