@@ -97,6 +97,8 @@ examples:
   lfsam segment clip --point 30,20 --tracking prompts --out tracked   # SAM 2 without its memory
   lfsam segment frames/ --follow --point 30,20 --model edgetam --refine-views 1 --out live
                                   # a camera's growing frames folder; ends at frames/END
+  lfsam segment frames/ --follow --latest --point 30,20 --model edgetam --refine-views 1 --out live
+                                  # never fall behind: the newest frame, older ones skipped
 """
 
 
@@ -212,6 +214,8 @@ def run(args: argparse.Namespace) -> int:
         return run_follow(args, config, has_prompts)
     if args.follow_timeout is not None:
         raise LfsamError("--follow-timeout goes with --follow")
+    if args.latest:
+        raise LfsamError("--latest goes with --follow (a frames folder still being written)")
     expect_input(args.path, "segment", ("lightfield", "video"))
     if args.input_format is None and is_video(args.path):  # issue 25: track through frames
         return run_video(args, config, has_prompts)

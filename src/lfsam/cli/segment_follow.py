@@ -21,7 +21,7 @@ __all__ = ["add_follow_arguments", "run_follow"]
 
 
 def add_follow_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--follow``, ``--follow-timeout S`` and ``--poll S``."""
+    """``--follow``, ``--follow-timeout S``, ``--latest`` and ``--poll S``."""
     group = parser.add_argument_group(
         "live streams (a frames folder that is still growing)")
     group.add_argument(
@@ -35,6 +35,13 @@ def add_follow_arguments(parser: argparse.ArgumentParser) -> None:
         "--follow-timeout", type=positive_float, default=None, metavar="S",
         help="with --follow: stop after S seconds without a new frame (default: wait for END "
         "or Ctrl-C)",
+    )
+    group.add_argument(
+        "--latest", action="store_true",
+        help="with --follow: never fall behind the camera: always segment the newest frame "
+        "that has arrived and skip the older ones not yet started (each listed in the "
+        "result's meta 'skipped' with the reason 'newer frame available'); for a control loop "
+        "that needs the current scene, not the backlog",
     )
     group.add_argument(
         "--poll", type=positive_float, default=0.05, metavar="S",
@@ -85,15 +92,16 @@ def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
     def show(timing, result) -> None:
         if not args.quiet:
             ids = [int(i) for i in np.unique(result.labels) if i > 0]
+            older = f", {timing.superseded} older skipped" if timing.superseded else ""
             print(f"frame {timing.index} ({timing.name}): {timing.latency:.2f} s from arrival "
-                  f"to result ({timing.seconds:.2f} s segmenting), objects {ids}",
+                  f"to result ({timing.seconds:.2f} s segmenting{older}), objects {ids}",
                   file=sys.stderr, flush=True)
 
     def skip(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
 
     report = segment_stream(follower, tracker, args.out, value_range=args.value_range,
-                            on_frame=show, on_skip=skip)
+                            on_frame=show, on_skip=skip, latest=args.latest)
     summary = report.summary()
     if not args.quiet or report.ended_by == "interrupted":
         how = {"END": "END file", "timeout": "no new frame for --follow-timeout",

@@ -109,10 +109,26 @@ class FrameFollower:
         self.ended_by: str | None = None
         self._seen: set[str] = set()
         self._stop = threading.Event()
+        self._busy = False
+        self._waiting_since = time.monotonic()
 
     def stop(self) -> None:
         """End the stream at the next look (thread-safe); the frame being yielded is kept."""
         self._stop.set()
+
+    @property
+    def stopping(self) -> bool:
+        """Whether :meth:`stop` was called."""
+        return self._stop.is_set()
+
+    def set_busy(self, busy: bool) -> None:
+        """Tell the follower, iterated in a thread of its own, that frames it yielded are still
+        being read or segmented (:class:`lfsam.video.feed.FrameFeed`): the timeout counts only
+        the time without a new frame while nothing is being done, and restarts when the
+        consumer becomes idle (thread-safe)."""
+        if self._busy and not busy:
+            self._waiting_since = time.monotonic()
+        self._busy = bool(busy)
 
     def _new_entries(self) -> list[Path]:
         try:
@@ -124,7 +140,7 @@ class FrameFollower:
 
     def __iter__(self) -> Iterator[ArrivedFrame]:
         index = 0
-        waiting_since = time.monotonic()
+        self._waiting_since = time.monotonic()
         previous_look = time.time()
         while True:
             if self._stop.is_set():
@@ -143,13 +159,14 @@ class FrameFollower:
                     index += 1
                     if self._stop.is_set():
                         break
-                waiting_since = time.monotonic()
+                self._waiting_since = time.monotonic()
                 continue
             previous_look = look
             if ended:
                 self.ended_by = END_FILE
                 return
-            if self.timeout is not None and time.monotonic() - waiting_since >= self.timeout:
+            if (self.timeout is not None and not self._busy
+                    and time.monotonic() - self._waiting_since >= self.timeout):
                 self.ended_by = "timeout"
                 return
             self._stop.wait(self.poll)

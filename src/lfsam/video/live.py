@@ -30,6 +30,7 @@ from lfsam.io import read_lightfield
 from lfsam.lightfield import LightField
 from lfsam.result import SegmentationResult
 from lfsam.version import __version__
+from lfsam.video.feed import NEWER_FRAME, FrameFeed
 from lfsam.video.follow import ArrivedFrame, FrameFollower
 from lfsam.video.online import OnlineTracker
 from lfsam.video.result import live_video_result_writer
@@ -53,13 +54,16 @@ class FrameTiming:
     latency : float
         Seconds from its arrival to its result on disk.
     seconds : float
-        Seconds spent reading and segmenting it.
+        Seconds spent segmenting it (it was read ahead while the frame before was segmented).
+    superseded : int
+        Frames left out for it (``latest``: they arrived before it and were not segmented).
     """
 
     index: int
     name: str
     latency: float
     seconds: float
+    superseded: int = 0
 
 
 @dataclass
@@ -74,14 +78,26 @@ class StreamReport:
     object_ids: list[int] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
-        """Frames, skipped frames, how it ended and latency median and worst (seconds)."""
+        """Frames, skipped frames (of them ``superseded``: left out for a newer frame), how it
+        ended and latency median, 95th percentile and worst (seconds)."""
         lat = self.latencies
         return {
             "out": str(self.out), "frames": self.frames, "skipped": len(self.skipped),
+            "superseded": sum(s.get("reason") == NEWER_FRAME for s in self.skipped),
             "ended_by": self.ended_by, "objects": self.object_ids,
             "latency_median_s": round(statistics.median(lat), 3) if lat else None,
+            "latency_p95_s": round(percentile(lat, 95), 3) if lat else None,
             "latency_worst_s": round(max(lat), 3) if lat else None,
         }
+
+
+def percentile(values: list[float], q: float) -> float:
+    """The ``q``-th percentile of ``values`` (linear interpolation, as ``numpy.percentile``)."""
+    ordered = sorted(values)
+    at = (len(ordered) - 1) * q / 100
+    low = int(at)
+    high = min(low + 1, len(ordered) - 1)
+    return ordered[low] + (ordered[high] - ordered[low]) * (at - low)
 
 
 def _read_frame(arrived: ArrivedFrame, value_range: int | None) -> LightField:
@@ -101,6 +117,7 @@ def segment_stream(
     value_range: int | None = None,
     on_frame: Callable[[FrameTiming, SegmentationResult], None] | None = None,
     on_skip: Callable[[str], None] | None = None,
+    latest: bool = False,
 ) -> StreamReport:
     """Segment every frame ``follower`` yields, writing each result into ``out`` at once.
 
@@ -118,7 +135,14 @@ def segment_stream(
     on_frame : callable, optional
         ``on_frame(timing, result)`` after each frame's result is on disk, in this thread.
     on_skip : callable, optional
-        ``on_skip(message)`` with one line for each frame skipped.
+        ``on_skip(message)`` with one line for each frame skipped as unreadable or refused
+        (not for frames superseded with ``latest``: each frame's timing counts those).
+    latest : bool
+        Never fall behind (``--latest``): always segment the newest frame that has arrived;
+        the frames that arrived before it and were not started are left out, each listed in
+        ``meta["skipped"]`` with the reason ``"newer frame available"``
+        (:class:`lfsam.video.feed.FrameFeed`). Either way the next frame is read in a
+        prefetch thread while the current one is segmented.
 
     Returns
     -------
@@ -131,28 +155,40 @@ def segment_stream(
     meta: dict[str, Any] = {
         "method": "lfsam-video", "input": str(follower.folder), "model": tracker.name,
         "prompt_mode": "auto" if tracker.auto else "prompts", "package_version": __version__,
-        "disparity": tracker.disparity, "follow": True, "skipped": report.skipped,
-        "ended_by": None,
+        "disparity": tracker.disparity, "follow": True, "latest": bool(latest),
+        "skipped": report.skipped, "ended_by": None,
     }
+    superseded: list[str] = []
+
+    def supersede(arrived: ArrivedFrame) -> None:
+        report.skipped.append({"name": arrived.path.name, "reason": NEWER_FRAME})
+        superseded.append(arrived.path.name)
+
+    feed = FrameFeed(follower, lambda arrived: _read_frame(arrived, value_range),
+                     latest=latest, on_superseded=supersede)
     with live_video_result_writer(out, meta=meta, objects=lambda: tracker.prompts) as writer:
         try:
-            for arrived in follower:
+            for item in feed:
+                arrived, lf = item.arrived, None
                 start = time.perf_counter()
                 try:
-                    lf = _read_frame(arrived, value_range)
+                    lf = item.lightfield()
                     result = tracker.track(lf)
                 except LfsamError as exc:
                     line = f"frame {arrived.path.name} skipped: {exc}"
-                    report.skipped.append({"name": arrived.path.name, "error": str(exc)})
+                    report.skipped.append({"name": arrived.path.name, "error": str(exc),
+                                           "reason": "unreadable" if lf is None else "refused"})
                     if on_skip is not None:
                         on_skip(line)
                     continue
                 result.meta["frame_source"] = arrived.path.name
+                result.meta["arrival_index"] = arrived.index
                 meta["tracking"] = tracker.tracking
                 writer.write(result)
                 timing = FrameTiming(writer.frames - 1, arrived.path.name,
                                      time.time() - arrived.arrived,
-                                     time.perf_counter() - start)
+                                     time.perf_counter() - start, len(superseded))
+                superseded.clear()
                 report.latencies.append(timing.latency)
                 report.frames = writer.frames
                 if on_frame is not None:
@@ -160,6 +196,7 @@ def segment_stream(
             report.ended_by = follower.ended_by
         except KeyboardInterrupt:
             report.ended_by = "interrupted"
+        feed.close()
         meta["ended_by"] = report.ended_by
         meta["latency"] = {k: v for k, v in report.summary().items() if k.startswith("latency")}
         report.object_ids = sorted(writer.object_ids)
