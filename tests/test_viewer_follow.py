@@ -207,6 +207,30 @@ def test_a_stream_already_in_the_folder_ends_at_END(make_napari_viewer, qtbot, s
     assert default_out(live) == tmp_path / "cam_live_2"  # cam_live is taken now
 
 
+def test_newest_frame_only_skips_the_backlog(make_napari_viewer, qtbot, source, tmp_path):
+    """The dock's "Newest frame only" (issue 44, --latest): with frames waiting, the newest is
+    segmented and the older ones are listed as skipped, each by name."""
+    _viewer, widget, statuses = _dock(make_napari_viewer)
+    live = tmp_path / "cam"
+    live.mkdir()
+    frames = _frames(source)
+    for frame in frames:
+        _put(frame, live)
+    (live / "END").write_bytes(b"")
+    widget.controls.latest_box.setChecked(True)
+    out = widget.follow.start(live, tmp_path / "out", auto=True)
+    _ended(qtbot, widget)
+    report = widget.follow.report
+    names = [frame.name for frame in frames]
+    assert report.ended_by == "END" and report.frames < len(frames)
+    assert widget.follow.names[-1] == names[-1]
+    skipped = [s["name"] for s in report.skipped]
+    assert sorted(widget.follow.names + skipped) == names
+    assert all(s["reason"] == "newer frame available" for s in report.skipped)
+    assert lfsam.load_result(out).meta["latest"] is True
+    assert any("older skipped" in line for line in statuses)
+
+
 def test_the_gui_thread_runs_while_a_frame_is_segmented_and_stop_keeps_that_frame(
         make_napari_viewer, qtbot, source, tmp_path, monkeypatch):
     _viewer, widget, _statuses = _dock(make_napari_viewer)

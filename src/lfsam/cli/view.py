@@ -103,6 +103,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     follow.add_argument("--follow-timeout", type=positive_float, default=None, metavar="S",
                         help="with --follow: end after S seconds without a new frame (default: "
                         "a file named END or Stop ends it)")
+    follow.add_argument("--latest", action="store_true",
+                        help="with --follow: never fall behind: segment only the newest frame "
+                        "that has landed, skipping older ones not yet started (the dock's "
+                        "'Newest frame only')")
     parser.set_defaults(func=run)
 
 
@@ -121,8 +125,9 @@ def check_follow(args: argparse.Namespace) -> None:
     from lfsam.video.result import check_live_folder
 
     if not getattr(args, "follow", False):
-        if getattr(args, "out", None) is not None or getattr(args, "follow_timeout", None):
-            raise LfsamError("--out and --follow-timeout go with --follow: "
+        if (getattr(args, "out", None) is not None or getattr(args, "follow_timeout", None)
+                or getattr(args, "latest", False)):
+            raise LfsamError("--out, --follow-timeout and --latest go with --follow: "
                              "lfsam view FOLDER --follow --out RESULT")
         return
     if not args.path:
@@ -215,7 +220,8 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
     for text in getattr(args, "text", None) or []:
         widget.find(text.phrase, view=text.view)
     if following:
-        widget.follow.start(args.path, args.out, timeout=args.follow_timeout)
+        widget.follow.start(args.path, args.out, timeout=args.follow_timeout,
+                            latest=args.latest)
     return viewer, widget
 
 

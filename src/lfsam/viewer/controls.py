@@ -190,6 +190,10 @@ class DockControls:
             "complete; a file named END ends the stream): the latest frame and its masks are "
             "shown, a click starts a new object from the next frame on"
         )
+        self.latest_box = QCheckBox("Newest frame only")
+        self.latest_box.setToolTip(
+            "Never fall behind the camera (--latest): always segment the newest frame that has "
+            "landed and skip the older ones not yet started (listed in the result)")
         self.stop_follow_button = QPushButton("Stop following")
         self.stop_follow_button.setToolTip("End the stream after the frame being segmented; "
                                            "the result folder keeps every frame done")
@@ -244,7 +248,7 @@ class DockControls:
         layout.addWidget(self.open_labels_button)
         layout.addLayout(_row(self.view_buttons.values()))
         layout.addLayout(_row([self.track_button, self.stop_track_button]))
-        layout.addLayout(_row([self.follow_button, self.stop_follow_button]))
+        layout.addLayout(_row([self.follow_button, self.latest_box, self.stop_follow_button]))
         layout.addLayout(_row([self.save_button, self.export_button]))
         layout.addWidget(self.progress)
         layout.addWidget(self.status)

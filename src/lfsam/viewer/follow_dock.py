@@ -179,12 +179,14 @@ class FollowController(QObject):
             self.widget.work.attempt(lambda: self.start(folder, out))
 
     def start(self, folder: str | os.PathLike, out: str | os.PathLike | None = None, *,
-              timeout: float | None = None, auto: bool = False, poll: float = 0.05) -> Path:
+              timeout: float | None = None, auto: bool = False, poll: float = 0.05,
+              latest: bool | None = None) -> Path:
         """Follow ``folder``, writing the live result into ``out`` (a new or empty folder;
         default :func:`default_out`); returns ``out`` at once (the stream runs in a thread).
         ``timeout``: end after so many seconds without a new frame (default: END or Stop only);
         ``auto``: find the first frame's objects automatically, besides clicked ones; ``poll``:
-        seconds between looks at the folder.
+        seconds between looks at the folder; ``latest``: segment only the newest frame that
+        has landed (default: the dock's "Newest frame only" box).
 
         Raises
         ------
@@ -203,7 +205,9 @@ class FollowController(QObject):
         self._remove_layers()
         self.follower, self.tracker, self.folder, self.out = follower, tracker, folder, out
         self.report, self.names, self._next_id = None, [], 1
-        self.thread = threading.Thread(target=self._run, args=(follower, tracker, out),
+        if latest is None:
+            latest = self.widget.controls.latest_box.isChecked()
+        self.thread = threading.Thread(target=self._run, args=(follower, tracker, out, latest),
                                        name="lfsam-follow", daemon=True)
         self.thread.start()
         self._buttons(following=True)
@@ -249,7 +253,7 @@ class FollowController(QObject):
         return _showing_tracker()(None, disparity=disparity, options=options, auto=auto)
 
     # --- the stream's thread ---------------------------------------------------------------------
-    def _run(self, follower: FrameFollower, tracker: Any, out: Path) -> None:
+    def _run(self, follower: FrameFollower, tracker: Any, out: Path, latest: bool) -> None:
         """Load the model (the oracle is built per frame), then :func:`segment_stream`."""
         from lfsam.video.live import segment_stream
 
@@ -266,7 +270,7 @@ class FollowController(QObject):
                 tracker.segmenter = tracker.options.model.build(keep_decoder_state=False)
                 emit(StatusLine(f"model {tracker.name} loaded; waiting for frames"))
             report = segment_stream(follower, tracker, out, on_frame=on_frame,
-                                    on_skip=lambda line: emit(StatusLine(line)))
+                                    on_skip=lambda line: emit(StatusLine(line)), latest=latest)
             emit(StreamEnded(report))
         except LfsamError as exc:
             emit(StreamEnded(None, str(exc)))
@@ -295,7 +299,9 @@ class FollowController(QObject):
         self.names.append(timing.name)
         self._next_id = max(self._next_id, max(event.ids, default=0) + 1)
         ids = [int(i) for i in np.unique(event.labels) if i > 0]
+        older = f"{timing.superseded} older skipped, " if timing.superseded else ""
         line = (f"frame {timing.index} ({timing.name}): {timing.latency:.2f} s from arrival, "
+                + older
                 + (f"objects {ids}" if ids else "no object (click one: it is segmented from "
                    "the next frame on)"))
         self._status(line + (f"; clicks left out: {event.refused}" if event.refused else ""))
