@@ -26,18 +26,29 @@ Two parts, each printing its table:
   disk (median and worst) and the range of objects present in the center view per frame.
   Targets: EdgeTAM at least 1 frame per second; Hiera-T at most 1.3
   encoder passes per frame.
+* ``latest`` (issue 44) — a camera twice as fast as the tracker: the tracker's frame time is
+  measured first (``--latest-model`` on ``--latest-grid`` views of ``--latest-size``, 3 objects
+  clicked in frame 0, ground-truth disparity, ``--refine-views 1``; the median of 5 frames), then
+  a writer process lands ``--latest-frames`` frames (a 10-frame synthetic clip in turn) at twice
+  that rate while :func:`lfsam.video.live.segment_stream` follows, once with ``latest=True``
+  (``--latest``) and once without. Printed for each: frames processed per second, latency from
+  arrival to result on disk (median, 95th percentile, worst) in seconds and in frame times,
+  frames skipped, and the process's resident memory after the first 10 % of the frames and at
+  the end. Target: 95th percentile under two frame times with ``--latest``, memory flat.
 
 Usage::
 
     python benchmarks/bench_video.py [--parts speed,memory,stream] [--size 96x128]
         [--grid 9x9] [--frames 6] [--models oracle,sam2-tiny-test] [--settings all,sparse]
         [--memory-frames 3,6,12] [--stream-runs edgetam:memory,...] [--rate 1]
+        [--latest-model oracle] [--latest-frames 100] [--latest-size 96x128]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import resource
 import shutil
 import statistics
@@ -58,7 +69,7 @@ from lfsam.api import RunOptions, SegmentOptions, segment
 from lfsam.pipeline import PipelineConfig
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.segmenters import load_segmenter
-from lfsam.video import read_video
+from lfsam.video import live, read_video
 from lfsam.video.follow import FrameFollower
 from lfsam.video.live import segment_stream
 from lfsam.video.online import OnlineTracker
@@ -239,6 +250,103 @@ def stream_part(args: argparse.Namespace, work: Path) -> None:
           "per frame")
 
 
+def rss_mib() -> float:
+    """The process's resident memory now (MiB; Linux ``/proc/self/statm``)."""
+    import os
+
+    pages = int(Path("/proc/self/statm").read_text().split()[1])
+    return pages * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def land_cycle(sources: list[Path], folder: Path, count: int, rate: float) -> None:
+    """Land ``count`` frames ``frame_NNNN`` (``sources`` in turn) at ``rate`` per second, each
+    written under a hidden name and renamed in, then END."""
+    start = time.monotonic()
+    for index in range(count):
+        time.sleep(max(0.0, start + index / rate - time.monotonic()))
+        hidden = folder / f".frame_{index:04d}.part"
+        shutil.copytree(sources[index % len(sources)], hidden)
+        hidden.rename(folder / f"frame_{index:04d}")
+    (folder / "END").write_bytes(b"")
+
+
+def latest_part(args: argparse.Namespace, work: Path) -> None:
+    from lfsam.video.live import percentile
+
+    size, grid = parse_size(args.latest_size), parse_size(args.latest_grid)
+    source = work / "latest_clip"
+    write_video_frames(generate_video(grid=grid, size=size, frames=10, seed=0, num_objects=3),
+                       source)
+    sources = sorted(p for p in source.iterdir() if p.name.startswith("frame_"))
+    video = read_video(source)
+    objects = clicks(video.frame(0))
+    options = SegmentOptions(pipeline=PipelineConfig(refine_views=1),
+                             run=RunOptions(progress=False))
+    model = model_for(args.latest_model, video.frame(0))
+
+    def tracker() -> OnlineTracker:
+        made = OnlineTracker(model, disparity="gt", options=options)
+        made.add_prompts(objects)
+        return made
+
+    probe = tracker()
+    times = []
+    for index in range(6):
+        lf = video.frame(index)
+        start = time.perf_counter()
+        probe.track(lf)
+        times.append(time.perf_counter() - start)
+    frame_time = statistics.median(times[1:])
+    rate = 2 / frame_time
+    print(f"\n## latest: a camera twice as fast as the tracker: {args.latest_model}, "
+          f"{grid[0]}x{grid[1]} views of {size[0]}x{size[1]}, 3 objects, --refine-views 1, "
+          f"ground-truth disparity, CPU; tracker {frame_time:.3f} s per frame (median of 5), "
+          f"{args.latest_frames} frames landing at {rate:.1f}/s\n")
+    print("| --latest | frames processed | processed per s | s per frame | latency median (s) | "
+          "latency p95 (s) | p95 in frame times | latency worst (s) | skipped | "
+          "reads per frame | RSS after 10 % (MiB) | RSS at end (MiB) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    reads = [0]
+    read_lightfield = live.read_lightfield
+
+    def counted(*a, **k):  # frames read (decoded) by the prefetch thread
+        reads[0] += 1
+        return read_lightfield(*a, **k)
+
+    live.read_lightfield = counted
+    for latest in (True, False):
+        folder = work / f"latest_in_{latest}"
+        folder.mkdir()
+        rss: list[float] = []
+        done: list[float] = []
+
+        def record(timing, result, rss=rss, done=done) -> None:
+            rss.append(rss_mib())
+            done.append(time.perf_counter())
+
+        # the camera is a process of its own (as a real one is), so the tracker's Python
+        # threads do not share their interpreter lock with it
+        writer = multiprocessing.get_context("fork").Process(
+            target=land_cycle, args=(sources, folder, args.latest_frames, rate))
+        began = time.perf_counter()
+        writer.start()
+        reads[0] = 0
+        report = segment_stream(FrameFollower(folder, poll=0.01), tracker(),
+                                work / f"latest_out_{latest}", on_frame=record, latest=latest)
+        writer.join()
+        lat = report.latencies
+        p95 = percentile(lat, 95)
+        early = rss[max(0, len(rss) // 10 - 1)]
+        period = statistics.median(np.diff(done))  # the tracker's frame time in this stream
+        print(f"| {'yes' if latest else 'no'} | {report.frames} | "
+              f"{report.frames / (done[-1] - began):.2f} | {period:.3f} | "
+              f"{statistics.median(lat):.3f} | {p95:.3f} | {p95 / period:.2f} | "
+              f"{max(lat):.3f} | {len(report.skipped)} | {reads[0] / report.frames:.2f} | "
+              f"{early:.0f} | {rss[-1]:.0f} |", flush=True)
+    live.read_lightfield = read_lightfield
+    print("\ntarget: with --latest the 95th-percentile latency under 2 frame times; memory flat")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--parts", default="speed,memory")
@@ -256,6 +364,10 @@ def main() -> None:
     parser.add_argument("--stream-size", default="240x320")
     parser.add_argument("--stream-frames", type=int, default=30)
     parser.add_argument("--rate", type=float, default=1.0, help="frames landing per second")
+    parser.add_argument("--latest-model", default="oracle")
+    parser.add_argument("--latest-frames", type=int, default=100)
+    parser.add_argument("--latest-size", default="96x128")
+    parser.add_argument("--latest-grid", default="5x5")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     args.models = args.models.split(",")
@@ -274,6 +386,8 @@ def main() -> None:
         if "stream" in parts:
             args.stream_runs = args.stream_runs.split(",")
             stream_part(args, work)
+        if "latest" in parts:
+            latest_part(args, work)
 
 
 if __name__ == "__main__":

@@ -11,7 +11,10 @@ Two threads of its own keep the camera's side moving while a frame is segmented:
 
 With ``latest=True`` the tracker never works through a backlog: the prefetch thread always
 takes the newest entry that has arrived, and a read-ahead frame that a newer arrival makes
-stale before the tracker takes it is dropped and the newer one read instead. Every frame left
+stale before the tracker takes it is replaced by the newer one, read just in time for the
+tracker's next request (from the last quarter of its average period between requests: reading
+every arrival at once would take CPU time from the tracker for frames superseded again before
+it asks; until the tracker has finished a frame, every arrival is read). Every frame left
 out that way is reported through ``on_superseded`` (in the consumer's thread, before the
 frame that replaced it is yielded), so the result lists each one by name with the reason
 ``"newer frame available"``. Without ``latest`` every frame is yielded in arrival order.
@@ -25,6 +28,7 @@ the timeout counts only the time the whole stream waits for the camera.
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -35,6 +39,9 @@ __all__ = ["NEWER_FRAME", "FrameFeed", "ReadFrame"]
 
 #: The reason recorded for a frame left out because a newer one had arrived.
 NEWER_FRAME = "newer frame available"
+#: With ``latest``, a newer arrival replaces the frame read ahead from this fraction of the
+#: consumer's average period on (:meth:`FrameFeed._replace_at`).
+JUST_IN_TIME = 0.75
 
 
 @dataclass
@@ -95,6 +102,11 @@ class FrameFeed:
         self._failure: BaseException | None = None
         #: The most decoded frames held at once by the feed (ready plus being read): at most 2.
         self.peak_held = 0
+        self._period: float | None = None  # the consumer's time between requests (average)
+        self._last_request = time.monotonic()
+        self._read_time = 0.0  # the time one read takes (average)
+        self._ready_started = 0.0  # when the read of the frame read ahead began
+        self._waiting = False  # the consumer waits for a frame
 
     # --- the threads -------------------------------------------------------------------------
     def _follow(self) -> None:
@@ -114,20 +126,41 @@ class FrameFeed:
                 self._followed = True
                 self._cond.notify_all()
 
+    def _read_newest_in(self) -> float:
+        """With ``latest`` and a newer frame queued: seconds until it should be read (<= 0:
+        now). At once while the consumer waits or its pace is not known yet; otherwise just
+        in time for its next request (from :data:`JUST_IN_TIME` of its average period between
+        requests on, less the time a read takes), once, and again only if the frame read
+        then has aged a quarter period (the consumer is late). Reading every arrival at once
+        would take CPU time from the tracker for frames superseded again before it asks;
+        reading none would hand it a frame up to a whole period old."""
+        if self._waiting or self._period is None or (
+                self._ready is None and not self._consuming):
+            return 0.0
+        now = time.monotonic()
+        due = self._last_request + JUST_IN_TIME * self._period - 1.5 * self._read_time
+        if self._ready is not None:
+            due = max(due, self._ready_started + 0.25 * self._period) if (
+                self._ready_started >= due) else due
+        return due - now
+
     def _take(self) -> ArrivedFrame | None:
         """The next entry to read (under the lock), None when nothing more will come."""
         while True:
             if self._closed or self._failure is not None:
                 return None
-            if self._queued and (self.latest or self._ready is None):
+            if self._queued and not self.latest and self._ready is None:
                 break
+            if self._queued and self.latest:
+                wait = self._read_newest_in()
+                if wait <= 0:
+                    break
+                self._cond.wait(wait)
+                continue
             if self._followed and not self._queued:
                 return None
             self._cond.wait()
         if self.latest:
-            if self._ready is not None:
-                self._set_aside(self._ready)
-                self._ready = None
             self._superseded.extend(self._queued[:-1])
             self._queued = self._queued[-1:]
         self._reading = True
@@ -141,16 +174,17 @@ class FrameFeed:
                     if arrived is None:
                         return
                     self.peak_held = max(self.peak_held, 1 + (self._ready is not None))
+                began = time.monotonic()
                 try:
                     item = ReadFrame(arrived, self.read(arrived))
                 except Exception as exc:  # the consumer decides
                     item = ReadFrame(arrived, None, exc)
                 with self._cond:
+                    self._read_time = 0.7 * self._read_time + 0.3 * (time.monotonic() - began)
                     self._reading = False
-                    if self.latest and self._queued:  # a newer frame came while reading
-                        self._set_aside(item)
-                    else:
-                        self._ready = item
+                    if self._ready is not None:  # latest: the frame read before is older
+                        self._set_aside(self._ready)
+                    self._ready, self._ready_started = item, began
                     self._cond.notify_all()
         except BaseException as exc:  # handed to the consumer
             with self._cond:
@@ -182,12 +216,21 @@ class FrameFeed:
         try:
             while True:
                 with self._cond:
+                    now = time.monotonic()
+                    if self._consuming:  # the consumer's period between requests
+                        took = now - self._last_request
+                        self._period = took if self._period is None else \
+                            0.7 * self._period + 0.3 * took
+                    self._last_request = now
                     self._consuming = False
                     self._update_busy()
+                    self._waiting = True
+                    self._cond.notify_all()
                     while (self._ready is None and not self._unreadable
                            and self._failure is None
                            and not (self._followed and not self._queued and not self._reading)):
                         self._cond.wait(0.1)  # a timeout keeps Ctrl-C responsive
+                    self._waiting = False
                     superseded, self._superseded = self._superseded, []
                     if self._unreadable:
                         item = self._unreadable.pop(0)
