@@ -14,7 +14,9 @@ takes the newest entry that has arrived, and a read-ahead frame that a newer arr
 stale before the tracker takes it is replaced by the newer one, read just in time for the
 tracker's next request (from the last quarter of its average period between requests: reading
 every arrival at once would take CPU time from the tracker for frames superseded again before
-it asks; until the tracker has finished a frame, every arrival is read). Every frame left
+it asks; until the tracker has finished a frame, every arrival is read); and if a newer frame
+has still come by the tracker's request and a read is cheap next to its period, it waits for
+that read instead of taking an older frame. Every frame left
 out that way is reported through ``on_superseded`` (in the consumer's thread, before the
 frame that replaced it is yielded), so the result lists each one by name with the reason
 ``"newer frame available"``. Without ``latest`` every frame is yielded in arrival order.
@@ -42,6 +44,9 @@ NEWER_FRAME = "newer frame available"
 #: With ``latest``, a newer arrival replaces the frame read ahead from this fraction of the
 #: consumer's average period on (:meth:`FrameFeed._replace_at`).
 JUST_IN_TIME = 0.75
+#: With ``latest``, the consumer waits for a newer frame's read at its request when a read
+#: takes under this fraction of its period (:meth:`FrameFeed._fresher_is_cheap`).
+FRESH_READ = 0.2
 
 
 @dataclass
@@ -195,6 +200,14 @@ class FrameFeed:
                 self._reading = False
                 self._cond.notify_all()
 
+    def _fresher_is_cheap(self) -> bool:
+        """With ``latest``, at the consumer's request: a frame newer than the one read ahead
+        has arrived and a read takes under :data:`FRESH_READ` of the consumer's period, so the
+        consumer waits for the newer frame's read rather than take one that aged (once per
+        request: frames arriving during that read do not make it wait again)."""
+        return (self.latest and self._ready is not None and bool(self._queued)
+                and self._period is not None and self._read_time < FRESH_READ * self._period)
+
     def _set_aside(self, item: ReadFrame) -> None:
         """A read frame that a newer one replaces: superseded, or (unreadable) still yielded
         so that the consumer skips it for what it is."""
@@ -226,7 +239,8 @@ class FrameFeed:
                     self._update_busy()
                     self._waiting = True
                     self._cond.notify_all()
-                    while (self._ready is None and not self._unreadable
+                    stale = self._ready if self._fresher_is_cheap() else None
+                    while ((self._ready is None or self._ready is stale) and not self._unreadable
                            and self._failure is None
                            and not (self._followed and not self._queued and not self._reading)):
                         self._cond.wait(0.1)  # a timeout keeps Ctrl-C responsive

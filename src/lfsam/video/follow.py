@@ -132,11 +132,10 @@ class FrameFollower:
 
     def _new_entries(self) -> list[Path]:
         try:
-            entries = frame_entries(self.folder)
+            return frame_entries(self.folder, skip=self._seen)
         except OSError as exc:
             raise LfsamError(f"cannot list the followed folder {str(self.folder)!r}: "
                              f"{exc}") from None
-        return [entry for entry in entries if entry.name not in self._seen]
 
     def __iter__(self) -> Iterator[ArrivedFrame]:
         index = 0

@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import os
 import re
+from collections.abc import Container
 from pathlib import Path
 from typing import Any
 
@@ -31,15 +32,20 @@ def _natural_key(name: str) -> list[Any]:
     return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", name)]
 
 
-def frame_entries(folder: Path) -> list[Path]:
-    """The frames of a folder: sub-folders and light-field files, in natural name order."""
-    entries = [
-        entry
-        for entry in folder.iterdir()
-        if not entry.name.startswith(".")
-        and entry.name != VIDEO_MARKER
-        and (entry.is_dir() or entry.suffix.lower() in FRAME_FILE_SUFFIXES)
-    ]
+def frame_entries(folder: Path, skip: Container[str] = ()) -> list[Path]:
+    """The frames of a folder: sub-folders and light-field files, in natural name order;
+    names in ``skip`` left out before anything else is looked at (a followed folder's frames
+    already seen: each look costs little however many frames the folder holds)."""
+    with os.scandir(folder) as scan:
+        entries = [
+            Path(entry.path)
+            for entry in scan
+            if entry.name not in skip
+            and not entry.name.startswith(".")
+            and entry.name != VIDEO_MARKER
+            and (entry.is_dir() or os.path.splitext(entry.name)[1].lower()
+                 in FRAME_FILE_SUFFIXES)
+        ]
     return sorted(entries, key=lambda entry: _natural_key(entry.name))
 
 
