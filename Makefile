@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.lfsam-installed
 
-.PHONY: install demo test lint bench clean system-deps gpu-check
+.PHONY: install demo test lint bench clean system-deps gpu-deps gpu-check
 
 install: $(STAMP)
 
@@ -54,27 +54,39 @@ system-deps:
 	echo "system-deps: installing $$missing"; \
 	apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing >/dev/null
 
-# On a CUDA machine: check that the installed torch sees the GPU (PyPI's Linux torch wheels are
-# CUDA builds; if the driver is too old for them, reinstall torch from the PyTorch index named
-# by TORCH_CUDA_INDEX, e.g. make gpu-check TORCH_CUDA_INDEX=https://download.pytorch.org/whl/cu126),
-# then the CUDA-marked tests and the GPU benchmark (docs/performance.md, "GPU (H100)").
-TORCH_CUDA_INDEX ?=
+# A GPU machine has no package registry (docs/performance.md, "GPU (H100)"). Here, with one:
+# `make gpu-deps` fills gpu-deps/ (ignored by git, at most 60 MiB) with wheels of everything such
+# a machine lacks besides its own CUDA PyTorch and scientific base (tools/gpu_deps.py: sam2 built
+# without its CUDA extension, hydra-core, omegaconf, iopath, pycocotools, transformers, timm,
+# pytest, ...; never torch), pinned in gpu-deps/constraints.txt, for the Pythons in GPU_PYTHONS.
+GPU_PYTHONS ?= 3.11,3.12,3.13
+gpu-deps: $(STAMP)
+	$(PY) tools/gpu_deps.py --out gpu-deps --pythons $(GPU_PYTHONS)
+
+# There, with gpu-deps/ carried along: `make gpu-check` makes a venv that sees the machine's own
+# CUDA PyTorch (--system-site-packages of GPU_PYTHON; GPU_VENV= installs into GPU_PYTHON's own
+# environment instead), installs lfsam and exactly the wheels carried (no registry, and no
+# dependency resolution that could touch the machine's torch and its CUDA packages), checks
+# that torch sees the GPU, then runs the CUDA-marked tests and the GPU benchmark (with its
+# profile), which writes its numbers to docs/gpu_results.json.
+GPU_PYTHON ?= python3
+GPU_VENV ?= .venv-gpu
+GPU_PY := $(if $(GPU_VENV),$(GPU_VENV)/bin/python,$(GPU_PYTHON))
 CUDA_OK := import sys, torch; ok = torch.cuda.is_available(); \
 	print('torch', torch.__version__, '| CUDA build', torch.version.cuda, '| GPU:', \
 	torch.cuda.get_device_name(0) if ok else 'none visible'); sys.exit(0 if ok else 1)
-gpu-check: $(STAMP)
+gpu-check:
+	@test -f gpu-deps/constraints.txt || { echo "gpu-check: no gpu-deps/ here: run make gpu-deps" \
+	  "on a machine with a package registry and bring the folder along" >&2; exit 1; }
 	-nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv
-	@$(PY) -c "$(CUDA_OK)" || { \
-	  if [ -n "$(TORCH_CUDA_INDEX)" ]; then \
-	    $(PY) -m pip uninstall --quiet -y torch torchvision && \
-	    $(PY) -m pip install --quiet --index-url "$(TORCH_CUDA_INDEX)" -c constraints.txt \
-	      torch torchvision && $(PY) -c "$(CUDA_OK)"; \
-	  else \
-	    echo "gpu-check: this torch sees no CUDA GPU (no GPU, or a driver older than its CUDA);" \
-	      "rerun with TORCH_CUDA_INDEX=https://download.pytorch.org/whl/cuXYZ" >&2; exit 1; \
-	  fi; }
-	$(VENV)/bin/python -m pytest -q -m cuda -rs
-	$(VENV)/bin/python benchmarks/bench_gpu.py
+	$(if $(GPU_VENV),test -x $(GPU_PY) || $(GPU_PYTHON) -m venv --system-site-packages $(GPU_VENV))
+	@$(GPU_PY) -c "$(CUDA_OK)" || { echo "gpu-check: $(GPU_PY) has no torch that sees a CUDA" \
+	  "GPU (no GPU, a CPU build, or a torch outside GPU_PYTHON's site-packages: set GPU_PYTHON)" >&2; exit 1; }
+	$(GPU_PY) -m pip install --quiet --no-index --find-links gpu-deps --no-deps \
+	  -r gpu-deps/constraints.txt -e .
+	$(GPU_PY) -c "import lfsam, sam2, transformers, timm, pycocotools, pytest; print('gpu-check: lfsam', lfsam.__version__, 'from', lfsam.__file__)"
+	$(GPU_PY) -m pytest -q -m cuda -rs $$(grep -l "pytest.mark.cuda" tests/test_*.py)
+	$(GPU_PY) benchmarks/bench_gpu.py --profile --json docs/gpu_results.json
 
 clean:
-	rm -rf $(VENV) demo_output .pytest_cache
+	rm -rf $(VENV) $(GPU_VENV) gpu-deps demo_output .pytest_cache
