@@ -28,24 +28,39 @@ CUDA one untimed LFSAM run):
   its last, partial pass. ``--baseline-objects 0`` times all N (ceil(N / 15) passes).
 
 ``--profile`` adds one LFSAM run under ``torch.profiler`` and prints its kernel launches, host
-synchronisations, host-device copies and the GPU's busy time (docs/performance.md, "GPU (H100)").
+synchronisations, host-device copies and the GPU's busy time (docs/performance.md, "GPU (H100)");
+with the click cases, one more run of each under the profiler too.
+
+The real-time cases of issue 44 (``--cases``; ``gpu_cases.py`` beside this script has the
+details): ``click-sparse`` and ``click-all`` (one click on the same light field, end to end,
+``--refine-views sparse`` / all views; targets on an H100: 0.1 s and 0.3 s), ``stream`` and
+``stream-estimate`` (a live stream of ``--stream-grid`` views of ``--stream-size`` landing at
+``--stream-rate`` per second, ``--stream-model`` with its video memory, 3 objects,
+``--refine-views 1``, ``--latest``; ground-truth disparity or estimated per frame; targets: 30
+frames processed per second with a p95 latency of 60 ms, and 15 per second). ``--json PATH``
+writes every number (and the targets) as JSON (docs/gpu_results.json beside the table in
+docs/performance.md). ``--smoke`` runs every case at a tiny size with the tiny test models, on
+any device, in seconds: the check that the script works before it reaches a GPU.
 
 Run on a GPU (``make gpu-check`` runs this)::
 
     python benchmarks/bench_gpu.py
 
 and on a CPU at a small size (under 5 minutes on 2 cores): ``python benchmarks/bench_gpu.py
---device cpu --quick``. The same table is printed either way.
+--device cpu --quick``, or every case in seconds: ``python benchmarks/bench_gpu.py --device cpu
+--smoke --json /tmp/gpu.json``. The same table is printed either way.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import platform
 import resource
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -60,6 +75,12 @@ from lfsam.synth import generate_scene
 
 FULL = {"grid": "9x9", "size": "480x640", "prompts": 100}
 QUICK = {"grid": "3x3", "size": "120x160", "prompts": 4}
+SMOKE = {"grid": "3x3", "size": "32x48", "prompts": 2}
+CASES = ("click-sparse", "click-all", "stream", "stream-estimate")
+#: Issue 44's targets on one H100 (seconds, frames per second).
+TARGETS = {"paper_total_s": 1.0, "paper_kernel_launches": 10000, "paper_synchronisations": 100,
+           "click_sparse_s": 0.1, "click_all_s": 0.3, "stream_per_second": 30,
+           "stream_p95_latency_s": 0.060, "stream_estimate_per_second": 15}
 
 
 def prompt_points(labels: np.ndarray, count: int, seed: int = 0) -> np.ndarray:
@@ -110,7 +131,7 @@ def _timed(device: torch.device, fn):
     return out, time.perf_counter() - start
 
 
-def profile_run(fn, device: torch.device) -> dict[str, float]:
+def profile_run(fn, device: torch.device, label: str = "one LFSAM run") -> dict[str, float]:
     """Run ``fn`` once under ``torch.profiler`` and print what the host and the GPU did:
     kernel launches, stream and device synchronisations, host-device copies (calls), the
     run's wall time under the profiler, the GPU's busy time (self device time of all events)
@@ -138,7 +159,7 @@ def profile_run(fn, device: torch.device) -> dict[str, float]:
         "copies": calls("cudaMemcpyAsync", "cudaMemcpy"),
         "gpu_busy_s": busy,
     }
-    print(f"\nprofile of one LFSAM run: {wall:.2f} s under the profiler; "
+    print(f"\nprofile of {label}: {wall:.2f} s under the profiler; "
           f"{numbers['kernel_launches']} kernel launches, {numbers['synchronisations']} "
           f"synchronisations, {numbers['copies']} host-device copies; GPU busy {busy:.2f} s "
           f"({100 * copies / busy if busy else 0:.0f} % of it in aten::copy_)", flush=True)
@@ -177,8 +198,31 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     parser.add_argument("--profile", action="store_true",
                         help="one more LFSAM run under torch.profiler: kernel launches, host "
                         "synchronisations, copies and the GPU's busy time")
+    parser.add_argument("--cases", default=",".join(CASES),
+                        help="the real-time cases to run after the paper's setting, of "
+                        + ", ".join(CASES) + " (or none)")
+    parser.add_argument("--stream-model", default=None, help="default edgetam")
+    parser.add_argument("--stream-grid", default=None, help="default 5x5")
+    parser.add_argument("--stream-size", default=None, help="default 480x640")
+    parser.add_argument("--stream-frames", type=int, default=None,
+                        help="frames landing in the stream (default 240)")
+    parser.add_argument("--stream-rate", type=float, default=60.0,
+                        help="frames landing per second")
+    parser.add_argument("--smoke", action="store_true",
+                        help=f"every case at a tiny size with the tiny test models ({SMOKE}, "
+                        "sam2-tiny-test, edgetam-tiny-test, 12 stream frames): does it run?")
+    parser.add_argument("--json", default=None, metavar="PATH",
+                        help="write every number, the setting and the targets as JSON")
     args = parser.parse_args(argv)
-    preset = QUICK if args.quick else FULL
+    cases = [c for c in args.cases.split(",") if c and c != "none"]
+    unknown = sorted(set(cases) - set(CASES))
+    if unknown:
+        parser.error(f"unknown cases {unknown}; choose from {', '.join(CASES)}")
+    if args.smoke:
+        args.quick = True
+        args.model = "sam2-tiny-test" if args.model == parser.get_default("model") else \
+            args.model
+    preset = SMOKE if args.smoke else QUICK if args.quick else FULL
     grid = _pairs(args.grid or preset["grid"])
     size = _pairs(args.size or preset["size"])
     n = args.prompts or preset["prompts"]
@@ -246,9 +290,11 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
         base_ms = 1000 * base_wall / (base.num_masks * num_views)
         passes = math.ceil(n / 15)
 
+    profile = None
     if args.profile:
-        profile_run(lambda: segment(lf, prompts, model=segmenter, disparity=lf.center_disparity,
-                                    options=ours_options), device)
+        profile = profile_run(lambda: segment(lf, prompts, model=segmenter,
+                                              disparity=lf.center_disparity,
+                                              options=ours_options), device)
     rss_gib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # KiB on Linux
     rows = [
         ("LFSAM ms per mask per view", f"{ours_ms:.2f}",
@@ -281,10 +327,84 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     print("|" + "-" * (width + 2) + "|" + "-" * (vwidth + 2) + "|-----|")
     for name, value, how in rows:
         print(f"| {name.ljust(width)} | {value.ljust(vwidth)} | {how} |")
+    numbers: dict = {"lfsam_ms": ours_ms, "total_s": wall, "encoder_share": encoder_share,
+                     "stages_s": {k: round(v, 4) for k, v in ours.timings.items()
+                                  if k != "total"},
+                     "peak_gpu_gib": peak, "peak_rss_gib": rss_gib,
+                     **({"baseline_ms": base_ms} if base_ms is not None else {}),
+                     **({"profile": profile} if profile is not None else {})}
+    realtime = realtime_cases(args, cases, lf, segmenter, repeats, device)
     print(f"\nbench_gpu: finished in {time.perf_counter() - began:.0f} s", flush=True)
     sys.stdout.flush()
-    return {"lfsam_ms": ours_ms, "total_s": wall, "encoder_share": encoder_share,
-            **({"baseline_ms": base_ms} if base_ms is not None else {})}
+    if args.json:
+        write_json(args.json, {
+            "device": str(device), "gpu": gpu, "torch": torch.__version__,
+            "precision": "bf16 autocast" if dtype is not None else "float32",
+            "model": args.model, "random_weights": True,
+            "setting": {"grid": list(grid), "size": list(size), "prompts": n,
+                        "encode_batch": batch, "repeats": repeats},
+            "paper": numbers, **realtime, "targets": TARGETS,
+        })
+    return {**numbers, **realtime}
+
+
+def realtime_cases(args, cases: list[str], lf, segmenter, repeats: int,
+                   device: torch.device) -> dict:
+    """Issue 44's cases (``gpu_cases.py``), printed as a second table; their numbers."""
+    from gpu_cases import click_case, stream_case
+
+    out: dict = {}
+    rows = []
+    for refine in ("sparse", "all"):
+        if f"click-{refine}" in cases:
+            got = click_case(lf, segmenter, refine, repeats, device,
+                             profile_run if args.profile else None)
+            out[f"click_{refine}"] = got
+            target = TARGETS[f"click_{refine}_s"]
+            rows.append((f"one click, --refine-views {refine}", f"{got['seconds']:.3f} s",
+                         f"{got['light_fields_per_second']:.1f} light fields/s; "
+                         f"{got['views_encoded']} views encoded; H100 target <= {target} s"))
+    smoke = args.smoke
+    model = args.stream_model or ("edgetam-tiny-test" if smoke else "edgetam")
+    grid = _pairs(args.stream_grid or ("3x3" if smoke else "5x5"))
+    size = _pairs(args.stream_size or ("32x48" if smoke else "480x640"))
+    frames = args.stream_frames or (12 if smoke else 240)
+    streams = [c for c in ("stream", "stream-estimate") if c in cases]
+    if streams:
+        stream_model = load_segmenter(model, random_weights=True, device=device,
+                                      keep_decoder_state=False)
+    for case in streams:
+        disparity = "estimate" if case == "stream-estimate" else "gt"
+        got = stream_case(stream_model, grid, size, frames, args.stream_rate, disparity,
+                          device, seed=args.seed)
+        got.update(model=model, grid=list(grid), size=list(size), disparity=disparity)
+        out[case.replace("-", "_")] = got
+        key = "stream_estimate_per_second" if disparity == "estimate" else "stream_per_second"
+        p95 = got["latency_p95_s"]
+        rows.append((
+            f"live stream, {disparity} disparity, --latest",
+            f"{got['processed_per_second']:.1f} /s",
+            f"{model} {grid[0]}x{grid[1]}x{size[0]}x{size[1]}, memory, 3 objects, "
+            f"--refine-views 1; {got['frames_processed']} of {frames} frames at "
+            f"{args.stream_rate:g}/s processed, {got['skipped']} skipped; latency median "
+            f"{got['latency_median_s']:.3f} s, p95 {p95:.3f} s, worst "
+            f"{got['latency_worst_s']:.3f} s; objects {got['objects_present']}; one result "
+            f"write {got['result_write_s']:.3f} s; H100 target >= {TARGETS[key]}/s"
+            + (f", p95 <= {TARGETS['stream_p95_latency_s']} s" if disparity == "gt" else "")))
+    if rows:
+        print("\n| real-time case (issue 44) | value | how |\n|---|---|---|")
+        for name, value, how in rows:
+            print(f"| {name} | {value} | {how} |", flush=True)
+    return out
+
+
+def write_json(path: str, numbers: dict) -> None:
+    """Write ``numbers`` as JSON atomically (``lfsam.fileutil.atomic_output``)."""
+    from lfsam.fileutil import atomic_output
+
+    with atomic_output(path) as tmp:
+        Path(tmp).write_text(json.dumps(numbers, indent=2, default=float) + "\n")
+    print(f"bench_gpu: numbers written to {path}", flush=True)
 
 
 if __name__ == "__main__":

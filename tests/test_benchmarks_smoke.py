@@ -17,7 +17,7 @@ BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 CASES = {
     "bench_gpu.py": (
         ["--device", "cpu", "--model", "sam2-tiny-test", "--grid", "3x3", "--size", "32x48",
-         "--prompts", "2", "--baseline-objects", "1", "--no-estimate"],
+         "--prompts", "2", "--baseline-objects", "1", "--no-estimate", "--cases", "none"],
         "ratio baseline / LFSAM",
     ),
     "bench_speed.py": (
@@ -88,3 +88,29 @@ def test_benchmark_script_runs(script):
     )
     assert run.returncode == 0, run.stderr[-2000:]
     assert expected in run.stdout
+
+
+def test_bench_gpu_smoke_runs_every_case_and_writes_json(tmp_path):
+    """bench_gpu.py --smoke (issue 44): the paper's setting, one click (sparse and all views)
+    and the live stream with --latest (ground-truth and estimated disparity) at a tiny size
+    with the tiny models, on the CPU, every number written as JSON."""
+    import json
+
+    out = tmp_path / "gpu.json"
+    run = subprocess.run(
+        [sys.executable, str(BENCHMARKS / "bench_gpu.py"), "--device", "cpu", "--smoke",
+         "--profile", "--json", str(out)],
+        capture_output=True, text=True, timeout=300,
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    numbers = json.loads(out.read_text())
+    assert numbers["paper"]["total_s"] > 0 and "kernel_launches" in numbers["paper"]["profile"]
+    for click in ("click_sparse", "click_all"):
+        assert numbers[click]["seconds"] > 0 and "profile" in numbers[click]
+    for stream in ("stream", "stream_estimate"):
+        got = numbers[stream]
+        assert got["frames_processed"] >= 1 and got["tracking"] == "edgetam-memory"
+        assert got["frames_processed"] + got["skipped"] == got["frames_arrived"]
+        assert got["latency_p95_s"] > 0
+    assert numbers["targets"]["stream_per_second"] == 30
+    assert "| live stream, estimate disparity, --latest |" in run.stdout

@@ -67,9 +67,27 @@ def test_oracle_pipeline_on_cuda_matches_cpu():
 def test_bench_gpu_runs_on_cuda():
     run = subprocess.run(
         [sys.executable, str(BENCH_GPU), "--model", "sam2-tiny-test", "--grid", "3x3",
-         "--size", "48x64", "--prompts", "4", "--baseline-objects", "2", "--repeats", "1"],
+         "--size", "48x64", "--prompts", "4", "--baseline-objects", "2", "--repeats", "1",
+         "--cases", "none"],
         capture_output=True, text=True, timeout=600,
     )
     assert run.returncode == 0, run.stderr[-2000:]
     assert "on cuda" in run.stdout
     assert "GiB" in run.stdout.split("peak GPU memory, LFSAM")[1].splitlines()[0]
+
+
+def test_bench_gpu_realtime_cases_run_on_cuda(tmp_path):
+    """Issue 44's cases (one click, the live stream with --latest) at the smoke size on CUDA,
+    with the profile's counts and the JSON."""
+    import json
+
+    out = tmp_path / "gpu.json"
+    run = subprocess.run(
+        [sys.executable, str(BENCH_GPU), "--smoke", "--profile", "--json", str(out)],
+        capture_output=True, text=True, timeout=600,
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    numbers = json.loads(out.read_text())
+    assert numbers["device"].startswith("cuda")
+    assert numbers["paper"]["profile"]["kernel_launches"] > 0
+    assert numbers["stream"]["frames_processed"] >= 1
