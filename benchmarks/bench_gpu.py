@@ -29,7 +29,7 @@ CUDA one untimed LFSAM run):
 
 ``--profile`` adds one LFSAM run under ``torch.profiler`` and prints its kernel launches, host
 synchronisations, host-device copies and the GPU's busy time (docs/performance.md, "GPU (H100)");
-with the click cases, one more run of each under the profiler too.
+on CUDA, one more run of each click case under the profiler too.
 
 The real-time cases of issue 44 (``--cases``; ``gpu_cases.py`` beside this script has the
 details): ``click-sparse`` and ``click-all`` (one click on the same light field, end to end,
@@ -358,7 +358,7 @@ def realtime_cases(args, cases: list[str], lf, segmenter, repeats: int,
     for refine in ("sparse", "all"):
         if f"click-{refine}" in cases:
             got = click_case(lf, segmenter, refine, repeats, device,
-                             profile_run if args.profile else None)
+                             profile_run if args.profile and device.type == "cuda" else None)
             out[f"click_{refine}"] = got
             target = TARGETS[f"click_{refine}_s"]
             rows.append((f"one click, --refine-views {refine}", f"{got['seconds']:.3f} s",
@@ -376,7 +376,7 @@ def realtime_cases(args, cases: list[str], lf, segmenter, repeats: int,
     for case in streams:
         disparity = "estimate" if case == "stream-estimate" else "gt"
         got = stream_case(stream_model, grid, size, frames, args.stream_rate, disparity,
-                          device, seed=args.seed)
+                          device, seed=args.seed, sources_count=3 if smoke else 10)
         got.update(model=model, grid=list(grid), size=list(size), disparity=disparity)
         out[case.replace("-", "_")] = got
         key = "stream_estimate_per_second" if disparity == "estimate" else "stream_per_second"

@@ -102,13 +102,14 @@ def _land(sources: list[Path], folder: Path, count: int, rate: float) -> None:
 
 
 def stream_case(segmenter, grid: tuple[int, int], size: tuple[int, int], frames: int,
-                rate: float, disparity: str, device: torch.device, seed: int = 0
-                ) -> dict[str, Any]:
+                rate: float, disparity: str, device: torch.device, seed: int = 0,
+                sources_count: int = 10) -> dict[str, Any]:
     """The live stream with ``--latest`` (see the module docstring)."""
     with tempfile.TemporaryDirectory(dir="/dev/shm" if Path("/dev/shm").is_dir() else None) \
             as tmp:
         work = Path(tmp)
-        video = list(generate_video(grid=grid, size=size, frames=10, seed=seed, num_objects=4))
+        video = list(generate_video(grid=grid, size=size, frames=sources_count, seed=seed,
+                                    num_objects=4))
         sources = []
         for index, lf in enumerate(video):
             sources.append(write_npz(lf, work / f"source_{index:02d}.npz", compress=False))
@@ -117,7 +118,7 @@ def stream_case(segmenter, grid: tuple[int, int], size: tuple[int, int], frames:
                                  run=RunOptions(progress=False))
         warm = OnlineTracker(segmenter, disparity=disparity, options=options, memory=True)
         warm.add_prompts(objects)
-        for lf in video[:3]:  # untimed: the memory's model built, kernels chosen
+        for lf in video[:2]:  # untimed: the memory's model built, kernels chosen
             warm.track(lf)
         keep_objects_present(warm)
         tracker = OnlineTracker(segmenter, disparity=disparity, options=options, memory=True)

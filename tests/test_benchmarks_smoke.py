@@ -99,14 +99,14 @@ def test_bench_gpu_smoke_runs_every_case_and_writes_json(tmp_path):
     out = tmp_path / "gpu.json"
     run = subprocess.run(
         [sys.executable, str(BENCHMARKS / "bench_gpu.py"), "--device", "cpu", "--smoke",
-         "--profile", "--json", str(out)],
+         "--profile", "--no-baseline", "--json", str(out)],
         capture_output=True, text=True, timeout=300,
     )
     assert run.returncode == 0, run.stderr[-2000:]
     numbers = json.loads(out.read_text())
     assert numbers["paper"]["total_s"] > 0 and "kernel_launches" in numbers["paper"]["profile"]
     for click in ("click_sparse", "click_all"):
-        assert numbers[click]["seconds"] > 0 and "profile" in numbers[click]
+        assert numbers[click]["seconds"] > 0 and numbers[click]["views_encoded"] >= 1
     for stream in ("stream", "stream_estimate"):
         got = numbers[stream]
         assert got["frames_processed"] >= 1 and got["tracking"] == "edgetam-memory"

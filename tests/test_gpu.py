@@ -90,4 +90,5 @@ def test_bench_gpu_realtime_cases_run_on_cuda(tmp_path):
     numbers = json.loads(out.read_text())
     assert numbers["device"].startswith("cuda")
     assert numbers["paper"]["profile"]["kernel_launches"] > 0
+    assert numbers["click_sparse"]["profile"]["kernel_launches"] > 0
     assert numbers["stream"]["frames_processed"] >= 1
