@@ -222,8 +222,8 @@ class FrameFeed:
 
     # --- the consumer ------------------------------------------------------------------------
     def __iter__(self) -> Iterator[ReadFrame]:
-        follow = threading.Thread(target=self._follow, name="lfsam-follow", daemon=True)
-        prefetch = threading.Thread(target=self._prefetch, name="lfsam-prefetch", daemon=True)
+        follow = threading.Thread(target=self._follow, name="lfsam-feed-follow", daemon=True)
+        prefetch = threading.Thread(target=self._prefetch, name="lfsam-feed-prefetch", daemon=True)
         follow.start()
         prefetch.start()
         try:
