@@ -153,14 +153,17 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
     Raises
     ------
     LfsamError
-        Without napari (naming the install command), or for an unreadable light field or
-        result; nothing is opened then.
+        Without napari (naming the install command), without a display (naming ``DISPLAY``
+        and ``xvfb-run -a``), or for an unreadable light field or result; nothing is opened
+        then.
     """
     from lfsam.viewer import require_napari
+    from lfsam.viewer.display import check_display
     from lfsam.viewer.native_libraries import preload_native_libraries
 
     check_follow(args)
     require_napari()
+    check_display()  # before Qt, whose xcb plugin would abort the process (issue 46)
     if args.cache:
         check_cache_dir(args.cache)
     check_text_weights(args)
