@@ -322,3 +322,57 @@ def test_follow_ctrl_c_exits_130_with_a_valid_folder(clip, tmp_path):
     assert result.meta["ended_by"] == "interrupted"
     for labels in result.labels:  # every listed frame is there and readable
         assert labels.shape == (3, 3, 48, 64)
+
+
+# --- frame faults and configuration faults (issue 46) ---------------------------------------
+def _frames_without_labels(folder: Path, frames: int, keep_first: bool = False) -> None:
+    """Frames as a camera writes them (no ground-truth labels), optionally the first with."""
+    from dataclasses import replace as _replace
+
+    from lfsam.io import write_lightfield
+
+    folder.mkdir()
+    for index, lf in enumerate(generate_video(grid=(3, 3), size=(48, 64), frames=frames,
+                                              seed=0, num_objects=3)):
+        write_lightfield(lf if keep_first and index == 0 else _replace(lf, labels=None, categories=None),
+                         folder / f"frame_{index:04d}")
+
+
+def test_follow_with_the_oracle_on_frames_without_labels_stops_in_one_line(tmp_path):
+    """A configuration fault (the oracle needs labels the frames lack) fails every frame the
+    same way: exit 2 with one line at the first frame, not one line per frame and exit 0."""
+    folder, out = tmp_path / "in", tmp_path / "out"
+    _frames_without_labels(folder, 3)
+    (folder / "END").write_bytes(b"")
+    start = time.monotonic()
+    proc = subprocess.run(
+        [sys.executable, "-m", "lfsam.cli.main", "segment", str(folder), "--follow",
+         "--model", "oracle", "--auto", "--out", str(out)],
+        capture_output=True, text=True, timeout=120,
+        env={**os.environ, "OMP_NUM_THREADS": "1"})
+    seconds = time.monotonic() - start
+    lines = [x for x in proc.stderr.strip().splitlines() if not x.startswith("following ")]
+    assert proc.returncode == 2, proc.stderr
+    assert len(lines) == 1 and lines[0].startswith("lfsam: error:"), proc.stderr
+    assert "frame_0000" in lines[0] and "nothing was written" in lines[0]
+    assert "skipped" not in proc.stderr
+    assert not out.exists()
+    assert seconds < 20
+
+
+def test_a_configuration_fault_after_some_frames_keeps_them_in_a_valid_folder(tmp_path,
+                                                                              capsys):
+    folder, out = tmp_path / "in", tmp_path / "out"
+    _frames_without_labels(folder, 3, keep_first=True)
+    (folder / "END").write_bytes(b"")
+    code = main(["segment", str(folder), "--follow", "--model", "oracle", "--auto",
+                 "--disparity", "gt", "--out", str(out), "--poll", "0.02"])
+    err = capsys.readouterr().err
+    assert code == 2
+    errors = [x for x in err.splitlines() if x.startswith("lfsam: error:")]
+    assert len(errors) == 1 and "frame_0001" in errors[0] and "1 frame(s) done" in errors[0]
+    assert "skipped" not in err
+    result = lfsam.load_result(out)
+    assert result.complete and len(result) == 1
+    assert result.meta["ended_by"] == "error" and "labels" in result.meta["error"]
+    assert (result.labels[0] > 0).any()

@@ -10,6 +10,11 @@ The rule:
   argument no user input can produce, e.g. an axis other than -1/-2, or a drawing primitive of
   :mod:`lfsam.viz` given an image of another size than its labels, which ``lfsam show`` checks
   first). Each such place says so in the Raises section of its docstring.
+- :class:`FrameError` (an :class:`LfsamError`) is one frame's fault in a stream of frames (a
+  frame that cannot be read, or of another grid or view size than the first): a followed stream
+  skips that frame and goes on (docs/design.md section 10). Any other :class:`LfsamError` while
+  a stream is segmented is the configuration's (a model the frames cannot serve, prompts that do
+  not fit): it would fail every frame, so the stream stops at the first.
 - Anything else is a bug.
 
 The command-line interface prints :class:`LfsamError` as ``lfsam: error: <message>`` without a
@@ -18,7 +23,7 @@ traceback and exits with status 2; any other exception keeps its traceback.
 
 from __future__ import annotations
 
-__all__ = ["LfsamError"]
+__all__ = ["FrameError", "LfsamError"]
 
 
 class LfsamError(Exception):
@@ -26,3 +31,8 @@ class LfsamError(Exception):
 
     def __init__(self, message: str) -> None:
         super().__init__(" ".join(str(message).split()))
+
+
+class FrameError(LfsamError):
+    """One frame of a stream is at fault (unreadable, damaged, another grid or view size); the
+    frames after it may be fine."""

@@ -7,10 +7,15 @@ video memory kept), and :func:`lfsam.video.result.live_video_result_writer` writ
 into the result folder before the next frame is looked at (each file atomic; the folder reads
 as a valid result of the frames so far at any moment).
 
-A frame that cannot be read (damaged, half-written by a writer that does not rename, another
-grid or view size) is read once more after :data:`RETRY_SECONDS`, then skipped: one line
-through ``on_skip``, listed in the result's ``meta["skipped"]``; the stream goes on and nothing
-already written changes. Frame indices (of the result and of prompts' ``#F``) count the frames
+A frame at fault (:class:`lfsam.errors.FrameError`: one that cannot be read — damaged,
+half-written by a writer that does not rename — is read once more after :data:`RETRY_SECONDS`
+first; one of another grid or view size) is skipped: one line through ``on_skip``, listed in
+the result's ``meta["skipped"]``; the stream goes on and nothing already written changes. Any
+other :class:`~lfsam.errors.LfsamError` while a frame is segmented is the configuration's (the
+oracle on frames without ground-truth labels, ``--disparity gt`` without ground truth, prompts
+outside the views): every frame would fail the same way, so the stream stops at the first, the
+result folder valid with the frames done (``meta["ended_by"] = "error"``, ``meta["error"]``),
+and one line is raised (issue 46). Frame indices (of the result and of prompts' ``#F``) count the frames
 segmented. Ctrl-C (``KeyboardInterrupt``) drops the frame in progress and ends the stream like
 ``END``: ``ended_by`` says ``"interrupted"``.
 """
@@ -25,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from lfsam.errors import LfsamError
+from lfsam.errors import FrameError, LfsamError
 from lfsam.io import read_lightfield
 from lfsam.lightfield import LightField
 from lfsam.result import SegmentationResult
@@ -101,12 +106,22 @@ def percentile(values: list[float], q: float) -> float:
 
 
 def _read_frame(arrived: ArrivedFrame, value_range: int | None) -> LightField:
-    """The frame's light field, read once more after :data:`RETRY_SECONDS` if it fails."""
+    """The frame's light field, read once more after :data:`RETRY_SECONDS` if it fails.
+
+    Raises
+    ------
+    FrameError
+        It cannot be read the second time either.
+    """
     try:
         return read_lightfield(arrived.path, value_range=value_range)
     except (LfsamError, OSError, ValueError):
         time.sleep(RETRY_SECONDS)
+    try:
         return read_lightfield(arrived.path, value_range=value_range)
+    except (LfsamError, OSError, ValueError) as exc:
+        raise FrameError(str(exc) if isinstance(exc, LfsamError) else
+                         f"cannot read it ({exc})") from exc
 
 
 def segment_stream(
@@ -147,9 +162,14 @@ def segment_stream(
     Returns
     -------
     StreamReport
-        ``ended_by`` is ``"END"``, ``"timeout"``, ``"stopped"`` or ``"interrupted"``; an
-        exception other than a frame's own (a model error, a full disk) propagates after the
-        frames done so far are published.
+        ``ended_by`` is ``"END"``, ``"timeout"``, ``"stopped"`` or ``"interrupted"``.
+
+    Raises
+    ------
+    LfsamError
+        The first configuration fault (see the module docstring): one line naming the frame
+        and how many frames were done, raised after they are published. Any other exception
+        (a bug, a full disk) propagates after the frames done so far are published.
     """
     report = StreamReport(Path(out))
     meta: dict[str, Any] = {
@@ -167,14 +187,15 @@ def segment_stream(
     feed = FrameFeed(follower, lambda arrived: _read_frame(arrived, value_range),
                      latest=latest, on_superseded=supersede)
     with live_video_result_writer(out, meta=meta, objects=lambda: tracker.prompts) as writer:
+        current = None
         try:
             for item in feed:
                 arrived, lf = item.arrived, None
-                start = time.perf_counter()
+                start, current = time.perf_counter(), arrived.path.name
                 try:
                     lf = item.lightfield()
                     result = tracker.track(lf)
-                except LfsamError as exc:
+                except FrameError as exc:
                     line = f"frame {arrived.path.name} skipped: {exc}"
                     report.skipped.append({"name": arrived.path.name, "error": str(exc),
                                            "reason": "unreadable" if lf is None else "refused"})
@@ -196,6 +217,14 @@ def segment_stream(
             report.ended_by = follower.ended_by
         except KeyboardInterrupt:
             report.ended_by = "interrupted"
+        except LfsamError as exc:  # not the frame's: every frame would fail so
+            feed.close()
+            report.ended_by = meta["ended_by"] = "error"
+            meta["error"] = str(exc)
+            done = (f"the {writer.frames} frame(s) done are in {out}" if writer.frames
+                    else "nothing was written")
+            where = f"at {current}; " if current else ""
+            raise LfsamError(f"{exc} ({where}the stream stopped: {done})") from exc
         feed.close()
         meta["ended_by"] = report.ended_by
         meta["latency"] = {k: v for k, v in report.summary().items() if k.startswith("latency")}

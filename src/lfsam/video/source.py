@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Any, Protocol
 
-from lfsam.errors import LfsamError
+from lfsam.errors import FrameError, LfsamError
 from lfsam.lightfield import LightField
 
 __all__ = ["FrameSource", "LightFieldVideo", "check_frame"]
@@ -40,11 +40,11 @@ def check_frame(lf: LightField, index: int, grid: tuple[int, int], size: tuple[i
 
     Raises
     ------
-    LfsamError
-        One line naming the frame, its shape and the video's.
+    FrameError
+        One line naming the frame, its shape and the video's (an :class:`LfsamError`).
     """
     if lf.grid_shape != tuple(grid) or lf.view_shape != tuple(size):
-        raise LfsamError(
+        raise FrameError(
             f"frame {index} of {where} has {lf.grid_shape[0]} x {lf.grid_shape[1]} views of "
             f"{lf.view_shape[0]} x {lf.view_shape[1]}, but frame 0 has {grid[0]} x {grid[1]} "
             f"views of {size[0]} x {size[1]}; every frame needs the same grid and view size"

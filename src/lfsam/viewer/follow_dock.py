@@ -267,16 +267,20 @@ class FollowController(QObject):
 
         try:
             if tracker.name != ORACLE:
-                tracker.segmenter = tracker.options.model.build(keep_decoder_state=False)
+                try:
+                    tracker.segmenter = tracker.options.model.build(keep_decoder_state=False)
+                except LfsamError as exc:  # a configuration fault: no frame is looked at
+                    raise LfsamError(f"{exc} (the stream stopped: nothing was written)"
+                                     ) from exc
                 emit(StatusLine(f"model {tracker.name} loaded; waiting for frames"))
             report = segment_stream(follower, tracker, out, on_frame=on_frame,
                                     on_skip=lambda line: emit(StatusLine(line)), latest=latest)
             emit(StreamEnded(report))
-        except LfsamError as exc:
+        except LfsamError as exc:  # the line says what was kept (segment_stream's Raises)
             emit(StreamEnded(None, str(exc)))
         except BaseException as exc:  # a bug: its traceback on stderr, one line in the dock
             traceback.print_exc()
-            emit(StreamEnded(None, f"error: {exc!r}"))
+            emit(StreamEnded(None, f"the stream stopped on an error: {exc!r}"))
 
     # --- in the GUI thread -----------------------------------------------------------------------
     def _on_event(self, event: Any) -> None:
@@ -374,8 +378,7 @@ class FollowController(QObject):
         if "points" in self.layers:
             self.layers["points"].mode = "pan_zoom"
         if report is None:
-            kept = f" ({self.out} holds the frames done)" if self.out.exists() else ""
-            self.widget._error(f"the stream stopped: {error}{kept}")
+            self.widget._error(error)
             return
         line = (f"stream ended ({ENDINGS.get(report.ended_by, report.ended_by)}) after "
                 f"{report.frames} frame(s)"
