@@ -109,3 +109,18 @@ def test_help_has_an_example(capsys):
     with pytest.raises(SystemExit):
         main(["models", "--help"])
     assert "lfsam models --download" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("name", ["sam2.1-hiera-small", "edgetam"])
+def test_download_checks_the_cache_takes_files_before_any_download(offline_hub, monkeypatch,
+                                                                   capsys, name):
+    """A cache that cannot be written is named in one line before the hub is asked (the
+    offline hub would give another message)."""
+    blocker = offline_hub / "a-file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("HF_HUB_CACHE", str(blocker / "hub"))
+    assert main(["models", "--download", name]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Hugging Face cache" in err and "HF_HUB_CACHE" in err
+    assert "no cached weights" not in err
+

@@ -16,6 +16,7 @@ from typing import Any
 from lfsam.cli.common import HelpFormatter, add_device_argument, bounded_int, probability
 from lfsam.devices import resolve_device
 from lfsam.errors import LfsamError
+from lfsam.fileutil import check_writable
 from lfsam.lightfield import LightField
 from lfsam.segmenters.base import Segmenter
 from lfsam.segmenters.factory import available_models
@@ -281,10 +282,42 @@ def _table(info: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def check_download_target(name: str) -> None:
+    """Before ``--download NAME`` fetches anything: weights not cached yet go into the
+    Hugging Face cache, which must take files (one line naming it and ``HF_HUB_CACHE``).
+
+    Raises
+    ------
+    LfsamError
+        The cache folder cannot be created or written.
+    """
+    from lfsam.segmenters.hub_folder import cached_hub_folder
+    from lfsam.segmenters.sam2_build import cached_checkpoint, hub_cache_dir
+    from lfsam.segmenters.text.weights import cached_text_weights
+
+    if name in TRANSFORMERS_MODELS:
+        cached = cached_hub_folder(TRANSFORMERS_MODELS[name].hub_id)
+    elif name in TEXT_MODELS:
+        cached = cached_text_weights(name)
+    else:
+        cached = cached_checkpoint(name)
+    if cached is None:
+        try:
+            check_writable(hub_cache_dir(), folder=True, option="the Hugging Face cache",
+                           inside=True)
+        except LfsamError as exc:
+            raise LfsamError(f"{exc}: the weights of {name} are downloaded there; set "
+                             "HF_HUB_CACHE (or HF_HOME) to a folder you can write") from None
+
+
 def run(args: argparse.Namespace) -> int:
-    """Print the model table (or JSON), or download one model's weights."""
+    """Print the model table (or JSON), or download one model's weights (the cache checked
+    for writing first)."""
     if args.download:
         from lfsam.segmenters.sam2.build import resolve_checkpoint
+
+        if args.download != ORACLE:
+            check_download_target(args.download)
 
         if args.download == ORACLE:
             raise LfsamError("the oracle has no weights; choose a SAM 2 model to download")
