@@ -376,3 +376,33 @@ def test_a_configuration_fault_after_some_frames_keeps_them_in_a_valid_folder(tm
     assert result.complete and len(result) == 1
     assert result.meta["ended_by"] == "error" and "labels" in result.meta["error"]
     assert (result.labels[0] > 0).any()
+
+
+def test_follow_with_text_finds_the_phrase_in_the_first_frame_and_tracks_it(clip, tmp_path,
+                                                                            capsys):
+    """--text with --follow (issue 46): the oracle answers "tile" from the first frame's
+    ground-truth categories; the object keeps its id through every later frame."""
+    folder, out = tmp_path / "in", tmp_path / "out"
+    folder.mkdir()
+    frames = sorted(clip.glob("frame_*"))
+    for source in frames:
+        _put(source, folder)
+    (folder / "END").write_bytes(b"")
+    code = main(["segment", str(folder), "--follow", "--text", "tile", "--model", "oracle",
+                 "--disparity", "gt", "--out", str(out), "--poll", "0.02"])
+    assert code == 0, capsys.readouterr().err
+    result = lfsam.load_result(out)
+    assert len(result) == len(frames) and result.meta["prompt_mode"] == "text"
+    [find] = result.meta["text"]
+    assert find["phrase"] == "tile" and find["found"] == 1
+    [obj_id] = find["ids"]
+    video = read_video(clip)
+    for f in range(len(result)):
+        truth = video.frame(f).labels == OBJECT  # label 3 is the "noise tile"
+        mine = result.labels[f] == obj_id
+        assert (mine & truth).sum() / (mine | truth).sum() > 0.8, f
+    assert "text" in result.frame(0).meta and "text" not in result.frame(1).meta
+    capsys.readouterr()
+    assert main(["segment", str(folder), "--follow", "--text", "tile", "--point", "3,3",
+                 "--out", str(tmp_path / "o2")]) == 2  # --text with clicks: one line
+    assert "not both" in capsys.readouterr().err

@@ -13,6 +13,7 @@ import numpy as np
 from lfsam.cli.common import TRACKING_MODES, positive_float
 from lfsam.cli.models import model_options_from_args
 from lfsam.cli.prompts import objects_from_items
+from lfsam.cli.text import check_text_weights, report_text
 from lfsam.errors import LfsamError
 from lfsam.fileutil import check_cache_dir, check_writable
 from lfsam.prompts import load_prompts
@@ -60,13 +61,15 @@ def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
 
     if args.method != "lfsam":
         raise LfsamError("--follow tracks with --method lfsam only")
-    if args.text:
-        raise LfsamError("--follow takes clicks, boxes or --auto (not --text yet)")
+    if args.text and (args.prompt_items or args.prompts):
+        raise LfsamError("--follow takes --text or clicks and boxes, not both: the phrases' "
+                         "objects are numbered as they are found in the first frame")
     check_follow_folder(args.path)
     check_writable(args.out, folder=True, option="--out", inside=True)
     check_live_folder(args.out)
     if args.cache is not None:
         check_cache_dir(args.cache)
+    check_text_weights(args)  # missing SAM 3 weights: one line now, not at the first frame
     model_options = model_options_from_args(args)
     options = SegmentOptions(
         pipeline=config, model=model_options,
@@ -74,7 +77,7 @@ def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
                        progress=False),
     )
     objects = []
-    if has_prompts:
+    if has_prompts and not args.text:
         objects = load_prompts(args.prompts) if args.prompts else []
         first = max((o.obj_id for o in objects), default=0) + 1
         objects += objects_from_items(args.prompt_items, first_id=first)
@@ -82,7 +85,8 @@ def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
     model = "oracle" if model_options.name == "oracle" else model_options.build(
         keep_decoder_state=False)
     tracker = OnlineTracker(model, disparity=args.disparity, options=options,
-                            memory=TRACKING_MODES[args.tracking], auto=not has_prompts)
+                            memory=TRACKING_MODES[args.tracking], auto=args.auto,
+                            texts=args.text or ())
     tracker.add_prompts(objects)
     follower = FrameFollower(args.path, timeout=args.follow_timeout, poll=args.poll)
     if not args.quiet:
@@ -90,6 +94,8 @@ def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
               file=sys.stderr, flush=True)
 
     def show(timing, result) -> None:
+        if not args.quiet and "text" in result.meta:  # what the phrases found, first frame
+            report_text(result.meta["text"], model_options.text_threshold)
         if not args.quiet:
             ids = [int(i) for i in np.unique(result.labels) if i > 0]
             older = f", {timing.superseded} older skipped" if timing.superseded else ""

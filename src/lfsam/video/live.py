@@ -174,7 +174,8 @@ def segment_stream(
     report = StreamReport(Path(out))
     meta: dict[str, Any] = {
         "method": "lfsam-video", "input": str(follower.folder), "model": tracker.name,
-        "prompt_mode": "auto" if tracker.auto else "prompts", "package_version": __version__,
+        "prompt_mode": "auto" if tracker.auto else "text" if tracker.texts else "prompts",
+        "package_version": __version__,
         "disparity": tracker.disparity, "follow": True, "latest": bool(latest),
         "skipped": report.skipped, "ended_by": None,
     }
@@ -205,6 +206,8 @@ def segment_stream(
                 result.meta["frame_source"] = arrived.path.name
                 result.meta["arrival_index"] = arrived.index
                 meta["tracking"] = tracker.tracking
+                if tracker.texts:  # what the phrases found in the first frame
+                    meta["text"] = tracker.text_finds
                 writer.write(result)
                 timing = FrameTiming(writer.frames - 1, arrived.path.name,
                                      time.time() - arrived.arrived,

@@ -37,11 +37,14 @@ at frame f + 1 comes from frame f:
 
 Objects start at the first frame of their prompts (absent before); prompts given at a later
 frame replace the carried ones there. ``auto=True`` finds the objects of the first frame
-(:class:`lfsam.generator.LightFieldMaskGenerator`).
+(:class:`lfsam.generator.LightFieldMaskGenerator`); ``texts`` finds each phrase's instances in
+the first frame (:func:`lfsam.text_search.find_text`, docs/design.md section 9), each then
+tracked as an object found automatically (issue 46).
 """
 
 from __future__ import annotations
 
+import functools
 import threading
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
@@ -54,9 +57,10 @@ from lfsam.errors import LfsamError
 from lfsam.generator import LightFieldMaskGenerator
 from lfsam.lightfield import LightField
 from lfsam.predictor import LightFieldPredictor
-from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt, validate_objects
+from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt, TextPrompt, validate_objects
 from lfsam.result import SegmentationResult
 from lfsam.segmenters.base import Segmenter
+from lfsam.text_search import find_text
 from lfsam.video.carry import Template, carry
 from lfsam.video.memory import reference_memory_for
 from lfsam.video.prompts import frame_of, negatives_since, prompts_at, start_frame
@@ -99,6 +103,10 @@ class OnlineTracker:
     auto : bool
         Find the objects of the first frame automatically (prompts may be added besides, with
         other ids).
+    texts : sequence of TextPrompt
+        Phrases whose instances in the first frame become objects (found with
+        ``options.model``'s text detector; the oracle answers from ground-truth categories),
+        tracked from there; what each found is :attr:`text_finds`.
 
     Examples
     --------
@@ -114,7 +122,7 @@ class OnlineTracker:
 
     def __init__(self, model: str | Segmenter | None = None, *, disparity: str = "estimate",
                  options: SegmentOptions | None = None, memory: bool | None = None,
-                 auto: bool = False) -> None:
+                 auto: bool = False, texts: Iterable[TextPrompt] = ()) -> None:
         options = options or SegmentOptions()
         if not isinstance(disparity, str) or disparity not in ("estimate", "gt"):
             raise LfsamError("a light-field video takes --disparity estimate or gt (per frame)")
@@ -124,6 +132,9 @@ class OnlineTracker:
         self.disparity = disparity
         self.memory_option = memory
         self.auto = bool(auto)
+        self.texts = tuple(texts)
+        #: What each phrase of ``texts`` found in the first frame (``TextFind.to_dict``).
+        self.text_finds: list[dict[str, Any]] = []
         self.name = model.name if isinstance(model, Segmenter) else (model or options.model.name)
         self._per_frame = not isinstance(model, Segmenter) and self.name == "oracle"
         self.segmenter: Segmenter | None = model if isinstance(model, Segmenter) else None
@@ -252,13 +263,14 @@ class OnlineTracker:
             memory_budget_mb=options.run.memory_budget_mb, progress=False,
         )
         predictor.set_lightfield(lf, disparity=self.disparity)
-        first_auto = self.auto and index == 0
+        first_auto = index == 0 and (self.auto or bool(self.texts))
+        find = functools.partial(self._find_first, lf=lf)
         if self._memory is not None:
-            _memory_frame(self._memory, predictor, lf, index, self._objects, first_auto,
-                          options.run.references)
+            _memory_frame(self._memory, predictor, lf, index, self._objects,
+                          find if first_auto else None)
         else:
             if first_auto:
-                LightFieldMaskGenerator(predictor, options.run.references).generate()
+                find(predictor)
                 for obj_id in predictor.object_ids:
                     view, mask, _ = predictor.predict_reference(obj_id)
                     self._tracks[obj_id] = _Track(view, Template.from_mask(lf.views[view], mask))
@@ -271,10 +283,23 @@ class OnlineTracker:
                                           segmenter.name != "oracle")
         result = predictor.to_result()
         result.meta["frame"] = index
+        if first_auto and self.texts:
+            result.meta["text"] = self.text_finds
         if refused is not None:
             result.meta["refused_prompts"] = refused
         self.frames_done += 1
         return result
+
+    def _find_first(self, predictor: LightFieldPredictor, lf: LightField) -> None:
+        """The first frame's objects found automatically and / or from :attr:`texts`."""
+        references = self.options.run.references
+        if self.auto:
+            LightFieldMaskGenerator(predictor, references).generate()
+        if self.texts:
+            model = self._model_options
+            finds = find_text(predictor, model.build_text_detector(lf), self.texts,
+                              references, model.text_threshold)
+            self.text_finds = [f.to_dict() for f in finds]
 
     def _segmenter_for(self, lf: LightField) -> Segmenter:
         if self._per_frame or self.segmenter is None:
@@ -321,15 +346,15 @@ def _center_mask(predictor: LightFieldPredictor, lf: LightField, obj_id: int) ->
 
 
 def _memory_frame(memory: Any, predictor: LightFieldPredictor, lf: LightField, index: int,
-                  objects: dict[int, ObjectPrompts], first_auto: bool, references: Any) -> None:
+                  objects: dict[int, ObjectPrompts], find: Any) -> None:
     """One frame tracked with the video memory (see the module docstring): prompted objects
     from their prompts, the others from the memory's masks."""
     embedding = memory.next_frame(index, lf.views[lf.center])
     if embedding is not None:
         predictor.engine.store.put(lf.center, embedding)
     prompted: set[int] = set()
-    if first_auto:
-        LightFieldMaskGenerator(predictor, references).generate()
+    if find is not None:  # the first frame's objects found automatically or from text
+        find(predictor)
         prompted = set(predictor.object_ids)
     for obj in objects.values():
         own = prompts_at(obj, index)

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from lfsam.errors import LfsamError
-from lfsam.fileutil import check_output_path
+from lfsam.fileutil import check_output_path, check_writable
 from lfsam.generator import LightFieldMaskGenerator
 from lfsam.lightfield import LightField
 from lfsam.pipeline.config import PipelineConfig
@@ -578,8 +578,13 @@ class ViewerSession:
             raise LfsamError("nothing to save: segment at least one object first")
         return pred.to_result()
 
-    def save(self, path: str | os.PathLike) -> Path:
-        """Write the result to ``path`` (``.npz``, atomic)."""
-
+    def check_save(self, path: str | os.PathLike) -> Path:
+        """Check that Save can write ``path`` (its folder exists and takes files), before any
+        work; raises :class:`LfsamError` in one line otherwise."""
         check_output_path(path)
+        return check_writable(path, folder=False, option="the file to save")
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the result to ``path`` (``.npz``, atomic; checked first)."""
+        self.check_save(path)
         return save_result(self.to_result(), path)

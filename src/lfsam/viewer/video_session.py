@@ -335,13 +335,21 @@ class VideoSession(ViewerSession):
                              "the video first")
         return self.tracked
 
+    def check_save(self, path: str | os.PathLike) -> Path:
+        """Check that Save can write the folder ``path`` (new, empty or an earlier video
+        result, in a folder that takes files), before any work."""
+        from lfsam.fileutil import check_writable
+        from lfsam.video.result import check_result_folder
+
+        return check_writable(check_result_folder(path), folder=True, option="the folder to "
+                              "save")
+
     def save(self, path: str | os.PathLike) -> Path:
         """Copy the last track's result folder to ``path`` (a new folder, atomic)."""
         from lfsam.fileutil import atomic_folder_output
-        from lfsam.video.result import check_result_folder
 
+        path = self.check_save(path)
         result = self.to_result()
-        path = check_result_folder(path)
         with atomic_folder_output(path) as tmp:
             for item in Path(result.path).iterdir():
                 shutil.copy2(item, tmp / item.name)

@@ -669,8 +669,9 @@ class LightFieldWidget(VideoDock, QWidget):
             path = C.ask_save_file(self, "Save the video result (a new folder)", "result")
         else:
             path = C.ask_save_file(self, "Save lfsam result", "result.npz", "*.npz")
-        if path:
-            self.work.when_idle(lambda: self.save(path))
+        if path:  # the place is checked at once, written once the work running is done
+            self.work.attempt(lambda: self.session.check_save(path) and self.work.when_idle(
+                lambda: self.save(path)))
 
     def _export_dialog(self) -> None:
         module = _export_module()
