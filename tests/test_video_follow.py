@@ -334,8 +334,8 @@ def _frames_without_labels(folder: Path, frames: int, keep_first: bool = False) 
     folder.mkdir()
     for index, lf in enumerate(generate_video(grid=(3, 3), size=(48, 64), frames=frames,
                                               seed=0, num_objects=3)):
-        write_lightfield(lf if keep_first and index == 0 else _replace(lf, labels=None, categories=None),
-                         folder / f"frame_{index:04d}")
+        bare = _replace(lf, labels=None, categories=None)
+        write_lightfield(lf if keep_first and index == 0 else bare, folder / f"frame_{index:04d}")
 
 
 def test_follow_with_the_oracle_on_frames_without_labels_stops_in_one_line(tmp_path):

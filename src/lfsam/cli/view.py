@@ -49,7 +49,14 @@ light-field camera is writing frames into (renamed in when complete; it may be e
 is segmented as it lands, in the background, and shown with its masks and its latency; a click
 on the shown frame starts a new object, segmented from the next frame on. "Stop following", a
 file named END in PATH or --follow-timeout ends the stream; --out (default PATH_live) then holds
-every frame done, shown as a video when the stream ends.
+every frame done, shown as a video when the stream ends. --auto (the dock's "Follow:
+everything in the first frame" box) finds every object of the first frame and tracks it;
+--text PHRASE finds the phrase's instances in the first frame and tracks them. A frame that
+cannot be read or has another size is skipped with one line; a fault of the setup (the oracle
+on frames without ground truth, a model that cannot load) stops the stream at once.
+
+Needs a display: without one (DISPLAY unset, an SSH session, a server) it stops in one line
+before Qt starts; run it under a virtual display with xvfb-run -a lfsam view ...
 
 Needs the viewer extra: pip install 'lfsam[viewer]'.
 """
@@ -64,6 +71,9 @@ examples:
   lfsam view scene --model oracle --disparity gt --text disc   # every disc, found at start
   lfsam view clip --model oracle --disparity gt          # a video (lfsam synth clip --frames 6)
   lfsam view incoming --follow --out live --model oracle --disparity gt   # a live stream
+  lfsam view incoming --follow --auto --model oracle     # every object of the first frame
+  lfsam view incoming --follow --text tile --model oracle   # "tile", found in the first frame
+  xvfb-run -a lfsam view scene --model oracle            # no screen (SSH, a server): Xvfb
   lfsam view                                             # empty viewer; File > Open a light field
 """
 
@@ -107,6 +117,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="with --follow: never fall behind: segment only the newest frame "
                         "that has landed, skipping older ones not yet started (the dock's "
                         "'Newest frame only')")
+    follow.add_argument("--auto", action="store_true",
+                        help="with --follow: find every object of the first frame "
+                        "automatically and track it (clicks add more; the dock's \"Follow: "
+                        "everything in the first frame\" box)")
     parser.set_defaults(func=run)
 
 
@@ -117,17 +131,17 @@ def check_follow(args: argparse.Namespace) -> None:
     Raises
     ------
     LfsamError
-        ``--out`` or ``--follow-timeout`` without ``--follow``; with it, no folder, a missing
-        one, ``--result``, ``--text``, a disparity file, or an ``--out`` that is not a new or
-        empty folder.
+        ``--out``, ``--follow-timeout`` or ``--auto`` without ``--follow``; with it, no
+        folder, a missing one, ``--result``, ``--text`` with ``--auto``, a disparity file, or
+        an ``--out`` that is not a new or empty folder.
     """
     from lfsam.video.follow import check_follow_folder
     from lfsam.video.result import check_live_folder
 
     if not getattr(args, "follow", False):
         if (getattr(args, "out", None) is not None or getattr(args, "follow_timeout", None)
-                or getattr(args, "latest", False)):
-            raise LfsamError("--out, --follow-timeout and --latest go with --follow: "
+                or getattr(args, "latest", False) or getattr(args, "auto", False)):
+            raise LfsamError("--out, --follow-timeout, --latest and --auto go with --follow: "
                              "lfsam view FOLDER --follow --out RESULT")
         return
     if not args.path:
@@ -135,8 +149,9 @@ def check_follow(args: argparse.Namespace) -> None:
     if args.result:
         raise LfsamError("--follow writes a new result into --out; to reopen a followed result "
                          "afterwards: lfsam view FOLDER --result RESULT")
-    if getattr(args, "text", None):
-        raise LfsamError("--follow takes clicks in the viewer, not --text")
+    if getattr(args, "text", None) and args.auto:
+        raise LfsamError("--follow takes --text or --auto, not both: --auto finds every "
+                         "object already")
     if args.disparity not in ("estimate", "gt"):
         raise LfsamError("--follow takes --disparity estimate or gt (one per frame), not a file")
     folder = check_follow_folder(args.path)
@@ -220,11 +235,13 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
         widget.show_tracked(result)
     elif result is not None:
         widget.open_result(result)
+    if following:  # --text: the phrases are found in the first frame, then tracked
+        widget.controls.follow_auto_box.setChecked(bool(args.auto))
+        widget.follow.start(args.path, args.out, timeout=args.follow_timeout, auto=args.auto,
+                            latest=args.latest, texts=getattr(args, "text", None) or ())
+        return viewer, widget
     for text in getattr(args, "text", None) or []:
         widget.find(text.phrase, view=text.view)
-    if following:
-        widget.follow.start(args.path, args.out, timeout=args.follow_timeout,
-                            latest=args.latest)
     return viewer, widget
 
 

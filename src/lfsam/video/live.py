@@ -15,8 +15,8 @@ other :class:`~lfsam.errors.LfsamError` while a frame is segmented is the config
 oracle on frames without ground-truth labels, ``--disparity gt`` without ground truth, prompts
 outside the views): every frame would fail the same way, so the stream stops at the first, the
 result folder valid with the frames done (``meta["ended_by"] = "error"``, ``meta["error"]``),
-and one line is raised (issue 46). Frame indices (of the result and of prompts' ``#F``) count the frames
-segmented. Ctrl-C (``KeyboardInterrupt``) drops the frame in progress and ends the stream like
+and one line is raised (issue 46). Frame indices (of the result and of prompts' ``#F``) count
+the frames segmented. Ctrl-C (``KeyboardInterrupt``) drops the frame in progress and ends the stream like
 ``END``: ``ended_by`` says ``"interrupted"``.
 """
 

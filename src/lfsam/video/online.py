@@ -217,6 +217,13 @@ class OnlineTracker:
         with self._posted_lock:
             self._posted.extend(objects)
 
+    @property
+    def waiting_prompts(self) -> list[ObjectPrompts]:
+        """Prompts posted (:meth:`post_prompts`) that no frame has taken yet: once a stream
+        has ended, those came after its last frame and were never used."""
+        with self._posted_lock:
+            return list(self._posted)
+
     # --- frames ------------------------------------------------------------------------------
     def track(self, lightfield: LightField) -> SegmentationResult:
         """Segment the next frame: every object's masks over all its views.

@@ -194,6 +194,11 @@ class DockControls:
         self.latest_box.setToolTip(
             "Never fall behind the camera (--latest): always segment the newest frame that has "
             "landed and skip the older ones not yet started (listed in the result)")
+        #: Follow in automatic mode: every object of the first frame found and tracked.
+        self.follow_auto_box = QCheckBox("Follow: everything in the first frame")
+        self.follow_auto_box.setToolTip(
+            "Following a stream, find every object of its first frame automatically (as "
+            "\"Segment everything\") and track them; clicks add more objects")
         self.stop_follow_button = QPushButton("Stop following")
         self.stop_follow_button.setToolTip("End the stream after the frame being segmented; "
                                            "the result folder keeps every frame done")
@@ -249,6 +254,7 @@ class DockControls:
         layout.addLayout(_row(self.view_buttons.values()))
         layout.addLayout(_row([self.track_button, self.stop_track_button]))
         layout.addLayout(_row([self.follow_button, self.latest_box, self.stop_follow_button]))
+        layout.addWidget(self.follow_auto_box)
         layout.addLayout(_row([self.save_button, self.export_button]))
         layout.addWidget(self.progress)
         layout.addWidget(self.status)

@@ -21,6 +21,7 @@ import functools
 import os
 import threading
 import traceback
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -33,7 +34,7 @@ from lfsam.fileutil import check_writable
 from lfsam.io import read_lightfield
 from lfsam.lightfield import LightField
 from lfsam.pipeline.config import PipelineConfig
-from lfsam.prompts import ObjectPrompts
+from lfsam.prompts import ObjectPrompts, TextPrompt
 from lfsam.result import SegmentationResult
 from lfsam.segmenters.registry import ORACLE
 from lfsam.video.follow import FrameFollower, check_follow_folder
@@ -175,18 +176,21 @@ class FollowController(QObject):
         folder = C.ask_open_folder(self.widget, "Follow a frames folder (a camera writes into it)")
         out = folder and C.ask_save_file(self.widget, "Write the results into (a new or empty "
                                          "folder)", str(default_out(folder)))
+        auto = self.widget.controls.follow_auto_box.isChecked()
         if out:
-            self.widget.work.attempt(lambda: self.start(folder, out))
+            self.widget.work.attempt(lambda: self.start(folder, out, auto=auto))
 
     def start(self, folder: str | os.PathLike, out: str | os.PathLike | None = None, *,
               timeout: float | None = None, auto: bool = False, poll: float = 0.05,
-              latest: bool | None = None) -> Path:
+              latest: bool | None = None, texts: Sequence[TextPrompt] = ()) -> Path:
         """Follow ``folder``, writing the live result into ``out`` (a new or empty folder;
         default :func:`default_out`); returns ``out`` at once (the stream runs in a thread).
         ``timeout``: end after so many seconds without a new frame (default: END or Stop only);
-        ``auto``: find the first frame's objects automatically, besides clicked ones; ``poll``:
-        seconds between looks at the folder; ``latest``: segment only the newest frame that
-        has landed (default: the dock's "Newest frame only" box).
+        ``auto``: find the first frame's objects automatically, besides clicked ones (the
+        "Follow: everything in the first frame" box); ``poll``: seconds between looks at the
+        folder; ``latest``: segment only the newest frame that has landed (default: the dock's
+        "Newest frame only" box); ``texts``: phrases found in the first frame, their instances
+        tracked.
 
         Raises
         ------
@@ -200,7 +204,7 @@ class FollowController(QObject):
         out = default_out(folder) if out is None else Path(out)
         check_writable(out, folder=True, option="the output folder", inside=True)
         check_live_folder(out)
-        tracker = self._tracker(auto)
+        tracker = self._tracker(auto, texts)
         follower = FrameFollower(folder, timeout=timeout, poll=poll)
         self._remove_layers()
         self.follower, self.tracker, self.folder, self.out = follower, tracker, folder, out
@@ -226,10 +230,10 @@ class FollowController(QObject):
         if wait and self.thread is not None:
             self.thread.join(wait)
 
-    def _tracker(self, auto: bool) -> OnlineTracker:
+    def _tracker(self, auto: bool, texts: Sequence[TextPrompt] = ()) -> OnlineTracker:
         """A tracker with the dock's model (built as Track builds it), disparity, refine views,
         consensus (docs/design.md section 3.9), "Everything from" views (``auto``) and
-        embedding cache."""
+        embedding cache; ``texts`` with the dock's text model."""
         from lfsam.api import ModelOptions, RunOptions, SegmentOptions
 
         widget = self.widget
@@ -244,13 +248,15 @@ class FollowController(QObject):
             name=name, checkpoint=keys.get("checkpoint"),
             random_weights=bool(keys.get("random_weights")), device=keys.get("device") or "auto",
             amg=keys.get("amg_options"), oracle=keys.get("oracle_options"),
-            seed=int(keys.get("seed") or 0), precision=keys.get("precision") or "auto")
+            seed=int(keys.get("seed") or 0), precision=keys.get("precision") or "auto",
+            **{k: v for k, v in widget._text_options.items() if v is not None})
         run = RunOptions(references=widget.references_box.currentText(), progress=False,
                          cache_dir=None if widget._cache_dir is None else str(widget._cache_dir))
         pipeline = PipelineConfig(refine_views=widget._refine_views,
                                   consensus=widget.controls.consensus)  # sections 3.7, 3.9
         options = SegmentOptions(pipeline, model, run)
-        return _showing_tracker()(None, disparity=disparity, options=options, auto=auto)
+        return _showing_tracker()(None, disparity=disparity, options=options, auto=auto,
+                                  texts=texts)
 
     # --- the stream's thread ---------------------------------------------------------------------
     def _run(self, follower: FrameFollower, tracker: Any, out: Path, latest: bool) -> None:
@@ -380,10 +386,13 @@ class FollowController(QObject):
         if report is None:
             self.widget._error(error)
             return
+        unused = len(self.tracker.waiting_prompts) if self.tracker is not None else 0
         line = (f"stream ended ({ENDINGS.get(report.ended_by, report.ended_by)}) after "
                 f"{report.frames} frame(s)"
                 + (f", {len(report.skipped)} skipped" if report.skipped else "")
-                + (f"; {self.out} holds them" if report.frames else "; nothing was written"))
+                + (f"; {self.out} holds them" if report.frames else "; nothing was written")
+                + (f"; {unused} click(s) came after the last frame and were not used (no "
+                   "frame followed them)" if unused else ""))
         self._status(line)
         if report.frames and self.widget.session is None:
             self.widget.work.attempt(lambda: self._open_followed(line))
