@@ -16,8 +16,8 @@ oracle on frames without ground-truth labels, ``--disparity gt`` without ground 
 outside the views): every frame would fail the same way, so the stream stops at the first, the
 result folder valid with the frames done (``meta["ended_by"] = "error"``, ``meta["error"]``),
 and one line is raised (issue 46). Frame indices (of the result and of prompts' ``#F``) count
-the frames segmented. Ctrl-C (``KeyboardInterrupt``) drops the frame in progress and ends the stream like
-``END``: ``ended_by`` says ``"interrupted"``.
+the frames segmented. Ctrl-C (``KeyboardInterrupt``) drops the frame in progress and ends the
+stream like ``END``: ``ended_by`` says ``"interrupted"``.
 """
 
 from __future__ import annotations
