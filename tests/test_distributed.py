@@ -201,6 +201,37 @@ def test_ray_video_errors_are_the_sequential_rows(local_ray, mixed, tmp_path):
     assert [r.scene for r in tables["ray"].rows] == ["clip_a", "clip_b", "scene"]
 
 
+def test_ray_refuses_a_result_folder_before_sending_its_task(local_ray, mixed, tmp_path):
+    """A video whose result folder may not be replaced is not tracked at all (issue 46): the
+    check runs before its Ray task, not after the worker has tracked the video."""
+    from lfsam.evaluate import evaluate_dataset
+    from lfsam.video.evaluate import VideoTracking
+    from lfsam.video.track import track_video
+
+    tracked = tmp_path / "tracked"
+    tracked.mkdir()
+
+    def track(video, folder):
+        (tracked / Path(str(video.meta.get("source"))).name).touch()  # seen from the task
+        return track_video(video, None, folder, model="oracle", disparity="gt")
+
+    def segment(lf):
+        from lfsam.result import SegmentationResult
+
+        return SegmentationResult(labels=lf.labels, timings={"total": 0.1})
+
+    out = tmp_path / "ray"
+    (out / "clip_b").mkdir(parents=True)
+    (out / "clip_b" / "mine.txt").write_text("keep me\n")
+    table = evaluate_dataset(mixed, out, segment, method_label="gt",
+                             videos=VideoTracking(track, "gt"),
+                             map_scenes=ray_mapper(device="cpu"))
+    assert [(r.scene, "not a video result" in r.error) for r in table.failed] == [
+        ("clip_b", True)]
+    assert sorted(p.name for p in tracked.iterdir()) == ["clip_a"]  # clip_b never tracked
+    assert (out / "clip_b" / "mine.txt").read_text() == "keep me\n"
+
+
 def test_ray_task_failure_is_a_failed_row(local_ray, dataset, tmp_path):
     """A light field that breaks in its task fails alone; the others are written."""
     from lfsam.evaluate import evaluate_dataset

@@ -145,9 +145,13 @@ def ray_mapper(
             resources = task_resources(device, gpus, num_gpus, num_cpus)
             task = ray.remote(max_retries=0, **resources)(_run_remote)
             job_ref = ray.put(job)
-            futures = {
-                task.remote(job_ref, name, str(path)): (name, path) for name, path in scenes
-            }
+            futures = {}
+            for name, path in scenes:  # a result folder that may not be replaced: no task
+                refused = job.refused(name, Path(path))
+                if refused is not None:
+                    yield refused
+                else:
+                    futures[task.remote(job_ref, name, str(path))] = (name, path)
             while futures:
                 done, _ = ray.wait(list(futures), num_returns=1)
                 name, path = futures.pop(done[0])

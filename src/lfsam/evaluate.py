@@ -537,6 +537,19 @@ class SceneJob:
         return SceneOutcome(name=name, row=row, entry=path.name, result_bytes=data)
 
 
+    def refused(self, name: str, path: Path) -> SceneOutcome | None:
+        """The error row of a video whose result folder may not be replaced, found before any
+        work (a Ray run asks before sending its task, issue 46), else None."""
+        if self.videos is None or not self.videos.is_video(path):
+            return None
+        try:
+            self.videos.check_target(self.out / name)
+        except LfsamError as exc:
+            row = SceneRow(scene=name, method=self.method_label, error=describe_failure(exc))
+            return SceneOutcome(name=name, row=row, entry=path.name)
+        return None
+
+
 SceneMapper = Callable[[SceneJob, Sequence[tuple[str, Path]]], Iterable[SceneOutcome]]
 
 
@@ -559,6 +572,10 @@ class VideoScenes(Protocol):
     def store(self, files: dict[str, bytes], result_folder: Path) -> None:
         """Write the files of :meth:`run_detached` as ``result_folder``, as :meth:`run` would
         have written it; raises when it cannot."""
+
+    def check_target(self, result_folder: Path) -> None:
+        """Raise :class:`LfsamError` (as :meth:`run` would) if ``result_folder`` may not be
+        written, before any work."""
 
 
 def _map_in_order(job: SceneJob, scenes: Sequence[tuple[str, Path]]) -> Iterator[SceneOutcome]:

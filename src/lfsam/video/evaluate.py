@@ -141,6 +141,12 @@ class VideoTracking:
                      for item in sorted(folder.rglob("*")) if item.is_file()}
         return row, files
 
+    def check_target(self, result_folder: Path) -> None:
+        """Refuse a ``result_folder`` that may not be replaced (neither new, an earlier video
+        result nor empty: :func:`lfsam.video.result.check_result_folder`), before any work;
+        a Ray run asks before it sends the video's task (issue 46)."""
+        check_result_folder(result_folder)
+
     def store(self, files: dict[str, bytes], result_folder: Path) -> None:
         """Write the files of :meth:`run_detached` as the result folder ``result_folder``.
 
