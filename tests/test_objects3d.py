@@ -215,3 +215,42 @@ def test_ply_export_of_a_video_and_without_light_field(tmp_path, capsys):
                  str(tmp_path / "none")])
     assert code == 2 and "--lightfield" in capsys.readouterr().err
     assert not (tmp_path / "none").exists()
+
+
+def test_views_all_with_an_estimate_estimates_each_view_once(monkeypatch):
+    """``views="all"`` with an estimated disparity (issue 46): the range is found once, each
+    view estimated once, and a second call on the same light field estimates nothing; each
+    view's disparity is the estimator's own with that range; the hidden object gets points."""
+    import lfsam.objects3d as O
+    from lfsam.disparity import estimate_disparity
+    from lfsam.disparity.range import estimate_disparity_range
+
+    lf = generate_scene(grid=(5, 5), size=(64, 80), seed=4, num_objects=3, hidden_objects=1)
+    hidden = lf.meta["generator"]["hidden_labels"][0]
+    calls = {"range": 0, "views": []}
+
+    def counted_range(*args, **kwargs):
+        calls["range"] += 1
+        return estimate_disparity_range(*args, **kwargs)
+
+    def counted(lightfield, disparity_range=None, **kwargs):
+        calls["views"].append(kwargs["view"])
+        return estimate_disparity(lightfield, disparity_range, **kwargs)
+
+    monkeypatch.setattr(O, "estimate_disparity_range", counted_range)
+    monkeypatch.setattr(O, "estimate_disparity", counted)
+    result = SegmentationResult(labels=lf.labels)
+    first = objects_in_3d(result, lf, views="all", device="cpu")
+    assert calls["range"] == 1 and sorted(calls["views"]) == [(s, t) for s in range(5)
+                                                              for t in range(5)]
+    again = objects_in_3d(result, lf, views="all", device="cpu")
+    center = objects_in_3d(result, lf, device="cpu")  # the center's estimate is kept too
+    assert calls["range"] == 1 and len(calls["views"]) == 25
+    for obj_id, cloud in first.clouds.items():
+        np.testing.assert_array_equal(cloud.xyz, again.clouds[obj_id].xyz)
+    assert len(first.clouds[hidden].xyz) > 0 and len(center.clouds[hidden].xyz) == 0
+    kept = O.estimates_for(lf, "cpu")
+    span = estimate_disparity_range(lf, device="cpu", view=lf.center)
+    direct = estimate_disparity(lf, span, device="cpu", view=(0, 2))
+    np.testing.assert_array_equal(kept((0, 2))[0], direct.disparity)
+    assert kept.estimated == 25

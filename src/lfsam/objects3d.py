@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import os
+import weakref
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,6 +35,7 @@ from lfsam.camera import (
     missing_camera_message,
 )
 from lfsam.disparity.methods import estimate_disparity
+from lfsam.disparity.range import estimate_disparity_range
 from lfsam.disparity.source import load_disparity_spec, resolve_view_disparity
 from lfsam.errors import LfsamError
 from lfsam.export.folder import atomic_folder
@@ -56,6 +58,8 @@ from lfsam.version import __version__
 __all__ = [
     "VIEWS",
     "Objects3D",
+    "ViewEstimates",
+    "estimates_for",
     "export_point_clouds",
     "format_table",
     "objects_in_3d",
@@ -136,11 +140,70 @@ def _categories(result: SegmentationResult) -> dict[int, str]:
     return {int(key): str(value) for key, value in raw.items() if value}
 
 
-def _view_disparity(spec, lightfield: LightField, view, device, name: str):
+class ViewEstimates:
+    """The disparity estimates of one light field's views, each computed once and kept
+    (issue 46; docs/design.md section 11).
+
+    The scene's disparity range is found once, in the center view, and searched in every view
+    (a scene point has one disparity in all of them); a view asked for again is not estimated
+    again. :func:`objects_in_3d` keeps the last light field's set, so a second call on it (the
+    viewer's 3D dock after each mask change, ``lfsam export`` of another format) estimates
+    nothing.
+
+    Parameters
+    ----------
+    lightfield : LightField
+    device : str, optional
+        For the estimates.
+
+    Attributes
+    ----------
+    estimated : int
+        How many views were estimated so far.
+    """
+
+    def __init__(self, lightfield: LightField, device: str | None = None) -> None:
+        self.lightfield, self.device = lightfield, device
+        self.disparity_range: tuple[float, float] | None = None
+        self.estimated = 0
+        self._views: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+
+    def __call__(self, view: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        """``(disparity, confidence)`` of ``view``, estimated on the first call only."""
+        view = (int(view[0]), int(view[1]))
+        if view not in self._views:
+            lf = self.lightfield
+            if self.disparity_range is None:
+                self.disparity_range = estimate_disparity_range(lf, device=self.device,
+                                                                view=lf.center)
+            estimate = estimate_disparity(lf, self.disparity_range, device=self.device,
+                                          view=view)
+            self._views[view] = (np.asarray(estimate.disparity),
+                                 np.asarray(estimate.confidence))
+            self.estimated += 1
+        return self._views[view]
+
+
+#: The last light field's :class:`ViewEstimates` (a weak reference to it, the device, the set).
+_last_estimates: list[tuple[Any, str | None, ViewEstimates]] = []
+
+
+def estimates_for(lightfield: LightField, device: str | None = None) -> ViewEstimates:
+    """The kept :class:`ViewEstimates` of ``lightfield`` (the same object) and ``device``, or a
+    new set that replaces it."""
+    for ref, dev, estimates in _last_estimates:
+        if ref() is lightfield and dev == device:
+            return estimates
+    estimates = ViewEstimates(lightfield, device)
+    _last_estimates[:] = [(weakref.ref(lightfield), device, estimates)]
+    return estimates
+
+
+def _view_disparity(spec, lightfield: LightField, view, device, name: str,
+                    estimates: ViewEstimates | None):
     """(disparity, confidence or None) of one view."""
     if isinstance(spec, str) and spec == "estimate":
-        estimate = estimate_disparity(lightfield, device=device, view=view)
-        return np.asarray(estimate.disparity), np.asarray(estimate.confidence)
+        return (estimates or estimates_for(lightfield, device))(view)
     disparity, _, _ = resolve_view_disparity(spec, lightfield, view=view, device=device,
                                              name=name)
     return np.asarray(disparity), None
@@ -156,6 +219,7 @@ def objects_in_3d(
     min_confidence: float = MIN_CONFIDENCE,
     device: str | None = None,
     progress: Callable[[Iterable], Iterable] | None = None,
+    estimates: ViewEstimates | None = None,
 ) -> Objects3D:
     """Every object of ``result`` as points and measures in metres (module docstring).
 
@@ -170,7 +234,8 @@ def objects_in_3d(
     views : {"center", "all"}
         ``"all"`` adds every present view's pixels (moved to the center camera frame): objects
         the center view does not see get points too. With ``"estimate"`` that is one disparity
-        estimate per view (slow); a ground truth or an ``(S, T, U, V)`` map of every view costs
+        estimate per view (slow; each view's kept for the next call on the same light field:
+        :class:`ViewEstimates`); a ground truth or an ``(S, T, U, V)`` map of every view costs
         nothing more.
     min_confidence : float
         Pixels whose disparity confidence is below this are left out (estimates only).
@@ -178,6 +243,8 @@ def objects_in_3d(
         For the disparity estimate.
     progress : callable, optional
         Wraps the iterable of views (e.g. ``tqdm``) with ``views="all"``.
+    estimates : ViewEstimates, optional
+        The estimates to use and fill (default: the set kept for ``lightfield``).
 
     Returns
     -------
@@ -211,7 +278,7 @@ def objects_in_3d(
     has_truth = lightfield.disparity is not None and name != "gt"
     parts: dict[int, list[ObjectPoints]] = {i: [] for i in ids}
     for view in progress(chosen) if progress is not None else chosen:
-        disp, confidence = _view_disparity(spec, lightfield, view, device, name)
+        disp, confidence = _view_disparity(spec, lightfield, view, device, name, estimates)
         truth = None
         if has_truth:
             truth, _, _ = resolve_view_disparity("gt", lightfield, view=view, device=device)

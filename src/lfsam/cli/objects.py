@@ -71,7 +71,8 @@ def add_3d_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGroup) 
         "--views", choices=VIEWS, default="center",
         help="the pixels that become points: the center view's, or every view's (moved to the "
         "center camera; objects hidden in the center view get points; with an estimated "
-        "disparity one estimate per view, slow)",
+        "disparity one estimate per view, slow: the scene's disparity range is found once and "
+        "each view estimated once)",
     )
     parser.add_argument(
         "--min-confidence", type=lambda text: unit_interval(text, "a confidence"),
