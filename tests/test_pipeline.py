@@ -7,6 +7,8 @@ border keep its SIoU below 1).
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 import torch
@@ -141,3 +143,28 @@ def test_deterministic(scenes):
     b = _oracle_run(lf, PipelineConfig(occlusion="both"))
     assert np.array_equal(a.labels, b.labels)
     assert torch.equal(torch.as_tensor(a.masks.data), torch.as_tensor(b.masks.data))
+
+
+def test_the_center_disparity_estimate_is_its_own_stage(scenes):
+    """Issue 46: the estimate, made on first use while step 1 carries the clicks, is timed as
+    ``disparity``, not ``initial``; stages nested in others are not counted twice."""
+    from lfsam.predictor import LightFieldPredictor
+    from lfsam.prompts import ObjectPrompts, PointPrompt
+    from lfsam.segmenters import load_segmenter
+    from lfsam.timing import StageTimer
+
+    lf = scenes[2]
+    predictor = LightFieldPredictor(load_segmenter("oracle", lightfield=lf), progress=False)
+    predictor.set_lightfield(lf, disparity="estimate")
+    predictor.set_object(ObjectPrompts(1, (PointPrompt(20.0, 20.0, True, (0, 0)),)))
+    timings = predictor.to_result().timings
+    assert timings["disparity"] > 10 * timings["initial"]  # the oracle's decode is instant
+    stages = sum(v for k, v in timings.items() if k != "total")
+    assert stages <= timings["total"] + 1e-6
+
+    timer = StageTimer(torch.device("cpu"))
+    with timer("outer"):
+        with timer("inner"):
+            time.sleep(0.05)
+    assert timer.seconds["inner"] >= 0.05 and timer.seconds["outer"] < 0.05
+    assert timer.outermost["outer"] >= 0.05 and "inner" not in timer.outermost

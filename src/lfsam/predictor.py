@@ -381,7 +381,7 @@ class LightFieldPredictor:
         lf = self.require_lightfield()
         prediction = self.predict()
         timings = dict(self._engine.timer.seconds)
-        timings["total"] = self.seconds + timings.get("disparity", 0.0)
+        timings["total"] = self.seconds + self._engine.timer.outermost.get("disparity", 0.0)
         meta = {"method": "lfsam", "package_version": __version__, **self._engine.run_meta(),
                 "refined_views": self.refined_views.tolist()}
         return build_result(lf, self._table.objects, prediction.labels, timings, meta)

@@ -126,6 +126,12 @@ class StreamingEngine:
             self._disp_tensors[key] = torch.tensor(disp, dtype=torch.float32, device=self.device)
         return self._disp_tensors[key]
 
+    def _timed_disparity(self, view: View) -> np.ndarray:
+        """The disparity of ``view`` as an array, its resolution (an estimate on first use)
+        timed as the ``disparity`` stage, also inside another stage (issue 46)."""
+        with self.timer("disparity"):
+            return self.disparities.get(view)
+
     def warp(self, source: View, target: View, carried: bool = False) -> ForwardWarp:
         """The forward warp of ``source``'s disparity into ``target`` (cached, LRU); with
         ``carried``, of its disparity for carrying masks (:meth:`disparity`)."""
@@ -151,7 +157,7 @@ class StreamingEngine:
         """The object's clicks carried into ``view`` (:func:`lfsam.pipeline.objects.
         clicks_in_view`), with the z-buffer test of the cached warps."""
         if obj.clicks is None:
-            obj.clicks = Clicks.of(obj.prompts, self.disparities.get, self.lightfield.view_shape)
+            obj.clicks = Clicks.of(obj.prompts, self._timed_disparity, self.lightfield.view_shape)
         zbuffer = (lambda source: self.warp(source, view).zbuffer) if zbuffer_test else None
         return clicks_in_view(
             obj.clicks, view, self.lightfield.view_shape, zbuffer, self.config.zbuffer_tolerance
