@@ -206,6 +206,7 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
 
     import napari
 
+    from lfsam.viewer.layout import lay_out
     from lfsam.viewer.objects3d_dock import ObjectsDock
     from lfsam.viewer.widget import LightFieldWidget
 
@@ -230,7 +231,7 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
     dock = viewer.window.add_dock_widget(widget, name="lfsam", area="right")
     viewer.window.add_dock_widget(ObjectsDock(viewer, widget), name="lfsam 3D", area="right",
                                   tabify=True)  # a tab beside the lfsam dock (section 11)
-    dock.raise_()  # the lfsam dock's tab in front
+    lay_out(viewer, dock)  # the canvas the largest part, the lfsam dock in front (issue 46)
     if result is not None and video is not None:
         widget.show_tracked(result)
     elif result is not None:
