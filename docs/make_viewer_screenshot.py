@@ -5,6 +5,8 @@ platform lacks)::
 
     xvfb-run -a -s "-screen 0 1600x1000x24" .venv/bin/python docs/make_viewer_screenshot.py
 
+The window is laid out as ``lfsam view`` lays it out (:func:`lfsam.viewer.layout.lay_out`).
+
 It opens a synthetic 5x5 light field, runs "segment everything" with the oracle and ground-truth
 disparity, clicks one object in a corner view the way a user does (through the points layer's
 mouse callbacks), waits for the worker, moves the sliders to that view and saves the window.
@@ -50,15 +52,19 @@ def main() -> None:
 
     import napari
 
+    from lfsam.viewer.layout import lay_out
+    from lfsam.viewer.objects3d_dock import ObjectsDock
     from lfsam.viewer.widget import LightFieldWidget
 
     lf = generate_scene(
         grid=(5, 5), size=(240, 320), seed=3, num_objects=5, label_background=False
     )
     viewer = napari.Viewer(title="lfsam view", show=True)
-    viewer.window._qt_window.resize(1500, 900)
     widget = LightFieldWidget(viewer, lightfield=lf, model="oracle", disparity="gt")
-    viewer.window.add_dock_widget(widget, name="lfsam", area="right")
+    dock = viewer.window.add_dock_widget(widget, name="lfsam", area="right")
+    viewer.window.add_dock_widget(ObjectsDock(viewer, widget), name="lfsam 3D", area="right",
+                                  tabify=True)
+    lay_out(viewer, dock)  # as `lfsam view` opens it: the screen's size, the canvas largest
     _wait(widget)
     widget.segment_everything()
     _wait(widget)
