@@ -30,7 +30,10 @@ def add_follow_arguments(parser: argparse.ArgumentParser) -> None:
         help="PATH is a frames folder a camera is still writing: segment each frame as it "
         "lands (frames count once they are there, so rename complete frames in), write its "
         "result into --out at once and print its latency; ends at a file named END in PATH, "
-        "after --follow-timeout, or on Ctrl-C, and --out then holds every frame done",
+        "after --follow-timeout, or on Ctrl-C, and --out then holds every frame done. Takes "
+        "clicks and boxes, --auto or --text (found in the first frame, then tracked); a frame "
+        "that cannot be read is skipped, a fault of the setup (e.g. the oracle on frames "
+        "without labels) stops the stream with exit 2",
     )
     group.add_argument(
         "--follow-timeout", type=positive_float, default=None, metavar="S",
@@ -52,7 +55,8 @@ def add_follow_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
     """Follow ``args.path``; exit 0 when the stream ends by END or the timeout, 130 on
-    Ctrl-C (the frames done are in ``--out`` either way)."""
+    Ctrl-C (the frames done are in ``--out`` either way); a configuration fault raises
+    :class:`LfsamError` at its first frame (exit 2, ``lfsam.video.live``)."""
     from lfsam.api import RunOptions, SegmentOptions
     from lfsam.video.follow import FrameFollower, check_follow_folder
     from lfsam.video.live import segment_stream

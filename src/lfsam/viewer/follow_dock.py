@@ -11,7 +11,11 @@ posted with :meth:`~lfsam.video.online.OnlineTracker.post_prompts`, segmented fr
 frame on with a stable id (a negative click corrects the object it lands on). Stop calls
 ``follower.stop()`` (the frame being segmented is kept); a file named ``END`` ends the stream
 too. The result folder is valid throughout; at the end the status says how and after how many
-frames, and a viewer with nothing else open shows the frames segmented as a video with it.
+frames (and how many clicks came after the last frame, unused), and a viewer with nothing else
+open shows the frames segmented as a video with it. The box "Follow: everything in the first
+frame" follows in automatic mode; ``texts`` (``lfsam view --follow --text``) are found in the
+first frame and tracked. A fault of the setup (not of one frame) ends the stream with its one
+line (issue 46).
 """
 
 from __future__ import annotations
