@@ -291,8 +291,8 @@ def check_download_target(name: str) -> None:
     LfsamError
         The cache folder cannot be created or written.
     """
-    from lfsam.segmenters.hub_folder import cached_hub_folder
-    from lfsam.segmenters.sam2_build import cached_checkpoint, hub_cache_dir
+    from lfsam.segmenters.hub import cached_hub_folder, hub_cache_dir
+    from lfsam.segmenters.sam2.build import cached_checkpoint
     from lfsam.segmenters.text.weights import cached_text_weights
 
     if name in TRANSFORMERS_MODELS:
