@@ -58,7 +58,7 @@ def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
     Ctrl-C (the frames done are in ``--out`` either way); a configuration fault raises
     :class:`LfsamError` at its first frame (exit 2, ``lfsam.video.live``)."""
     from lfsam.api import RunOptions, SegmentOptions
-    from lfsam.video.follow import FrameFollower, check_follow_folder
+    from lfsam.video.follow import FrameFollower, check_follow_folder, frame_entries
     from lfsam.video.live import segment_stream
     from lfsam.video.online import OnlineTracker
     from lfsam.video.result import check_live_folder
@@ -93,9 +93,18 @@ def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
                             texts=args.text or ())
     tracker.add_prompts(objects)
     follower = FrameFollower(args.path, timeout=args.follow_timeout, poll=args.poll)
-    if not args.quiet:
-        print(f"following {args.path} (END file, --follow-timeout or Ctrl-C ends it)",
-              file=sys.stderr, flush=True)
+    announced = [args.quiet]
+
+    def announce() -> None:
+        """The stream's first line: at once when it waits for a frame, else after the first
+        frame's (a fault of the setup at the first frame is then the run's only line)."""
+        if not announced[0]:
+            announced[0] = True
+            print(f"following {args.path} (END file, --follow-timeout or Ctrl-C ends it)",
+                  file=sys.stderr, flush=True)
+
+    if not frame_entries(follower.folder):
+        announce()
 
     def show(timing, result) -> None:
         if not args.quiet and "text" in result.meta:  # what the phrases found, first frame
@@ -106,9 +115,11 @@ def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
             print(f"frame {timing.index} ({timing.name}): {timing.latency:.2f} s from arrival "
                   f"to result ({timing.seconds:.2f} s segmenting{older}), objects {ids}",
                   file=sys.stderr, flush=True)
+        announce()
 
     def skip(line: str) -> None:
         print(line, file=sys.stderr, flush=True)
+        announce()
 
     report = segment_stream(follower, tracker, args.out, value_range=args.value_range,
                             on_frame=show, on_skip=skip, latest=args.latest)
