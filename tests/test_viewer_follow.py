@@ -296,6 +296,8 @@ def test_follow_refuses_in_one_line(make_napari_viewer, qtbot, tmp_path):
     (["{tmp}", "--follow", "--result", "{tmp}/r"], "writes a new result"),
     (["{tmp}", "--follow", "--out", "{tmp}"], "is not empty"),
     (["{tmp}", "--follow", "--disparity", "{tmp}/d.npy"], "not a file"),
+    (["{tmp}", "--auto"], "go with --follow"),
+    (["{tmp}", "--follow", "--auto", "--text", "disc"], "--text or --auto, not both"),
 ])
 def test_lfsam_view_follow_checks_its_arguments_before_opening(argv, message, tmp_path, capsys):
     (tmp_path / "a_frame").mkdir()
