@@ -58,7 +58,8 @@ def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
     Ctrl-C (the frames done are in ``--out`` either way); a configuration fault raises
     :class:`LfsamError` at its first frame (exit 2, ``lfsam.video.live``)."""
     from lfsam.api import RunOptions, SegmentOptions
-    from lfsam.video.follow import FrameFollower, check_follow_folder, frame_entries
+    from lfsam.video.follow import FrameFollower, check_follow_folder
+    from lfsam.video.frames_folder import frame_entries
     from lfsam.video.live import segment_stream
     from lfsam.video.online import OnlineTracker
     from lfsam.video.result import check_live_folder
