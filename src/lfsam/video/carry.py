@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, signal
 
-__all__ = ["Carried", "Template", "carry", "locate"]
+__all__ = ["Carried", "Template", "carry", "cost_map", "locate", "shifted"]
 
 #: Fraction of the carried mask (inside the frame) that must still look like the template.
 MIN_SUPPORT = 0.5
@@ -57,16 +57,17 @@ class Carried:
     cost: float
 
 
-def locate(template: Template, image: np.ndarray, radius: int | None) -> tuple[int, int, float]:
-    """The shift ``(du, dv)`` of ``template`` into ``image`` with the least masked mean
-    squared difference, searched within ``radius`` pixels of its place (None: anywhere the
-    template overlaps the frame by at least :data:`MIN_PIXELS` and a fifth of its mask).
+def cost_map(template: Template, image: np.ndarray, radius: int | None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The masked mean squared difference of ``template`` at every integer shift within
+    ``radius`` pixels of its place (None: every shift where it overlaps the frame); inf where
+    it overlaps the frame by less than :data:`MIN_PIXELS` and a fifth of its mask.
 
     Returns
     -------
-    du, dv : int
-    cost : float
-        Mean squared RGB difference per overlapping pixel (inf when nothing qualifies).
+    cost : (H, W) float array
+    du, dv : (H, W) int arrays
+        The shift of each entry.
     """
     height, width = image.shape[:2]
     h, w = template.mask.shape
@@ -100,12 +101,70 @@ def locate(template: Template, image: np.ndarray, radius: int | None) -> tuple[i
         cost = (own - 2 * cross + energy) / count
     needed = max(MIN_PIXELS, 0.2 * m.sum())
     cost[count < needed - 0.5] = np.inf
+    du, dv = np.mgrid[-top:bottom + 1, -left:right + 1]
+    return cost, du, dv
+
+
+def locate(template: Template, image: np.ndarray, radius: int | None) -> tuple[int, int, float]:
+    """The shift ``(du, dv)`` of ``template`` into ``image`` with the least masked mean
+    squared difference, searched within ``radius`` pixels of its place (None: anywhere the
+    template overlaps the frame by at least :data:`MIN_PIXELS` and a fifth of its mask).
+
+    Returns
+    -------
+    du, dv : int
+    cost : float
+        Mean squared RGB difference per overlapping pixel (inf when nothing qualifies).
+    """
+    cost, du, dv = cost_map(template, image, radius)
     if not np.isfinite(cost).any():
         return 0, 0, float("inf")
-    du, dv = np.mgrid[-top:bottom + 1, -left:right + 1]
     order = np.lexsort((np.abs(du).ravel() + np.abs(dv).ravel(), cost.ravel()))
     best = order[0]
     return int(du.ravel()[best]), int(dv.ravel()[best]), float(cost.ravel()[best])
+
+
+def shifted(template: Template, image: np.ndarray, du: int, dv: int
+            ) -> tuple[np.ndarray, np.ndarray] | None:
+    """``template``'s mask shifted by ``(du, dv)`` into the frame of ``image`` (clipped) and
+    its *support*: the pixels of it that still look like the template (not covered by
+    something in front). None when it falls outside the frame."""
+    height, width = image.shape[:2]
+    h, w = template.mask.shape
+    r0, c0 = template.origin[0] + du, template.origin[1] + dv
+    tr0, tc0 = max(-r0, 0), max(-c0, 0)
+    ir0, ic0 = max(r0, 0), max(c0, 0)
+    ir1, ic1 = min(r0 + h, height), min(c0 + w, width)
+    if ir1 <= ir0 or ic1 <= ic0:
+        return None
+    mask = np.zeros((height, width), bool)
+    support = np.zeros((height, width), bool)
+    sub = template.mask[tr0:tr0 + ir1 - ir0, tc0:tc0 + ic1 - ic0]
+    look = template.image[tr0:tr0 + ir1 - ir0, tc0:tc0 + ic1 - ic0]
+    mask[ir0:ir1, ic0:ic1] = sub
+    same = np.abs(image[ir0:ir1, ic0:ic1] - look).sum(-1) < MAX_PIXEL_DIFFERENCE
+    support[ir0:ir1, ic0:ic1] = sub & same
+    return mask, support
+
+
+def deepest(seeds: np.ndarray) -> tuple[int, int, float]:
+    """``(row, col, depth)`` of the pixel of ``seeds`` farthest from its border."""
+    depth = ndimage.distance_transform_edt(np.pad(seeds, 1))[1:-1, 1:-1]
+    row, col = np.unravel_index(int(np.argmax(depth)), depth.shape)
+    return int(row), int(col), float(depth[row, col])
+
+
+def box_around(mask: np.ndarray, margin: float) -> tuple[float, float, float, float]:
+    """``(x0, y0, x1, y1)`` around ``mask`` widened by ``margin`` of its size plus 2 pixels,
+    clipped to the frame."""
+    height, width = mask.shape
+    rows, cols = np.nonzero(mask)
+    margin_r = 2 + margin * (rows.max() - rows.min() + 1)
+    margin_c = 2 + margin * (cols.max() - cols.min() + 1)
+    return (
+        float(max(cols.min() - margin_c, 0)), float(max(rows.min() - margin_r, 0)),
+        float(min(cols.max() + margin_c, width - 1)), float(min(rows.max() + margin_r, height - 1)),
+    )
 
 
 def carry(template: Template, image: np.ndarray, radius: int | None,
@@ -123,34 +182,16 @@ def carry(template: Template, image: np.ndarray, radius: int | None,
     if not np.isfinite(cost):
         return None
     height, width = image.shape[:2]
-    h, w = template.mask.shape
-    r0, c0 = template.origin[0] + du, template.origin[1] + dv
-    mask = np.zeros((height, width), bool)
-    support = np.zeros((height, width), bool)
-    tr0, tc0 = max(-r0, 0), max(-c0, 0)
-    ir0, ic0 = max(r0, 0), max(c0, 0)
-    ir1, ic1 = min(r0 + h, height), min(c0 + w, width)
-    if ir1 <= ir0 or ic1 <= ic0:
+    placed = shifted(template, image, du, dv)
+    if placed is None:
         return None
-    sub = template.mask[tr0:tr0 + ir1 - ir0, tc0:tc0 + ic1 - ic0]
-    look = template.image[tr0:tr0 + ir1 - ir0, tc0:tc0 + ic1 - ic0]
-    mask[ir0:ir1, ic0:ic1] = sub
-    same = np.abs(image[ir0:ir1, ic0:ic1] - look).sum(-1) < MAX_PIXEL_DIFFERENCE
-    support[ir0:ir1, ic0:ic1] = sub & same
-    if support.sum() < max(MIN_PIXELS, MIN_SUPPORT * sub.sum()):
+    mask, support = placed
+    if support.sum() < max(MIN_PIXELS, MIN_SUPPORT * mask.sum()):
         return None
     seeds = support.copy()
     for x, y in avoid:
         row, col = round(y), round(x)
         if 0 <= row < height and 0 <= col < width:
             seeds[row, col] = False
-    depth = ndimage.distance_transform_edt(np.pad(seeds, 1))[1:-1, 1:-1]
-    row, col = np.unravel_index(int(np.argmax(depth)), depth.shape)
-    rows, cols = np.nonzero(mask)
-    margin_r = 2 + box_margin * (rows.max() - rows.min() + 1)
-    margin_c = 2 + box_margin * (cols.max() - cols.min() + 1)
-    box = (
-        float(max(cols.min() - margin_c, 0)), float(max(rows.min() - margin_r, 0)),
-        float(min(cols.max() + margin_c, width - 1)), float(min(rows.max() + margin_r, height - 1)),
-    )
-    return Carried((float(col), float(row)), box, mask, cost)
+    row, col, _ = deepest(seeds)
+    return Carried((float(col), float(row)), box_around(mask, box_margin), mask, cost)

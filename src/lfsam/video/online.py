@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import functools
 import threading
+import time
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from typing import Any
@@ -64,6 +65,7 @@ from lfsam.text_search import find_text
 from lfsam.video.carry import Template, carry
 from lfsam.video.memory import reference_memory_for
 from lfsam.video.prompts import frame_of, negatives_since, prompts_at, start_frame
+from lfsam.video.search import Track, mean_disparity, search_frame
 from lfsam.video.source import check_frame
 
 __all__ = ["MAX_GROWTH", "OnlineTracker"]
@@ -76,13 +78,7 @@ SEARCH_FRACTION = 0.3
 _MAX_FRAMES = 2**31
 
 
-@dataclass
-class _Track:
-    """What is known of one object after the latest frame."""
-
-    view: tuple[int, int]
-    template: Template | None = None
-    lost: bool = False
+_Track = Track
 
 
 class OnlineTracker:
@@ -122,7 +118,8 @@ class OnlineTracker:
 
     def __init__(self, model: str | Segmenter | None = None, *, disparity: str = "estimate",
                  options: SegmentOptions | None = None, memory: bool | None = None,
-                 auto: bool = False, texts: Iterable[TextPrompt] = ()) -> None:
+                 auto: bool = False, texts: Iterable[TextPrompt] = (),
+                 search: bool = True) -> None:
         options = options or SegmentOptions()
         if not isinstance(disparity, str) or disparity not in ("estimate", "gt"):
             raise LfsamError("a light-field video takes --disparity estimate or gt (per frame)")
@@ -135,6 +132,7 @@ class OnlineTracker:
         self.texts = tuple(texts)
         #: What each phrase of ``texts`` found in the first frame (``TextFind.to_dict``).
         self.text_finds: list[dict[str, Any]] = []
+        self.search = bool(search)
         self.name = model.name if isinstance(model, Segmenter) else (model or options.model.name)
         self._per_frame = not isinstance(model, Segmenter) and self.name == "oracle"
         self.segmenter: Segmenter | None = model if isinstance(model, Segmenter) else None
@@ -151,6 +149,9 @@ class OnlineTracker:
         self._tracks: dict[int, _Track] = {}
         self._memory: Any = None
         self._radius = 0
+        self._states: dict[int, str] = {}
+        #: Seconds spent carrying and searching objects (constrained prompts), all frames.
+        self.carry_seconds = 0.0
         self._posted: list[ObjectPrompts] = []
         self._posted_lock = threading.Lock()
 
@@ -273,25 +274,43 @@ class OnlineTracker:
         first_auto = index == 0 and (self.auto or bool(self.texts))
         find = functools.partial(self._find_first, lf=lf)
         if self._memory is not None:
-            _memory_frame(self._memory, predictor, lf, index, self._objects,
-                          find if first_auto else None)
+            prompted, masks = _memory_frame(self._memory, predictor, lf, index, self._objects,
+                                            find if first_auto else None)
+            self._states = memory_states(self._states, prompted, masks, self._objects)
         else:
+            states: dict[int, str] = {}
             if first_auto:
                 find(predictor)
                 for obj_id in predictor.object_ids:
                     view, mask, _ = predictor.predict_reference(obj_id)
-                    self._tracks[obj_id] = _Track(view, Template.from_mask(lf.views[view], mask))
-            placed = np.zeros(lf.view_shape, bool)
+                    self._tracks[obj_id] = _Track(
+                        view, Template.from_mask(lf.views[view], mask), area=int(mask.sum()),
+                        disparity=mean_disparity(predictor.disparity(view), mask),
+                        sightings=1, state="prompted")
+                    states[obj_id] = "prompted"
             found = [] if first_auto else [i for i in sorted(self._tracks)
                                            if i not in self._objects]
-            for obj_id in [*found, *self._objects]:
-                placed |= _segment_object(predictor, lf, index, obj_id, self._objects.get(obj_id),
-                                          self._tracks, self._radius, placed,
-                                          segmenter.name != "oracle")
+            use_box = segmenter.name != "oracle"
+            start = time.perf_counter()
+            if self.search:
+                states.update(search_frame(predictor, lf, index, [*found, *self._objects],
+                                           {i: self._objects.get(i) for i in
+                                            [*found, *self._objects]}, self._tracks, use_box))
+            else:
+                placed = np.zeros(lf.view_shape, bool)
+                for obj_id in [*found, *self._objects]:
+                    placed |= _segment_object(predictor, lf, index, obj_id,
+                                              self._objects.get(obj_id), self._tracks,
+                                              self._radius, placed, use_box)
+                    states.setdefault(obj_id, "tracked" if obj_id in predictor.object_ids
+                                      else "hidden" if obj_id in self._tracks else "waiting")
+            self._states = states
+            self.carry_seconds += time.perf_counter() - start
         result = predictor.to_result()
         result.meta["frame"] = index
         if first_auto and self.texts:
             result.meta["text"] = self.text_finds
+        result.meta["tracks"] = {str(i): s for i, s in sorted(self._states.items())}
         if refused is not None:
             result.meta["refused_prompts"] = refused
         self.frames_done += 1
@@ -352,10 +371,31 @@ def _center_mask(predictor: LightFieldPredictor, lf: LightField, obj_id: int) ->
     return mask if view == lf.center else predictor.masks_in_view([obj_id], lf.center)[0]
 
 
+def memory_states(before: dict[int, str], prompted: set[int], masks: dict[int, np.ndarray],
+                  objects: dict[int, ObjectPrompts]) -> dict[int, str]:
+    """Each object's state (:data:`lfsam.video.search.STATES`) in a frame tracked with the
+    video memory: prompted there, tracked (a mask), hidden (the memory's occlusion score says
+    absent: an empty mask; the object stays in the memory under its id) or found again (a mask
+    after hidden frames), waiting before its start."""
+    states = {}
+    for obj_id in sorted({*objects, *masks, *prompted}):
+        if obj_id in prompted:
+            states[obj_id] = "prompted"
+        elif obj_id in masks and masks[obj_id].any():
+            states[obj_id] = "found" if before.get(obj_id) == "hidden" else "tracked"
+        elif obj_id in masks:
+            states[obj_id] = "hidden"
+        else:
+            states[obj_id] = "waiting"
+    return states
+
+
 def _memory_frame(memory: Any, predictor: LightFieldPredictor, lf: LightField, index: int,
-                  objects: dict[int, ObjectPrompts], find: Any) -> None:
+                  objects: dict[int, ObjectPrompts], find: Any
+                  ) -> tuple[set[int], dict[int, np.ndarray]]:
     """One frame tracked with the video memory (see the module docstring): prompted objects
-    from their prompts, the others from the memory's masks."""
+    from their prompts, the others from the memory's masks. Returns the prompted ids and the
+    memory's masks."""
     embedding = memory.next_frame(index, lf.views[lf.center])
     if embedding is not None:
         predictor.engine.store.put(lf.center, embedding)
@@ -383,6 +423,7 @@ def _memory_frame(memory: Any, predictor: LightFieldPredictor, lf: LightField, i
         if obj_id not in prompted and mask.any():
             predictor.add_mask(obj_id, mask, lf.center)
     memory.forget()
+    return prompted, masks
 
 
 def _carried_prompts(obj_id: int, track: _Track, image: np.ndarray, negatives, fresh,

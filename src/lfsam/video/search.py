@@ -1,0 +1,514 @@
+"""Tracks that come back: finding a carried object in every frame, hidden or not (issue 47;
+docs/design.md section 10, "Tracking").
+
+For segmenters without memory (the oracle, SAM 2's image model) each object is carried from the
+frame where it was last found (:mod:`lfsam.video.carry`), and is never dropped for good: an
+object that is not found in a frame is *hidden* there (empty masks) and keeps its id, its last
+appearance (the template), its motion and its disparity; it is searched for again in every
+later frame and comes back under its own id (*found*). The search of one object in a frame
+(:func:`search_object`):
+
+1. **Prediction.** Constant velocity from its last two sightings (in center-view pixels), and
+   its disparity changing at its last rate: the template is placed where the object should be
+   in a view, parallax included (a pixel of the center view at disparity ``d`` is at
+   ``p - d (s - s_c, t - t_c)`` in view ``(s, t)``, section 1).
+2. **Stages**, first accepted wins: the predicted place in the object's last reference view,
+   then the center view, then the four corner views (an object hidden in the center view is
+   often visible there: the light field, as ``--references corners`` finds hidden objects),
+   each within :func:`search_radius` pixels (growing with every frame unseen); then the
+   whole of its own view and of the center view.
+3. **Matching.** The masked SSD of the template at every shift (:func:`lfsam.video.carry.
+   cost_map`); of its :data:`CANDIDATES` cheapest shifts the one whose *support* (pixels that
+   still look like the template) is largest wins, so an object half behind another is still
+   that object. It needs at least :data:`NEAR_SUPPORT` of its template supported near the
+   prediction, :data:`FAR_SUPPORT` elsewhere.
+4. **Prompts**: up to three positive points at the deepest supported pixels, negative points on
+   neighbouring objects placed earlier in the frame (center view), the user's negative clicks
+   of that view, and for SAM 2 a box around the carried mask.
+5. **Acceptance**: the answer covers at least half of the support, is at most
+   :data:`lfsam.video.online.MAX_GROWTH` times the object's largest area, does not lie mostly
+   on an object placed earlier in that view, and, away from the prediction, looks like the
+   template (colour histograms, :func:`looks_alike`).
+
+The template is replaced by the answer when the answer shows most of the object; a mostly
+hidden answer keeps the fuller template (moved to where it was found). Each object's state per
+frame is one of :data:`STATES` (``meta["tracks"]`` of each frame's result).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy import ndimage
+
+from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
+from lfsam.video.carry import (
+    MAX_PIXEL_DIFFERENCE,
+    MIN_PIXELS,
+    Template,
+    box_around,
+    cost_map,
+    deepest,
+    shifted,
+)
+
+__all__ = [
+    "CANDIDATES",
+    "FAR_SUPPORT",
+    "NEAR_SUPPORT",
+    "STATES",
+    "Track",
+    "looks_alike",
+    "search_object",
+    "search_radius",
+]
+
+#: An object's state in a frame: prompted there by the user, carried from the frame before,
+#: found again after frames hidden, not found (kept, searched again), or not started yet.
+STATES = ("prompted", "tracked", "found", "hidden", "waiting")
+#: Cheapest template shifts whose support is compared.
+CANDIDATES = 12
+#: Fraction of the template that must still look the same near the prediction / elsewhere.
+NEAR_SUPPORT = 0.1
+FAR_SUPPORT = 0.3
+#: Search radius (pixels): base, plus the speed, plus this much per frame unseen.
+BASE_RADIUS = 8
+GROWTH = 8
+#: A match showing this fraction of the template is not searched further near the prediction.
+SURE = 0.6
+#: Every shift this close to the prediction (plus 2 pixels per frame unseen) is scored.
+NEAR_REACH = 5
+#: A template is replaced by an answer at least this fraction of the object's largest area.
+KEEP_TEMPLATE = 0.6
+#: Colour histogram intersection an answer away from the prediction needs.
+MIN_ALIKE = 0.35
+
+
+@dataclass
+class Track:
+    """What is known of one object after the latest frame (docs/design.md section 10)."""
+
+    view: tuple[int, int]
+    template: Template | None = None
+    lost: bool = False
+    #: Center-view pixels per frame (rows, columns).
+    velocity: tuple[float, float] = (0.0, 0.0)
+    disparity: float = 0.0
+    disparity_rate: float = 0.0
+    #: Frames since it was last found (0: found in the latest frame).
+    unseen: int = 0
+    #: Largest reference-view area seen.
+    area: int = 0
+    sightings: int = 0
+    state: str = "waiting"
+    history: list[str] = field(default_factory=list)
+
+
+def search_radius(track: Track) -> int:
+    """How far from its predicted place an object is looked for: grows while it is unseen."""
+    speed = float(np.hypot(*track.velocity))
+    return int(BASE_RADIUS + 2 * speed + GROWTH * track.unseen)
+
+
+def near_reach(track: Track) -> int:
+    """How far from the prediction every shift's support is counted (:func:`near_support`)."""
+    return int(min(NEAR_REACH + 2 * track.unseen, 2 * NEAR_REACH))
+
+
+def _offset(view: tuple[int, int], center: tuple[int, int]) -> np.ndarray:
+    return np.array([view[0] - center[0], view[1] - center[1]], np.float64)
+
+
+def predicted(track: Track, view: tuple[int, int], center: tuple[int, int]) -> Template:
+    """The object's template placed where it should be in ``view`` this frame."""
+    steps = track.unseen + 1
+    origin = np.asarray(track.template.origin, np.float64)
+    now = track.disparity + track.disparity_rate * steps
+    place = (origin + track.disparity * _offset(track.view, center)
+             + np.asarray(track.velocity) * steps - now * _offset(view, center))
+    return replace(track.template, origin=(int(round(place[0])), int(round(place[1]))))
+
+
+def looks_alike(a: np.ndarray, b: np.ndarray, bins: int = 6) -> float:
+    """Intersection of the joint RGB histograms of two pixel sets ``(N, 3)`` (1: equal)."""
+    if len(a) == 0 or len(b) == 0:
+        return 0.0
+
+    def hist(x: np.ndarray) -> np.ndarray:
+        q = np.clip((x.astype(np.float64) * bins / 256.0).astype(int), 0, bins - 1)
+        h = np.bincount((q[:, 0] * bins + q[:, 1]) * bins + q[:, 2], minlength=bins**3)
+        return h / h.sum()
+
+    return float(np.minimum(hist(a), hist(b)).sum())
+
+
+def near_support(template: Template, image: np.ndarray, reach: int
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The robust cost of every shift within ``reach`` pixels of the template's place: the sum
+    over the template of each pixel's RGB distance (summed over channels), truncated at
+    :data:`lfsam.video.carry.MAX_PIXEL_DIFFERENCE`, so that pixels covered by something in
+    front cost the same wherever the template is (an object mostly behind another is found by
+    its visible part, where the SSD is led astray by the cover).
+
+    Returns
+    -------
+    cost : (2 reach + 1, 2 reach + 1) float array
+    du, dv : int arrays of the same shape
+    """
+    h, w = template.mask.shape
+    r0, c0 = template.origin
+    height, width = image.shape[:2]
+    region = np.full((h + 2 * reach, w + 2 * reach, 3), -1e4, np.float32)
+    top, left = r0 - reach, c0 - reach
+    sr0, sc0 = max(top, 0), max(left, 0)
+    sr1, sc1 = min(top + region.shape[0], height), min(left + region.shape[1], width)
+    if sr1 > sr0 and sc1 > sc0:
+        region[sr0 - top:sr1 - top, sc0 - left:sc1 - left] = image[sr0:sr1, sc0:sc1]
+    windows = np.lib.stride_tricks.sliding_window_view(region, (h, w), axis=(0, 1))
+    # windows: (2 reach + 1, 2 reach + 1, 3, h, w)
+    diff = np.abs(windows - np.moveaxis(template.image, -1, 0)[None, None]).sum(2)
+    cost = (np.minimum(diff, MAX_PIXEL_DIFFERENCE) * template.mask).sum((2, 3))
+    du, dv = np.mgrid[-reach:reach + 1, -reach:reach + 1]
+    return cost, du, dv
+
+
+def _robust(template: Template, image: np.ndarray, du: int, dv: int) -> tuple[float, int]:
+    """The truncated cost (:func:`near_support`) of one shift and its support count; pixels
+    outside the frame cost the truncation."""
+    height, width = image.shape[:2]
+    h, w = template.mask.shape
+    r0, c0 = template.origin[0] + du, template.origin[1] + dv
+    tr0, tc0 = max(-r0, 0), max(-c0, 0)
+    ir0, ic0, ir1, ic1 = max(r0, 0), max(c0, 0), min(r0 + h, height), min(c0 + w, width)
+    total = int(template.mask.sum())
+    if ir1 <= ir0 or ic1 <= ic0:
+        return float(total * MAX_PIXEL_DIFFERENCE), 0
+    sub = template.mask[tr0:tr0 + ir1 - ir0, tc0:tc0 + ic1 - ic0]
+    look = template.image[tr0:tr0 + ir1 - ir0, tc0:tc0 + ic1 - ic0]
+    diff = np.minimum(np.abs(image[ir0:ir1, ic0:ic1] - look).sum(-1), MAX_PIXEL_DIFFERENCE)
+    inside = int(sub.sum())
+    cost = float((diff * sub).sum()) + (total - inside) * MAX_PIXEL_DIFFERENCE
+    return cost, int((sub & (diff < MAX_PIXEL_DIFFERENCE)).sum())
+
+
+def _best_shift(template: Template, image: np.ndarray, radius: int | None, reach: int = 0
+                ) -> tuple[np.ndarray, np.ndarray, tuple[int, int]] | None:
+    """The shifted mask and support of the shift with the least robust cost
+    (:func:`near_support`) among the :data:`CANDIDATES` cheapest by masked SSD and, with
+    ``reach`` and where none of those shows most of the template, every shift that close to
+    the predicted place (ties: the nearer shift)."""
+    cost, du, dv = cost_map(template, image, radius)
+    flat = cost.ravel()
+    finite = np.flatnonzero(np.isfinite(flat))
+    best: tuple[float, int, tuple[int, int]] | None = None
+    for i in finite[np.argsort(flat[finite], kind="stable")[:CANDIDATES]]:
+        shift = (int(du.ravel()[i]), int(dv.ravel()[i]))
+        robust, count = _robust(template, image, *shift)
+        if best is None or robust < best[0]:
+            best = (robust, count, shift)
+    if reach > 0 and (best is None or best[1] < SURE * template.mask.sum()):
+        costs, ru, rv = near_support(template, image, reach)
+        index = np.lexsort(((ru**2 + rv**2).ravel(), costs.ravel()))[0]
+        if best is None or costs.ravel()[index] <= best[0]:
+            shift = (int(ru.ravel()[index]), int(rv.ravel()[index]))
+            best = (float(costs.ravel()[index]), 0, shift)
+    if best is None:
+        return None
+    placed = shifted(template, image, *best[2])
+    if placed is None:
+        return None
+    return placed[0], placed[1], best[2]
+
+
+def _positive_points(support: np.ndarray, count: int = 3) -> list[tuple[float, float]]:
+    """Up to ``count`` ``(x, y)`` points at the deepest supported pixels, apart."""
+    seeds = support.copy()
+    points: list[tuple[float, float]] = []
+    rows, cols = np.indices(support.shape)
+    for _ in range(count):
+        if not seeds.any():
+            break
+        row, col, depth = deepest(seeds)
+        if points and depth < 2.5:
+            break
+        points.append((float(col), float(row)))
+        seeds &= (rows - row) ** 2 + (cols - col) ** 2 > (2 * max(depth, 2.0)) ** 2
+    return points
+
+
+def _neighbour_points(carried: np.ndarray, support: np.ndarray, placed_ids: np.ndarray | None
+                      ) -> list[tuple[float, float]]:
+    """A negative ``(x, y)`` point on each object placed earlier that touches ``carried``."""
+    if placed_ids is None:
+        return []
+    near = ndimage.binary_dilation(carried, iterations=4)
+    points = []
+    for other in np.unique(placed_ids[near]):
+        if other == 0:
+            continue
+        region = (placed_ids == other) & ~support
+        if region.sum() >= MIN_PIXELS:
+            row, col, _ = deepest(region)
+            points.append((float(col), float(row)))
+    return points
+
+
+def search_object(
+    obj_id: int,
+    track: Track,
+    images: Callable[[tuple[int, int]], np.ndarray],
+    center: tuple[int, int],
+    views: Sequence[tuple[int, int]],
+    answer: Callable[[ObjectPrompts], tuple[tuple[int, int], np.ndarray]],
+    placed: Callable[[tuple[int, int]], np.ndarray | None],
+    placed_ids: np.ndarray | None,
+    negatives: Sequence[PointPrompt],
+    use_box: bool,
+    first: tuple | None = None,
+) -> tuple[tuple[int, int], np.ndarray, tuple[int, int], Template] | None:
+    """Find a carried object in this frame (see the module docstring).
+
+    Parameters
+    ----------
+    obj_id : int
+    track : Track
+        Its state after the latest frame (read only: :func:`update` changes it).
+    images : callable
+        ``images(view)``: that view's ``(U, V, 3)`` image.
+    center : (s, t)
+    views : sequence of (s, t)
+        The views to search besides the track's and the center (the corners).
+    answer : callable
+        ``answer(prompts)`` sets the object's prompts in the frame's predictor and returns
+        its reference view and mask.
+    placed : callable
+        ``placed(view)``: the union of the masks of objects placed earlier in this frame in
+        that view (None: not known).
+    placed_ids : (U, V) int array or None
+        Those objects' ids in the center view (0 elsewhere), for negative points.
+    negatives : sequence of PointPrompt
+        The user's negative clicks that hold in this frame.
+    use_box : bool
+        Prompt with a box around the carried mask too (SAM 2).
+    first : tuple, optional
+        The first stage's match (:func:`first_look`), computed already.
+
+    Returns
+    -------
+    (view, mask, shift, template) or None
+        The accepted reference view and mask, and the located template; None: not found.
+    """
+    order = [track.view, *([center] if track.view != center else []),
+             *(v for v in views if v not in (track.view, center))]
+    stages = [(view, search_radius(track)) for view in order] + [(view, None)
+                                                                  for view in order[:2]]
+    for number, (view, radius) in enumerate(stages):
+        image = images(view).astype(np.float32)
+        template = predicted(track, view, center)
+        found = first if number == 0 and first is not None else _best_shift(
+            template, image, radius, near_reach(track) if radius is not None else 0)
+        if found is None:
+            continue
+        carried, support, shift = found
+        known = placed(view)
+        if known is not None:  # pixels of objects placed already are not this one
+            support = support & ~known
+        needed = NEAR_SUPPORT if radius is not None else FAR_SUPPORT
+        if support.sum() < max(MIN_PIXELS, needed * template.mask.sum()):
+            continue
+        positives = _positive_points(support)
+        negative_xy = _neighbour_points(carried, support, placed_ids if view == center
+                                        else None)
+        user = [p for p in negatives if (p.view or center) == view
+                and not carried[int(round(p.y)), int(round(p.x))]]
+        points = (*(PointPrompt(x, y, True, view) for x, y in positives),
+                  *(PointPrompt(x, y, False, view) for x, y in negative_xy),
+                  *(PointPrompt(p.x, p.y, False, view) for p in user))
+        box = BoxPrompt(*box_around(carried, 0.15), view=view) if use_box else None
+        ref_view, mask = answer(ObjectPrompts(obj_id, points, box))
+        if not _accept(mask, support, track, known if ref_view == view else placed(ref_view),
+                       image, template,
+                       radius is not None and track.unseen == 0):
+            continue
+        located = replace(template, origin=(template.origin[0] + shift[0],
+                                            template.origin[1] + shift[1]))
+        return ref_view, mask, shift, located
+    return None
+
+
+def first_look(track: Track, image: np.ndarray, center: tuple[int, int]
+               ) -> tuple[float, tuple | None]:
+    """The match at the predicted place in the object's own view: the fraction of its
+    template supported there, and the match (for :func:`search_object`'s ``first``)."""
+    template = predicted(track, track.view, center)
+    found = _best_shift(template, image.astype(np.float32), search_radius(track),
+                        near_reach(track))
+    if found is None:
+        return 0.0, None
+    return float(found[1].sum()) / max(int(template.mask.sum()), 1), found
+
+
+def _accept(mask: np.ndarray, support: np.ndarray, track: Track, placed: np.ndarray | None,
+            image: np.ndarray, template: Template, near: bool) -> bool:
+    from lfsam.video.online import MAX_GROWTH
+
+    area = int(mask.sum())
+    if area == 0 or (mask & support).sum() < 0.5 * support.sum():
+        return False
+    if area > MAX_GROWTH * max(track.area, 1) + 50:
+        return False
+    if placed is not None and (mask & placed).sum() > 0.5 * area:
+        return False
+    if near:
+        return True
+    return looks_alike(image[mask], template.image[template.mask]) >= MIN_ALIKE
+
+
+def update(track: Track, view: tuple[int, int], mask: np.ndarray, located: Template,
+           image: np.ndarray, disparity: float, center: tuple[int, int]) -> None:
+    """The track after the object was found in ``view`` (``located``: its template where it
+    was found; ``disparity``: the answer's mean disparity)."""
+    steps = track.unseen + 1
+    before = (np.asarray(track.template.origin, np.float64)
+              + track.disparity * _offset(track.view, center))
+    now = np.asarray(located.origin, np.float64) + disparity * _offset(view, center)
+    measured = (now - before) / steps
+    if track.sightings >= 1:
+        track.velocity = (float(measured[0]), float(measured[1]))
+        track.disparity_rate = (disparity - track.disparity) / steps
+    area = int(mask.sum())
+    if area >= KEEP_TEMPLATE * track.area or track.template is None:
+        track.template = Template.from_mask(image, mask)
+        track.view = view
+        track.disparity = disparity
+    else:  # mostly hidden: keep the fuller look, moved to where it was found
+        track.template = located
+        track.view = view
+        track.disparity = disparity
+    track.area = max(track.area, area)
+    track.state = "found" if track.unseen > 0 else "tracked"
+    track.unseen = 0
+    track.lost = False
+    track.sightings += 1
+
+
+def carried_to(mask: np.ndarray, disparity: object, view: tuple[int, int],
+               center: tuple[int, int]) -> np.ndarray:
+    """A center-view mask carried into ``view`` by the center view's disparity (section 1:
+    ``p - d (s - s_c, t - t_c)``), rounded, closed by one pixel: where objects placed in the
+    center view are in another view (what the center view cannot see is left out)."""
+    out = np.zeros_like(mask)
+    rows, cols = np.nonzero(mask)
+    if rows.size == 0:
+        return out
+    values = np.asarray(disparity.cpu().numpy() if hasattr(disparity, "cpu") else disparity)
+    d = np.nan_to_num(values[rows, cols])
+    r = np.rint(rows - d * (view[0] - center[0])).astype(int)
+    c = np.rint(cols - d * (view[1] - center[1])).astype(int)
+    keep = (r >= 0) & (r < mask.shape[0]) & (c >= 0) & (c < mask.shape[1])
+    out[r[keep], c[keep]] = True
+    return ndimage.binary_closing(out, iterations=1) | out
+
+
+def mean_disparity(disparity: object, mask: np.ndarray) -> float:
+    """The mean of a view's disparity (a tensor or array) over ``mask`` (0 where empty)."""
+    values = np.asarray(disparity.cpu().numpy() if hasattr(disparity, "cpu") else disparity)
+    picked = values[mask]
+    picked = picked[np.isfinite(picked)]
+    return float(picked.mean()) if picked.size else 0.0
+
+
+def search_frame(predictor: object, lf: object, index: int, order: Sequence[int],
+                 prompts: dict[int, ObjectPrompts | None], tracks: dict[int, Track],
+                 use_box: bool) -> dict[int, str]:
+    """One frame of constrained-prompt tracking with the search (module docstring): every
+    object of ``order`` is prompted (the user's positive prompts at ``index``) or searched for,
+    added to ``predictor`` where it is found; returns each object's state (:data:`STATES`).
+
+    ``prompts[obj_id]`` holds the object's prompts of every frame (None for an object found
+    automatically); ``tracks`` is updated in place.
+    """
+    from lfsam.pipeline.references import reference_views
+    from lfsam.video.prompts import negatives_since, prompts_at, start_frame
+
+    center = lf.center
+    corners = [v for v in reference_views(lf.grid_shape, "corners")[1:] if lf.present[v]]
+    placed = np.zeros(lf.view_shape, bool)
+    placed_ids = np.zeros(lf.view_shape, np.int64)
+    done: list[int] = []
+    elsewhere: dict[tuple[int, int], np.ndarray] = {}
+
+    def placed_in(view: tuple[int, int]) -> np.ndarray | None:
+        if view == center:
+            return placed
+        key = (view, len(done))
+        if key not in elsewhere:
+            elsewhere.clear()
+            elsewhere[key] = carried_to(placed, predictor.disparity(center), view, center)
+        return elsewhere[key]
+
+    def answer(obj: ObjectPrompts) -> tuple[tuple[int, int], np.ndarray]:
+        predictor.set_object(obj)
+        view, mask, _ = predictor.predict_reference(obj.obj_id)
+        return view, mask
+
+    def place(obj_id: int, view: tuple[int, int], mask: np.ndarray) -> None:
+        done.append(obj_id)
+        if view == center:
+            placed[mask] = True
+            placed_ids[mask & (placed_ids == 0)] = obj_id
+
+    states: dict[int, str] = {}
+    own_prompts = {i: (None if prompts.get(i) is None else prompts_at(prompts[i], index))
+                   for i in order}
+    started = [i for i in order if prompts.get(i) is None
+               or (start_frame(prompts[i]) is not None and index >= start_frame(prompts[i]))]
+    prompted = [i for i in started if own_prompts[i] is not None and own_prompts[i].has_positive]
+    carried = [i for i in started if i not in prompted and i in tracks
+               and tracks[i].template is not None]
+    # the surest first (most of the template still seen at its predicted place), so that an
+    # object that went behind another cannot take that one's place
+    first = {i: first_look(tracks[i], lf.views[tracks[i].view], center) for i in carried}
+    carried.sort(key=lambda i: (tracks[i].unseen > 0, -first[i][0], i))
+    for obj_id in prompted:
+        negatives = negatives_since(prompts[obj_id], index)
+        own = own_prompts[obj_id]
+        view, mask = answer(own.with_points([p for p in negatives if p not in own.points]))
+        known = placed_in(view) if view == center else None
+        if not mask.any() or (known is not None and (mask & known).sum() > 0.5 * mask.sum()):
+            predictor.remove_object(obj_id)
+            track = tracks.setdefault(obj_id, Track(view))
+            track.unseen += 1
+            states[obj_id] = track.state = "hidden"
+            continue
+        disparity = mean_disparity(predictor.disparity(view), mask)
+        old = tracks.get(obj_id)
+        track = Track(view, Template.from_mask(lf.views[view], mask), disparity=disparity,
+                      area=int(mask.sum()), sightings=1, state="prompted")
+        if old is not None:
+            track.velocity, track.area = old.velocity, max(old.area, track.area)
+        tracks[obj_id] = track
+        states[obj_id] = "prompted"
+        place(obj_id, view, mask)
+    for obj_id in carried:
+        track = tracks[obj_id]
+        negatives = () if prompts.get(obj_id) is None else negatives_since(prompts[obj_id], index)
+        found = search_object(obj_id, track, lambda v: lf.views[v], center, corners, answer,
+                              placed_in, placed_ids, negatives, use_box, first[obj_id][1])
+        if found is None:
+            if obj_id in predictor.object_ids:
+                predictor.remove_object(obj_id)
+            track.unseen += 1
+            track.lost = True
+            states[obj_id] = track.state = "hidden"
+            continue
+        view, mask, _shift, located = found
+        update(track, view, mask, located, lf.views[view],
+               mean_disparity(predictor.disparity(view), mask), center)
+        states[obj_id] = track.state
+        place(obj_id, view, mask)
+    for obj_id in order:
+        states.setdefault(obj_id, "waiting")
+    return states
