@@ -38,7 +38,7 @@ from lfsam.version import __version__
 from lfsam.video.feed import NEWER_FRAME, FrameFeed
 from lfsam.video.follow import ArrivedFrame, FrameFollower
 from lfsam.video.online import OnlineTracker
-from lfsam.video.result import live_video_result_writer
+from lfsam.video.result import live_video_result_writer, record_states
 
 __all__ = ["RETRY_SECONDS", "FrameTiming", "StreamReport", "segment_stream"]
 
@@ -177,7 +177,7 @@ def segment_stream(
         "prompt_mode": "auto" if tracker.auto else "text" if tracker.texts else "prompts",
         "package_version": __version__,
         "disparity": tracker.disparity, "follow": True, "latest": bool(latest),
-        "skipped": report.skipped, "ended_by": None,
+        "skipped": report.skipped, "ended_by": None, "tracks": {},
     }
     superseded: list[str] = []
 
@@ -208,6 +208,7 @@ def segment_stream(
                 meta["tracking"] = tracker.tracking
                 if tracker.texts:  # what the phrases found in the first frame
                     meta["text"] = tracker.text_finds
+                record_states(meta["tracks"], result.meta.get("tracks", {}), writer.frames)
                 writer.write(result)
                 timing = FrameTiming(writer.frames - 1, arrived.path.name,
                                      time.time() - arrived.arrived,

@@ -44,6 +44,7 @@ __all__ = [
     "is_video_result",
     "live_video_result_writer",
     "load_video_result",
+    "record_states",
     "video_result_writer",
 ]
 
@@ -145,6 +146,17 @@ class _Writer:
                 entry["category"] = self.categories[obj_id]
             entries.append(entry)
         return entries
+
+
+def record_states(history: dict[str, list[str]], states: dict[str, str], index: int) -> None:
+    """Append frame ``index``'s object states (``meta["tracks"]`` of its result) to the
+    manifest's ``meta["tracks"]``: one list per object id (a string), one state per frame,
+    ``"waiting"`` for the frames before the object was known (docs/design.md section 10)."""
+    for key, state in states.items():
+        history.setdefault(key, ["waiting"] * index).append(state)
+    for states_so_far in history.values():
+        if len(states_so_far) < index + 1:
+            states_so_far.append("waiting")
 
 
 @contextlib.contextmanager

@@ -79,7 +79,7 @@ GROWTH = 8
 #: A match showing this fraction of the template is not searched further near the prediction.
 SURE = 0.6
 #: Every shift this close to the prediction (plus 2 pixels per frame unseen) is scored.
-NEAR_REACH = 5
+NEAR_REACH = 4
 #: A template is replaced by an answer at least this fraction of the object's largest area.
 KEEP_TEMPLATE = 0.6
 #: Colour histogram intersection an answer away from the prediction needs.
@@ -224,17 +224,21 @@ def _best_shift(template: Template, image: np.ndarray, radius: int | None, reach
 
 def _positive_points(support: np.ndarray, count: int = 3) -> list[tuple[float, float]]:
     """Up to ``count`` ``(x, y)`` points at the deepest supported pixels, apart."""
-    seeds = support.copy()
+    rows, cols = np.nonzero(support)
+    if rows.size == 0:
+        return []
+    r0, c0 = rows.min(), cols.min()
+    seeds = support[r0:rows.max() + 1, c0:cols.max() + 1].copy()
+    grid_r, grid_c = np.indices(seeds.shape)
     points: list[tuple[float, float]] = []
-    rows, cols = np.indices(support.shape)
     for _ in range(count):
         if not seeds.any():
             break
         row, col, depth = deepest(seeds)
         if points and depth < 2.5:
             break
-        points.append((float(col), float(row)))
-        seeds &= (rows - row) ** 2 + (cols - col) ** 2 > (2 * max(depth, 2.0)) ** 2
+        points.append((float(col + c0), float(row + r0)))
+        seeds &= (grid_r - row) ** 2 + (grid_c - col) ** 2 > (2 * max(depth, 2.0)) ** 2
     return points
 
 
@@ -267,6 +271,7 @@ def search_object(
     negatives: Sequence[PointPrompt],
     use_box: bool,
     first: tuple | None = None,
+    fresh: Sequence[PointPrompt] = (),
 ) -> tuple[tuple[int, int], np.ndarray, tuple[int, int], Template] | None:
     """Find a carried object in this frame (see the module docstring).
 
@@ -289,11 +294,15 @@ def search_object(
     placed_ids : (U, V) int array or None
         Those objects' ids in the center view (0 elsewhere), for negative points.
     negatives : sequence of PointPrompt
-        The user's negative clicks that hold in this frame.
+        The user's negative clicks that hold in this frame (those of earlier frames are
+        dropped where they land on the carried mask: the object moved there).
     use_box : bool
         Prompt with a box around the carried mask too (SAM 2).
     first : tuple, optional
         The first stage's match (:func:`first_look`), computed already.
+    fresh : sequence of PointPrompt
+        Those of ``negatives`` given in this frame: always kept, and the positive point (one
+        then) is the supported pixel farthest from them and from the support's border.
 
     Returns
     -------
@@ -318,11 +327,16 @@ def search_object(
         needed = NEAR_SUPPORT if radius is not None else FAR_SUPPORT
         if support.sum() < max(MIN_PIXELS, needed * template.mask.sum()):
             continue
-        positives = _positive_points(support)
+        seeds = support.copy()
+        for p in fresh:  # the positive point keeps away from a correction in this frame
+            if (p.view or center) == view:
+                seeds[min(max(round(p.y), 0), seeds.shape[0] - 1),
+                      min(max(round(p.x), 0), seeds.shape[1] - 1)] = False
+        positives = _positive_points(seeds, 1 if fresh else 3)
         negative_xy = _neighbour_points(carried, support, placed_ids if view == center
                                         else None)
         user = [p for p in negatives if (p.view or center) == view
-                and not carried[int(round(p.y)), int(round(p.x))]]
+                and (p in fresh or not carried[int(round(p.y)), int(round(p.x))])]
         points = (*(PointPrompt(x, y, True, view) for x, y in positives),
                   *(PointPrompt(x, y, False, view) for x, y in negative_xy),
                   *(PointPrompt(p.x, p.y, False, view) for p in user))
@@ -495,8 +509,11 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
     for obj_id in carried:
         track = tracks[obj_id]
         negatives = () if prompts.get(obj_id) is None else negatives_since(prompts[obj_id], index)
+        own = own_prompts[obj_id]
+        fresh = () if own is None else tuple(p for p in own.points if not p.positive)
         found = search_object(obj_id, track, lambda v: lf.views[v], center, corners, answer,
-                              placed_in, placed_ids, negatives, use_box, first[obj_id][1])
+                              placed_in, placed_ids, negatives, use_box, first[obj_id][1],
+                              fresh)
         if found is None:
             if obj_id in predictor.object_ids:
                 predictor.remove_object(obj_id)

@@ -195,7 +195,7 @@ def _hard_cases(objects, paths, size, frames, seed, disparity_range, grid):
     objects[b_index] = hidden
     swings[b_index] = 0.0
     middle = frames // 2
-    speed_b = HARD_SPEED
+    speed_b = HARD_SPEED - 1.0  # with the occluder's 1 pixel per frame: at most HARD_SPEED
     heading_b = rng.uniform(0, 2 * np.pi)
     step = (np.cos(heading_b) * speed_b, np.sin(heading_b) * speed_b)
     drift = rng.uniform(-0.1, 0.1) * span

@@ -6,7 +6,9 @@ video is read, tracked and written before the next is read.
 
 The result is written frame by frame (:mod:`lfsam.video.result`): memory stays flat in F. Its
 manifest keeps each object's frame-tagged prompts as given (``meta["objects"]``), so that the
-viewer reopens the folder editable (:meth:`lfsam.video.result.VideoResult.stored_prompts`).
+viewer reopens the folder editable (:meth:`lfsam.video.result.VideoResult.stored_prompts`), and
+each object's state in every frame (``meta["tracks"]``: prompted, tracked, found, hidden or
+waiting; issue 47).
 """
 
 from __future__ import annotations
@@ -24,10 +26,16 @@ from lfsam.result import SegmentationResult
 from lfsam.segmenters.base import Segmenter
 from lfsam.version import __version__
 from lfsam.video.online import MAX_GROWTH, OnlineTracker
-from lfsam.video.result import VideoResult, load_video_result, video_result_writer
+from lfsam.video.result import (
+    VideoResult,
+    load_video_result,
+    record_states,
+    video_result_writer,
+)
 from lfsam.video.source import LightFieldVideo
 
 __all__ = ["MAX_GROWTH", "track_video"]
+
 
 
 def track_video(
@@ -96,9 +104,12 @@ def track_video(
     bar = tqdm(total=video.num_frames, desc="tracking", unit="frame",
                disable=not options.run.progress)
     with video_result_writer(out, meta=meta, objects=objects or []) as writer:
+        history: dict[str, list[str]] = {}
+        meta["tracks"] = history
         for index in range(video.num_frames):
             frame_result = tracker.track(video.frame(index))
             meta["tracking"] = tracker.tracking
+            record_states(history, frame_result.meta.get("tracks", {}), index)
             writer.write(frame_result)
             if on_frame is not None:
                 on_frame(index, frame_result)
