@@ -44,8 +44,8 @@ def test_hard_videos_have_the_hard_cases(hard):
     assert len(gone) >= 3 and gone == list(range(gone[0], gone[-1] + 1))  # hidden for frames
     assert everywhere[gone[0] - 1] > center[gone[0] - 1]  # the outer views see it longer
     for obj in range(1, len(spec[0].objects)):
-        steps = [np.hypot(*np.subtract(spec[f + 1].objects[obj].center, spec[f].objects[obj].center))
-                 for f in range(11)]
+        steps = [np.hypot(*np.subtract(spec[f + 1].objects[obj].center,
+                                       spec[f].objects[obj].center)) for f in range(11)]
         if spec[0].objects[obj].label != 2:  # the first object leaves and comes back
             assert max(steps) <= HARD_SPEED + 1e-9
     swings = [spec[f].objects[1].plane[0] for f in range(12)]

@@ -39,7 +39,10 @@ the same as without them.
 --frames F writes a light-field video instead: a folder of F frames (frame_0000/ ..., each a
 scene folder, and lfsam_video.json). The objects move in the image plane and in depth, pass in
 front of and behind each other, and the first object leaves the frame and comes back (with
-F >= 5); every object keeps its label in every frame.
+F >= 5); every object keeps its label in every frame. --hard adds the hard cases of tracking
+through clutter (issue 47): objects moving at 3-6 pixels per frame, depth order changing, and
+(with 3 objects or more) a small object passing fully behind a near occluder for several
+frames around the middle frame (F >= 10), visible longer in the outer views.
 """
 
 EPILOG = """\
@@ -50,6 +53,7 @@ examples:
   lfsam synth hidden.npz --hidden-objects 3            # 3 objects only the outer views see
   lfsam synth glossy --specular 0.6                    # highlights that move across views
   lfsam synth clip --frames 6 --grid 5x5 --size 96x128 # a light-field video of 6 frames
+  lfsam synth hard --frames 12 --grid 5x5 --size 96x128 --objects 5 --hard
 """
 
 
@@ -78,9 +82,11 @@ def _run_video(args: argparse.Namespace) -> int:
     frames = generate_video(
         grid=args.grid, size=args.size, frames=args.frames, seed=args.seed,
         num_objects=args.objects, disparity_range=args.disparity_range,
-        supersample=args.supersample,
+        supersample=args.supersample, hard=args.hard,
     )
     settings = {"seed": args.seed, "objects": args.objects, "frames": args.frames}
+    if args.hard:
+        settings["hard"] = True
     out = write_video_frames(frames, args.out, meta=settings)
     print(
         f"wrote {out}: {args.frames} frames of {args.grid[0]} x {args.grid[1]} views of "
@@ -93,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
     """Generate the scene (or with ``--frames``, the video) and write it."""
     if args.frames is not None:
         return _run_video(args)
+    if args.hard:
+        raise LfsamError("--hard makes a hard light-field video: give it with --frames F")
     npz = args.format == "npz" if args.format else str(args.out).lower().endswith(".npz")
     check_writable(args.out, folder=not npz, option="OUT")  # fail before the work, not after
     resolve_output(args.out, args.format)
@@ -179,6 +187,12 @@ def register(subparsers) -> None:
         default=None,
         metavar="F",
         help="write a light-field video of F frames (a folder) with moving objects",
+    )
+    parser.add_argument(
+        "--hard",
+        action="store_true",
+        help="with --frames: the hard cases of tracking (faster objects, depth order changing, "
+        "a small object passing fully behind a near one for several frames)",
     )
     parser.add_argument(
         "--supersample",

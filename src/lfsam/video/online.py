@@ -24,16 +24,23 @@ at frame f + 1 comes from frame f:
   (:meth:`LightFieldPredictor.add_mask`); an empty mask leaves the object out of that frame.
   The memory encodes each frame's center view once and hands the pipeline that embedding (one
   encoder pass per refined view per frame);
-- with segmenters without memory (the oracle), through constrained prompts
-  (:mod:`lfsam.video.carry`): its frame-f mask and pixels are matched into frame f + 1, and the
-  segmenter is prompted there with a point at the deepest matching pixel (and, for SAM 2, a box
-  around the carried mask); the user's negative clicks of earlier frames stay (those landing on
-  the carried mask are dropped; those given in the frame itself always stay, and the carried
-  point keeps away from them). An answer is rejected (the object is *lost* in that frame: empty
-  masks) when it holds less than half of the carried pixels, is more than :data:`MAX_GROWTH`
-  times larger than the object was, or lies mostly on an object already placed in that frame.
-  A lost object is searched for over the whole view in every later frame with its last
-  template, and keeps its id when it comes back.
+- with segmenters without memory (the oracle), through constrained prompts: each object is
+  carried from the frame where it was last found and searched for in every frame
+  (:mod:`lfsam.video.search`, issue 47: predicted place in its own view, the center view and
+  the corner views with a radius growing while it is unseen, then the whole view; several
+  positive points, negative points on neighbours; the user's negative clicks of earlier frames
+  stay unless they land on the carried mask, those given in the frame itself always stay). An
+  object not found is *hidden* there (empty masks) and keeps its id, template and motion; it
+  comes back under its id when found again. ``search=False`` keeps the carrying before issue 47
+  (:mod:`lfsam.video.carry` alone: an answer is rejected when it holds less than half of the
+  carried pixels, is more than :data:`MAX_GROWTH` times larger than the object was, or lies
+  mostly on an object already placed in that frame; a lost object is matched over the whole
+  view only).
+
+Each frame result's ``meta["tracks"]`` gives every object's state there
+(:data:`lfsam.video.search.STATES`: prompted, tracked, found, hidden, waiting), with the video
+memory too (:func:`memory_states`: an object the memory scores absent is hidden, keeps its id,
+and is found when the memory sees it again).
 
 Objects start at the first frame of their prompts (absent before); prompts given at a later
 frame replace the carried ones there. ``auto=True`` finds the objects of the first frame
@@ -48,7 +55,7 @@ import functools
 import threading
 import time
 from collections.abc import Iterable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -65,13 +72,11 @@ from lfsam.text_search import find_text
 from lfsam.video.carry import Template, carry
 from lfsam.video.memory import reference_memory_for
 from lfsam.video.prompts import frame_of, negatives_since, prompts_at, start_frame
-from lfsam.video.search import Track, mean_disparity, search_frame
+from lfsam.video.search import MAX_GROWTH, Track, mean_disparity, search_frame
 from lfsam.video.source import check_frame
 
-__all__ = ["MAX_GROWTH", "OnlineTracker"]
+__all__ = ["MAX_GROWTH", "OnlineTracker", "memory_states"]
 
-#: An answer more than this many times larger than the object's carried mask is rejected.
-MAX_GROWTH = 4.0
 #: Carried objects are searched within this fraction of the view's larger side.
 SEARCH_FRACTION = 0.3
 #: Frames a stream may reach (prompt frames are checked against it).
@@ -103,6 +108,9 @@ class OnlineTracker:
         Phrases whose instances in the first frame become objects (found with
         ``options.model``'s text detector; the oracle answers from ground-truth categories),
         tracked from there; what each found is :attr:`text_finds`.
+    search : bool
+        Constrained prompts with the search of issue 47 (default; :mod:`lfsam.video.search`),
+        or the carrying before it (False: the benchmark's baseline).
 
     Examples
     --------

@@ -26,7 +26,7 @@ later frame and comes back under its own id (*found*). The search of one object 
    neighbouring objects placed earlier in the frame (center view), the user's negative clicks
    of that view, and for SAM 2 a box around the carried mask.
 5. **Acceptance**: the answer covers at least half of the support, is at most
-   :data:`lfsam.video.online.MAX_GROWTH` times the object's largest area, does not lie mostly
+   :data:`MAX_GROWTH` times the object's largest area, does not lie mostly
    on an object placed earlier in that view, and, away from the prediction, looks like the
    template (colour histograms, :func:`looks_alike`).
 
@@ -43,6 +43,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import ndimage
 
+from lfsam.pipeline.references import reference_views
 from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
 from lfsam.video.carry import (
     MAX_PIXEL_DIFFERENCE,
@@ -53,10 +54,12 @@ from lfsam.video.carry import (
     deepest,
     shifted,
 )
+from lfsam.video.prompts import negatives_since, prompts_at, start_frame
 
 __all__ = [
     "CANDIDATES",
     "FAR_SUPPORT",
+    "MAX_GROWTH",
     "NEAR_SUPPORT",
     "STATES",
     "Track",
@@ -68,6 +71,8 @@ __all__ = [
 #: An object's state in a frame: prompted there by the user, carried from the frame before,
 #: found again after frames hidden, not found (kept, searched again), or not started yet.
 STATES = ("prompted", "tracked", "found", "hidden", "waiting")
+#: An answer more than this many times larger than the object's largest area is rejected.
+MAX_GROWTH = 4.0
 #: Cheapest template shifts whose support is compared.
 CANDIDATES = 12
 #: Fraction of the template that must still look the same near the prediction / elsewhere.
@@ -128,7 +133,7 @@ def predicted(track: Track, view: tuple[int, int], center: tuple[int, int]) -> T
     now = track.disparity + track.disparity_rate * steps
     place = (origin + track.disparity * _offset(track.view, center)
              + np.asarray(track.velocity) * steps - now * _offset(view, center))
-    return replace(track.template, origin=(int(round(place[0])), int(round(place[1]))))
+    return replace(track.template, origin=(round(place[0]), round(place[1])))
 
 
 def looks_alike(a: np.ndarray, b: np.ndarray, bins: int = 6) -> float:
@@ -336,7 +341,7 @@ def search_object(
         negative_xy = _neighbour_points(carried, support, placed_ids if view == center
                                         else None)
         user = [p for p in negatives if (p.view or center) == view
-                and (p in fresh or not carried[int(round(p.y)), int(round(p.x))])]
+                and (p in fresh or not carried[round(p.y), round(p.x)])]
         points = (*(PointPrompt(x, y, True, view) for x, y in positives),
                   *(PointPrompt(x, y, False, view) for x, y in negative_xy),
                   *(PointPrompt(p.x, p.y, False, view) for p in user))
@@ -366,8 +371,6 @@ def first_look(track: Track, image: np.ndarray, center: tuple[int, int]
 
 def _accept(mask: np.ndarray, support: np.ndarray, track: Track, placed: np.ndarray | None,
             image: np.ndarray, template: Template, near: bool) -> bool:
-    from lfsam.video.online import MAX_GROWTH
-
     area = int(mask.sum())
     if area == 0 or (mask & support).sum() < 0.5 * support.sum():
         return False
@@ -444,9 +447,6 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
     ``prompts[obj_id]`` holds the object's prompts of every frame (None for an object found
     automatically); ``tracks`` is updated in place.
     """
-    from lfsam.pipeline.references import reference_views
-    from lfsam.video.prompts import negatives_since, prompts_at, start_frame
-
     center = lf.center
     corners = [v for v in reference_views(lf.grid_shape, "corners")[1:] if lf.present[v]]
     placed = np.zeros(lf.view_shape, bool)
