@@ -62,6 +62,11 @@ CASES = {
          "--latest-frames", "6", "--latest-grid", "3x3", "--latest-size", "24x32"],
         "target: with --latest the 95th-percentile latency under 2 frame times",
     ),
+    "bench_tracking.py": (
+        ["--seeds", "1", "--frames", "3", "--grid", "3x3", "--size", "48x64", "--objects", "3",
+         "--jitter", "0", "--min-pixels", "20"],
+        "| ms/frame | ratio |",
+    ),
     "bench_consensus.py": (
         ["--seeds", "1", "--hidden", "0", "--size", "32x48", "--answers", "exact",
          "--cost-model", "sam2-tiny-test"],

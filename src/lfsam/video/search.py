@@ -22,13 +22,15 @@ later frame and comes back under its own id (*found*). The search of one object 
    still look like the template) is largest wins, so an object half behind another is still
    that object. It needs at least :data:`NEAR_SUPPORT` of its template supported near the
    prediction, :data:`FAR_SUPPORT` elsewhere.
-4. **Prompts**: up to three positive points at the deepest supported pixels, negative points on
-   neighbouring objects placed earlier in the frame (center view), the user's negative clicks
-   of that view, and for SAM 2 a box around the carried mask.
-5. **Acceptance**: the answer covers at least half of the support, is at most
-   :data:`MAX_GROWTH` times the object's largest area, does not lie mostly
-   on an object placed earlier in that view, and, away from the prediction, looks like the
-   template (colour histograms, :func:`looks_alike`).
+4. **Prompts**: up to three positive points at the deepest supported pixels (where their
+   answer is refused, each alone), negative points on neighbouring objects placed earlier in
+   the frame (center view), the user's negative clicks of that view, and for SAM 2 a box
+   around the carried mask.
+5. **Acceptance**: the answer covers at least half of the support (or a quarter, lying
+   mostly where the template was carried to: a support partly on look-alike pixels around the
+   object), is at most :data:`MAX_GROWTH` times the object's largest area, does not lie mostly
+   on an object placed earlier in that view, and looks like the template (colour histograms,
+   :func:`looks_alike`).
 
 The template is replaced by the answer when the answer shows most of the object; a mostly
 hidden answer keeps the fuller template (moved to where it was found). Each object's state per
@@ -342,18 +344,20 @@ def search_object(
                                         else None)
         user = [p for p in negatives if (p.view or center) == view
                 and (p in fresh or not carried[round(p.y), round(p.x)])]
-        points = (*(PointPrompt(x, y, True, view) for x, y in positives),
-                  *(PointPrompt(x, y, False, view) for x, y in negative_xy),
-                  *(PointPrompt(p.x, p.y, False, view) for p in user))
+        negative = (*(PointPrompt(x, y, False, view) for x, y in negative_xy),
+                    *(PointPrompt(p.x, p.y, False, view) for p in user))
         box = BoxPrompt(*box_around(carried, 0.15), view=view) if use_box else None
-        ref_view, mask = answer(ObjectPrompts(obj_id, points, box))
-        if not _accept(mask, support, track, known if ref_view == view else placed(ref_view),
-                       image, template,
-                       radius is not None and track.unseen == 0):
-            continue
-        located = replace(template, origin=(template.origin[0] + shift[0],
-                                            template.origin[1] + shift[1]))
-        return ref_view, mask, shift, located
+        # all positive points together; where that answer is refused, each alone (a point on
+        # a look-alike pixel of the background must not sink the others)
+        tries = [positives] + ([[p] for p in positives] if len(positives) > 1 else [])
+        for chosen in tries:
+            points = (*(PointPrompt(x, y, True, view) for x, y in chosen), *negative)
+            ref_view, mask = answer(ObjectPrompts(obj_id, points, box))
+            if _accept(mask, support, carried, track,
+                       known if ref_view == view else placed(ref_view), image, template):
+                located = replace(template, origin=(template.origin[0] + shift[0],
+                                                    template.origin[1] + shift[1]))
+                return ref_view, mask, shift, located
     return None
 
 
@@ -369,17 +373,21 @@ def first_look(track: Track, image: np.ndarray, center: tuple[int, int]
     return float(found[1].sum()) / max(int(template.mask.sum()), 1), found
 
 
-def _accept(mask: np.ndarray, support: np.ndarray, track: Track, placed: np.ndarray | None,
-            image: np.ndarray, template: Template, near: bool) -> bool:
+def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: Track,
+            placed: np.ndarray | None, image: np.ndarray, template: Template) -> bool:
+    """Whether an answer is the searched object (see the module docstring, step 5)."""
     area = int(mask.sum())
-    if area == 0 or (mask & support).sum() < 0.5 * support.sum():
-        return False
-    if area > MAX_GROWTH * max(track.area, 1) + 50:
+    if area == 0 or area > MAX_GROWTH * max(track.area, 1) + 50:
         return False
     if placed is not None and (mask & placed).sum() > 0.5 * area:
         return False
-    if near:
-        return True
+    covered = int((mask & support).sum())
+    if covered < 0.5 * support.sum():
+        # a support partly on look-alike pixels around the object: the answer must then lie
+        # where the object was carried to and hold a quarter of the support
+        inside = int((mask & ndimage.binary_dilation(carried, iterations=2)).sum())
+        if covered < 0.25 * support.sum() or inside < 0.7 * area:
+            return False
     return looks_alike(image[mask], template.image[template.mask]) >= MIN_ALIKE
 
 
@@ -411,19 +419,20 @@ def update(track: Track, view: tuple[int, int], mask: np.ndarray, located: Templ
     track.sightings += 1
 
 
-def carried_to(mask: np.ndarray, disparity: object, view: tuple[int, int],
-               center: tuple[int, int]) -> np.ndarray:
-    """A center-view mask carried into ``view`` by the center view's disparity (section 1:
-    ``p - d (s - s_c, t - t_c)``), rounded, closed by one pixel: where objects placed in the
-    center view are in another view (what the center view cannot see is left out)."""
+def carried_to(mask: np.ndarray, disparity: object, source: tuple[int, int],
+               target: tuple[int, int]) -> np.ndarray:
+    """A mask of view ``source`` carried into view ``target`` by the source view's disparity
+    (section 1: ``p - d (s_target - s_source, t_target - t_source)``), rounded, closed by one
+    pixel: where an object placed in one view is in another (what the source view cannot see
+    is left out)."""
     out = np.zeros_like(mask)
     rows, cols = np.nonzero(mask)
-    if rows.size == 0:
-        return out
+    if rows.size == 0 or source == target:
+        return mask.copy()
     values = np.asarray(disparity.cpu().numpy() if hasattr(disparity, "cpu") else disparity)
     d = np.nan_to_num(values[rows, cols])
-    r = np.rint(rows - d * (view[0] - center[0])).astype(int)
-    c = np.rint(cols - d * (view[1] - center[1])).astype(int)
+    r = np.rint(rows - d * (target[0] - source[0])).astype(int)
+    c = np.rint(cols - d * (target[1] - source[1])).astype(int)
     keep = (r >= 0) & (r < mask.shape[0]) & (c >= 0) & (c < mask.shape[1])
     out[r[keep], c[keep]] = True
     return ndimage.binary_closing(out, iterations=1) | out
@@ -449,19 +458,20 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
     """
     center = lf.center
     corners = [v for v in reference_views(lf.grid_shape, "corners")[1:] if lf.present[v]]
-    placed = np.zeros(lf.view_shape, bool)
     placed_ids = np.zeros(lf.view_shape, np.int64)
-    done: list[int] = []
-    elsewhere: dict[tuple[int, int], np.ndarray] = {}
+    done: list[tuple[int, tuple[int, int], np.ndarray]] = []
+    cache: dict[tuple[tuple[int, int], int], np.ndarray] = {}
 
-    def placed_in(view: tuple[int, int]) -> np.ndarray | None:
-        if view == center:
-            return placed
+    def placed_in(view: tuple[int, int]) -> np.ndarray:
+        """Where the objects placed so far in this frame are in ``view``."""
         key = (view, len(done))
-        if key not in elsewhere:
-            elsewhere.clear()
-            elsewhere[key] = carried_to(placed, predictor.disparity(center), view, center)
-        return elsewhere[key]
+        if key not in cache:
+            out = np.zeros(lf.view_shape, bool)
+            for _, source, mask in done:
+                out |= mask if source == view else carried_to(
+                    mask, predictor.disparity(source), source, view)
+            cache[key] = out
+        return cache[key]
 
     def answer(obj: ObjectPrompts) -> tuple[tuple[int, int], np.ndarray]:
         predictor.set_object(obj)
@@ -469,10 +479,10 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         return view, mask
 
     def place(obj_id: int, view: tuple[int, int], mask: np.ndarray) -> None:
-        done.append(obj_id)
-        if view == center:
-            placed[mask] = True
-            placed_ids[mask & (placed_ids == 0)] = obj_id
+        done.append((obj_id, view, mask))
+        here = mask if view == center else carried_to(mask, predictor.disparity(view), view,
+                                                      center)
+        placed_ids[here & (placed_ids == 0)] = obj_id
 
     states: dict[int, str] = {}
     own_prompts = {i: (None if prompts.get(i) is None else prompts_at(prompts[i], index))
@@ -490,8 +500,8 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         negatives = negatives_since(prompts[obj_id], index)
         own = own_prompts[obj_id]
         view, mask = answer(own.with_points([p for p in negatives if p not in own.points]))
-        known = placed_in(view) if view == center else None
-        if not mask.any() or (known is not None and (mask & known).sum() > 0.5 * mask.sum()):
+        known = placed_in(view)
+        if not mask.any() or (mask & known).sum() > 0.5 * mask.sum():
             predictor.remove_object(obj_id)
             track = tracks.setdefault(obj_id, Track(view))
             track.unseen += 1
