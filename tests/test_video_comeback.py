@@ -215,7 +215,7 @@ def test_sam2_memory_keeps_an_absent_objects_id_and_brings_it_back():
 
 def test_edgetam_memory_keeps_an_absent_objects_id_and_brings_it_back():
     from lfsam.segmenters import load_segmenter
-    from lfsam.segmenters.hf_video_build import video_model_for
+    from lfsam.segmenters.transformers.video_build import video_model_for
 
     tiny = load_segmenter("edgetam-tiny-test", device="cpu")
     model = video_model_for(tiny.model)
