@@ -210,7 +210,11 @@ def _best_shift(template: Template, image: np.ndarray, radius: int | None, reach
     flat = cost.ravel()
     finite = np.flatnonzero(np.isfinite(flat))
     best: tuple[float, int, tuple[int, int]] | None = None
-    for i in finite[np.argsort(flat[finite], kind="stable")[:CANDIDATES]]:
+    values = flat[finite]
+    if values.size > CANDIDATES:  # the CANDIDATES cheapest, in the order a stable sort gives
+        keep = values <= np.partition(values, CANDIDATES - 1)[CANDIDATES - 1]
+        finite, values = finite[keep], values[keep]
+    for i in finite[np.argsort(values, kind="stable")[:CANDIDATES]]:
         shift = (int(du.ravel()[i]), int(dv.ravel()[i]))
         robust, count = _robust(template, image, *shift)
         if best is None or robust < best[0]:
@@ -434,8 +438,14 @@ def carried_to(mask: np.ndarray, disparity: object, source: tuple[int, int],
     r = np.rint(rows - d * (target[0] - source[0])).astype(int)
     c = np.rint(cols - d * (target[1] - source[1])).astype(int)
     keep = (r >= 0) & (r < mask.shape[0]) & (c >= 0) & (c < mask.shape[1])
-    out[r[keep], c[keep]] = True
-    return ndimage.binary_closing(out, iterations=1) | out
+    if not keep.any():
+        return out
+    r, c = r[keep], c[keep]
+    r0, c0 = max(r.min() - 2, 0), max(c.min() - 2, 0)
+    crop = out[r0:r.max() + 3, c0:c.max() + 3]  # a view: closed in place, in the crop only
+    crop[r - r0, c - c0] = True
+    crop |= ndimage.binary_closing(crop, iterations=1)
+    return out
 
 
 def mean_disparity(disparity: object, mask: np.ndarray) -> float:
