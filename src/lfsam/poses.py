@@ -98,6 +98,14 @@ class PoseOptions:
     gates_m : tuple of float
         ICP's correspondence gates, coarse to fine (metres); the last one also defines
         ``inliers``.
+    pair_weight : float
+        Weight of the feature pairs in ICP, relative to all the points' residuals together.
+    normal_neighbours : int
+        Neighbours of a model point that give its normal.
+    max_dense, max_points, max_model : int
+        Caps (evenly strided subsets, deterministic) on an object's raw points per frame, on
+        the voxels it registers and on its model's points: a wall of a million pixels costs
+        what a box does.
     """
 
     voxel_m: float = 0.003
@@ -109,6 +117,10 @@ class PoseOptions:
     min_matches: int = 8
     gates_m: tuple[float, ...] = (0.015, 0.008, 0.004, 0.003)
     pair_weight: float = 0.01
+    normal_neighbours: int = 12
+    max_dense: int = 300_000
+    max_points: int = 5000
+    max_model: int = 30_000
 
 
 @dataclass
@@ -217,6 +229,13 @@ def _features_in_model(features: dict[tuple[int, int], ViewFeatures], object_id:
     return out
 
 
+def _thin(xyz: np.ndarray, cap: int) -> np.ndarray:
+    """At most ``cap`` of the points, evenly strided (deterministic)."""
+    if len(xyz) <= cap:
+        return xyz
+    return xyz[np.linspace(0, len(xyz) - 1, cap).astype(np.int64)]
+
+
 class PoseTracker:
     """Every object's motion and pose, frame by frame (module docstring).
 
@@ -256,7 +275,9 @@ class PoseTracker:
             for obj_id, cloud in clouds.items():
                 if len(cloud.xyz):
                     parts[obj_id].append(cloud.xyz)
-        return {i: np.concatenate(p) if p else np.zeros((0, 3)) for i, p in parts.items()}
+        cap = self.options.max_dense
+        return {i: _thin(np.concatenate(p), cap) if p else np.zeros((0, 3))
+                for i, p in parts.items()}
 
     def _features(self, views: Sequence[ViewData],
                   gray: np.ndarray | None) -> dict[tuple[int, int], ViewFeatures]:
@@ -277,7 +298,8 @@ class PoseTracker:
         return out
 
     def _model(self, xyz: np.ndarray):
-        normals = estimate_normals(xyz)
+        xyz = _thin(xyz, self.options.max_model)
+        normals = estimate_normals(xyz, self.options.normal_neighbours)
         return xyz, normals, cKDTree(xyz)
 
     def _start(self, obj_id: int, xyz: np.ndarray, dense: np.ndarray, features) -> FramePose:
@@ -324,7 +346,7 @@ class PoseTracker:
         init = fitted if fitted is not None and matches >= opts.min_matches else guess
         pairs = ((cur_pts[inliers], model_pts[inliers]) if matches >= opts.min_matches
                  else None)
-        found = icp(xyz, track.model, track.normals, np.linalg.inv(init), tree=track.tree,
+        found = icp(_thin(xyz, opts.max_points), track.model, track.normals, np.linalg.inv(init), tree=track.tree,
                     gates=opts.gates_m, pairs=pairs, pair_weight=opts.pair_weight)
         if found.inliers < opts.min_inliers:
             track.lost = True

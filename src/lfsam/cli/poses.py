@@ -105,7 +105,7 @@ def _line(obj: ObjectPoses) -> str:
         return f"{obj.object_id:>5} {(obj.category or '-')[:14]:<14} lost in every frame"
     last = tracked[-1]
     angle = np.degrees(np.arccos(np.clip((np.trace(last.motion[:3, :3]) - 1) / 2, -1, 1)))
-    shift = np.linalg.norm(last.motion[:3, 3])
+    shift = np.linalg.norm(last.pose[:3, 3] - obj.first_pose[:3, 3])
     inliers = np.mean([f.inliers for f in tracked])
     rmse = np.nanmean([f.rmse_m for f in tracked])
     seconds = np.mean([f.seconds for f in obj.frames])
