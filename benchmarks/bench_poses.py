@@ -8,9 +8,10 @@ For every held-out seed (default 1, 2, 3; the tracker's settings were tuned on s
 2. ``lfsam segment VIDEO --auto --model oracle --disparity gt``: the masks (the oracle tracks
    every ground-truth object, the wall included; cached);
 3. ``lfsam poses RESULT --lightfield VIDEO --disparity gt --json`` as a user runs it (a fresh
-   process, timed whole: the 60-s target), and ``lfsam.poses.poses_of_video`` with the estimated
-   disparity (``--estimate-views``: ``center`` by default, one estimate per frame; ``all`` is
-   49 estimates per frame, minutes per frame on a CPU);
+   process, timed whole: the 60-s target), and :class:`lfsam.poses.PoseTracker` with the
+   estimated disparity (``--estimate-views``: ``center`` by default, one estimate per frame;
+   ``all`` is 49 estimates per frame, minutes per frame on a CPU), the estimates made once and
+   shared with the baseline;
 4. a plain frame-to-frame baseline (SIFT matches inside the center view's masks, lifted to 3D,
    RANSAC + Kabsch, chained; nothing else) on the same masks and disparities.
 
@@ -40,8 +41,9 @@ from pathlib import Path
 import numpy as np
 
 from lfsam.camera import camera_of
+from lfsam.disparity import estimate_disparity
 from lfsam.metrics.pose import add_error, add_recall, rotation_error_deg
-from lfsam.poses import poses_of_video
+from lfsam.poses import PoseTracker, ViewData
 from lfsam.spatial.features import match_features, view_features
 from lfsam.spatial.registration import ransac_rigid, transform
 from lfsam.synth.rigid import box_surface_points
@@ -148,6 +150,21 @@ def baseline(frames, result, mapping, disparity: str, estimates=None) -> dict:
     return motions
 
 
+def estimate_views(frames, views: str) -> list[dict]:
+    """Per frame {view: (disparity, confidence)} of the default estimator (with its fusion, as
+    ``lfsam poses --disparity estimate``)."""
+    out = []
+    for lf in frames:
+        chosen = [lf.center] if views == "center" else [
+            (s, t) for s in range(lf.grid_shape[0]) for t in range(lf.grid_shape[1])]
+        found = {}
+        for view in chosen:
+            estimate = estimate_disparity(lf, view=view)
+            found[view] = (np.asarray(estimate.disparity), np.asarray(estimate.confidence))
+        out.append(found)
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", default="1,2,3")
@@ -185,32 +202,28 @@ def main() -> None:
         runs["baseline gt"].append(score(baseline(frames, result, mapping, "gt"), truth))
         if args.skip_estimate:
             continue
-        estimates = []
-
-        def on_frame(index, entries):
-            estimates.append(index)
-
         start = time.perf_counter()
-        _, objects = poses_of_video(zip(result, frames, strict=True), disparity="estimate",
-                                    views=args.estimate_views, on_frame=on_frame)
-        total = time.perf_counter() - start
+        estimates = estimate_views(frames, args.estimate_views)
+        estimate_seconds = time.perf_counter() - start
+        tracker = PoseTracker(camera_of(frames[0].meta), frames[0].view_shape)
+        for k, lf in enumerate(frames):
+            labels = result.frame(k).labels
+            data = [ViewData((s - lf.center[0], t - lf.center[1]), lf.views[s, t],
+                             labels[s, t], d, c) for (s, t), (d, c) in estimates[k].items()]
+            tracker.add_frame(data, frame=k)
+        objects = tracker.objects
         motions = {mapping[o.object_id]: {f.frame: f.motion for f in o.frames}
                    for o in objects if o.object_id in mapping}
         scored = score(motions, truth)
         runs["estimate"].append(scored)
-        tracker = [f.seconds for o in objects if o.object_id in mapping for f in o.frames]
-        seconds["estimate"] += tracker
-        print(f"  estimated disparity (views {args.estimate_views}): {total:.1f} s in all, "
-              f"tracker {np.mean(tracker):.3f} s per box per frame")
+        per_object = [f.seconds for o in objects if o.object_id in mapping for f in o.frames]
+        seconds["estimate"] += per_object
+        print(f"  estimated disparity (views {args.estimate_views}): estimates "
+              f"{estimate_seconds:.1f} s, tracker {np.mean(per_object):.3f} s per box per frame")
         table(f"estimated disparity, views {args.estimate_views}", scored)
-        from lfsam.disparity import estimate_disparity
-
-        center_estimates = []
-        for lf in frames:
-            found = estimate_disparity(lf, view=lf.center)
-            center_estimates.append((np.asarray(found.disparity), np.asarray(found.confidence)))
+        center = [estimates[k][lf.center] for k, lf in enumerate(frames)]
         runs["baseline estimate"].append(
-            score(baseline(frames, result, mapping, "estimate", center_estimates), truth))
+            score(baseline(frames, result, mapping, "estimate", center), truth))
     print("summary (held-out seeds " + args.seeds + "):")
     for name, scored in runs.items():
         if scored:
