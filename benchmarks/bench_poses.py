@@ -25,7 +25,7 @@ disparity). Boxes are matched to the oracle's objects by their first frame's lab
 Run::
 
     python benchmarks/bench_poses.py [--seeds 1,2,3] [--work /tmp/bench_poses]
-        [--estimate-views center|all] [--skip-estimate]
+        [--estimate-views corners|center|all] [--skip-estimate]
 """
 
 from __future__ import annotations
@@ -155,8 +155,10 @@ def estimate_views(frames, views: str) -> list[dict]:
     ``lfsam poses --disparity estimate``)."""
     out = []
     for lf in frames:
-        chosen = [lf.center] if views == "center" else [
-            (s, t) for s in range(lf.grid_shape[0]) for t in range(lf.grid_shape[1])]
+        last_s, last_t = lf.grid_shape[0] - 1, lf.grid_shape[1] - 1
+        chosen = {"center": [lf.center],
+                  "corners": [lf.center, (0, 0), (0, last_t), (last_s, 0), (last_s, last_t)],
+                  "all": [(s, t) for s in range(last_s + 1) for t in range(last_t + 1)]}[views]
         found = {}
         for view in chosen:
             estimate = estimate_disparity(lf, view=view)
@@ -169,7 +171,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", default="1,2,3")
     parser.add_argument("--work", default="/tmp/bench_poses")
-    parser.add_argument("--estimate-views", choices=("center", "all"), default="center")
+    parser.add_argument("--estimate-views", choices=("center", "corners", "all"),
+                        default="corners")
     parser.add_argument("--skip-estimate", action="store_true")
     args = parser.parse_args()
     work = Path(args.work)

@@ -19,6 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lfsam.cli.main import main
+from lfsam.errors import LfsamError
 from lfsam.metrics.pose import add_error, add_recall, rotation_error_deg
 from lfsam.poses import (
     PoseTracker,
@@ -134,11 +135,16 @@ def test_tracks_a_box_with_ground_truth_disparity(video):
         assert entry.inliers > 0.9 and entry.rmse_m < 0.002
 
 
-def test_center_view_only_and_a_single_light_field(video):
+def test_fewer_views_and_a_single_light_field(video):
     frames = [(SegmentationResult(labels=lf.labels * (lf.labels > 1)), lf) for lf in video]
     _, objects = poses_of_video(frames, disparity="gt", views="center")
     adds, _ = _scores(video, objects)
     assert adds.max() < 0.05, adds
+    _, objects = poses_of_video(frames, disparity="gt", views="corners")
+    adds, _ = _scores(video, objects)
+    assert adds.max() < 0.02, adds
+    with pytest.raises(LfsamError, match="views must be one of"):
+        poses_of_video(frames, disparity="gt", views="ring")
     _, single = poses_of_video(frames[2:3], disparity="gt")
     (track,) = single
     (entry,) = track.frames

@@ -46,7 +46,7 @@ from lfsam.disparity.source import load_disparity_spec, resolve_view_disparity
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField, check_result_shape
 from lfsam.metrics.pose import rotation_error_deg
-from lfsam.objects3d import VIEWS, resolve_camera
+from lfsam.objects3d import resolve_camera
 from lfsam.result import SegmentationResult
 from lfsam.spatial import MIN_CONFIDENCE, object_points
 from lfsam.spatial.features import ViewFeatures, match_features, view_features
@@ -59,6 +59,7 @@ from lfsam.spatial.registration import (
 )
 
 __all__ = [
+    "POSE_VIEWS",
     "STATUSES",
     "FramePose",
     "ObjectPoses",
@@ -72,6 +73,10 @@ __all__ = [
     "poses_of_video",
     "rotation_error_deg",
 ]
+
+#: Which views' pixels become points: every present view, the center and the four corner views
+#: (the longest baselines: 5 disparity estimates per frame instead of 49), or the center alone.
+POSE_VIEWS = ("all", "corners", "center")
 
 #: The statuses of an object in a frame.
 STATUSES = ("tracked", "lost", "found again")
@@ -346,8 +351,9 @@ class PoseTracker:
         init = fitted if fitted is not None and matches >= opts.min_matches else guess
         pairs = ((cur_pts[inliers], model_pts[inliers]) if matches >= opts.min_matches
                  else None)
-        found = icp(_thin(xyz, opts.max_points), track.model, track.normals, np.linalg.inv(init), tree=track.tree,
-                    gates=opts.gates_m, pairs=pairs, pair_weight=opts.pair_weight)
+        found = icp(_thin(xyz, opts.max_points), track.model, track.normals,
+                    np.linalg.inv(init), tree=track.tree, gates=opts.gates_m, pairs=pairs,
+                    pair_weight=opts.pair_weight)
         if found.inliers < opts.min_inliers:
             track.lost = True
             return FramePose(self.frame, "lost", None, None, found.inliers, None, len(xyz),
@@ -416,8 +422,13 @@ def _view_arrays(lightfield: LightField, result: SegmentationResult, spec, name:
                  views: str, device: str | None) -> list[ViewData]:
     present = lightfield.present & result.present_mask
     center = lightfield.center
-    chosen = [center] if views == "center" else [tuple(int(x) for x in v)
-                                                 for v in np.argwhere(present)]
+    chosen = [tuple(int(x) for x in v) for v in np.argwhere(present)]
+    if views == "center":
+        chosen = [center]
+    elif views == "corners":
+        last_s, last_t = present.shape[0] - 1, present.shape[1] - 1
+        chosen = [center] + [v for v in ((0, 0), (0, last_t), (last_s, 0), (last_s, last_t))
+                             if present[v] and v != center]
     out = []
     for view in chosen:
         if isinstance(spec, str) and spec == "estimate":
@@ -452,9 +463,9 @@ def poses_of_video(
     disparity : {"estimate", "gt"}, .npy path or ndarray
         As :func:`lfsam.objects3d.objects_in_3d`; a map or file holds for every frame.
     camera : Camera, ``--camera`` JSON path, or None (the first frame's own)
-    views : {"all", "center"}
-        The views whose pixels become points (features always use the center and corners of
-        these).
+    views : {"all", "corners", "center"}
+        The views whose pixels become points (:data:`POSE_VIEWS`; features use the center and
+        the corners of these). With ``"estimate"``, one estimate per view and frame.
     options : PoseOptions, optional
     on_frame : callable, optional
         Called with ``(frame, [FramePose, ...])`` after each frame (live output).
@@ -468,8 +479,8 @@ def poses_of_video(
     LfsamError
         A result that does not match its light field, no camera, a bad disparity source.
     """
-    if views not in VIEWS:
-        raise LfsamError(f"views must be one of {VIEWS}, got {views!r}")
+    if views not in POSE_VIEWS:
+        raise LfsamError(f"views must be one of {POSE_VIEWS}, got {views!r}")
     tracker: PoseTracker | None = None
     cam = camera if isinstance(camera, Camera) else None
     for index, (result, lightfield) in enumerate(frames):

@@ -13,8 +13,8 @@ from lfsam.cli.common import HelpFormatter, add_device_argument
 from lfsam.cli.inputs import expect_input, expect_partner, video_with_result
 from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_output, check_writable
-from lfsam.objects3d import VIEWS, resolve_camera
-from lfsam.poses import ObjectPoses, bop_csv, poses_csv, poses_json, poses_of_video
+from lfsam.objects3d import resolve_camera
+from lfsam.poses import POSE_VIEWS, ObjectPoses, bop_csv, poses_csv, poses_json, poses_of_video
 
 __all__ = ["register", "run"]
 
@@ -40,7 +40,8 @@ light field (a result .npz) gives each object's pose with identity motion.
 
 The camera is --camera CAMERA.json ({CAMERA_EXAMPLE}), else the light field's own (an HCI 4D
 parameters.cfg, or an lfsam scene folder's: `lfsam synth` writes one). --disparity estimate
-estimates every used view's disparity (seconds per view; --views center uses one per frame).
+estimates every used view's disparity (seconds per view on a CPU): --views corners needs 5
+per frame (the center and the corners, the longest baselines), --views center one.
 
 Outputs: the table on the terminal; --json everything ({{"camera", "objects": [{{"id",
 "category", "first_pose", "frames": [{{"frame", "status", "motion", "pose", "inliers",
@@ -54,7 +55,7 @@ examples:
   lfsam synth boxes --rigid --seed 7          # 3 boxes under known motion, 10 frames of 7x7 views
   lfsam segment boxes --auto --model oracle --disparity gt --out boxes_result
   lfsam poses boxes_result --lightfield boxes --disparity gt --json poses.json
-  lfsam poses boxes_result --lightfield boxes --views center --csv poses.csv --bop bop.csv
+  lfsam poses boxes_result --lightfield boxes --views corners --csv poses.csv --bop bop.csv
   lfsam segment scene --auto --model oracle --disparity gt --out result.npz
   lfsam poses result.npz --lightfield scene --camera camera.json      # one light field
 """
@@ -80,9 +81,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--camera", metavar="CAMERA.json",
                         help=f"camera: {CAMERA_EXAMPLE} (default: the light field's own)")
-    parser.add_argument("--views", choices=VIEWS, default="all",
-                        help="the views whose pixels become points: every view (default) or "
-                        "the center view only (faster with --disparity estimate)")
+    parser.add_argument("--views", choices=POSE_VIEWS, default="all",
+                        help="the views whose pixels become points: every view (default), the "
+                        "center and the four corner views (with --disparity estimate: 5 "
+                        "estimates per frame instead of all views', about as accurate), or the "
+                        "center view only (fastest, least accurate)")
     parser.add_argument("--json", metavar="OUT.json", help="write everything as JSON")
     parser.add_argument("--csv", metavar="OUT.csv",
                         help="write one row per object and frame (quaternions, metres)")
