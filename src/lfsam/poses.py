@@ -65,6 +65,7 @@ __all__ = [
     "ObjectPoses",
     "PoseOptions",
     "PoseTracker",
+    "VideoPoses",
     "ViewData",
     "bop_csv",
     "first_pose",
@@ -479,26 +480,56 @@ def poses_of_video(
     LfsamError
         A result that does not match its light field, no camera, a bad disparity source.
     """
-    if views not in POSE_VIEWS:
-        raise LfsamError(f"views must be one of {POSE_VIEWS}, got {views!r}")
-    tracker: PoseTracker | None = None
-    cam = camera if isinstance(camera, Camera) else None
-    for index, (result, lightfield) in enumerate(frames):
-        check_result_shape(result.labels.shape, lightfield, f"the result of frame {index}")
-        if cam is None:
-            cam = resolve_camera(lightfield, camera)
-        if tracker is None:
+    session = VideoPoses(disparity=disparity, camera=camera, views=views, options=options,
+                         device=device)
+    for result, lightfield in frames:
+        entries = session.add(result, lightfield)
+        if on_frame is not None:
+            on_frame(session.frames - 1, entries)
+    if session.camera is None:
+        raise LfsamError("no frames to register")
+    return session.camera, session.objects
+
+
+class VideoPoses:
+    """:func:`poses_of_video` one frame at a time (a live stream: ``lfsam segment --follow
+    --poses``): :meth:`add` each ``(result, light field)`` as it comes.
+
+    Parameters are :func:`poses_of_video`'s. ``camera`` is resolved at the first frame when it
+    is not a :class:`~lfsam.camera.Camera` (:meth:`check_camera` does it earlier).
+    """
+
+    def __init__(self, *, disparity: str | os.PathLike | np.ndarray = "estimate",
+                 camera: Camera | str | os.PathLike | None = None, views: str = "all",
+                 options: PoseOptions | None = None, device: str | None = None) -> None:
+        if views not in POSE_VIEWS:
+            raise LfsamError(f"views must be one of {POSE_VIEWS}, got {views!r}")
+        self.disparity, self.views, self.options, self.device = disparity, views, options, device
+        self._camera_spec = camera
+        self.camera: Camera | None = camera if isinstance(camera, Camera) else None
+        self.tracker: PoseTracker | None = None
+        self.frames = 0
+
+    @property
+    def objects(self) -> list[ObjectPoses]:
+        """Every object seen so far."""
+        return [] if self.tracker is None else self.tracker.objects
+
+    def add(self, result: SegmentationResult, lightfield: LightField) -> list[FramePose]:
+        """Register the objects of the next frame (module docstring)."""
+        check_result_shape(result.labels.shape, lightfield, f"the result of frame {self.frames}")
+        if self.camera is None:
+            self.camera = resolve_camera(lightfield, self._camera_spec)
+        if self.tracker is None:
             categories = {int(k): str(v) for k, v in
                           (result.meta.get("categories") or {}).items() if v}
-            tracker = PoseTracker(cam, lightfield.view_shape, options, categories)
-        spec, name = load_disparity_spec(disparity, lightfield)
-        data = _view_arrays(lightfield, result, spec, name, views, device)
-        entries = tracker.add_frame(data, frame=index)
-        if on_frame is not None:
-            on_frame(index, entries)
-    if tracker is None or cam is None:
-        raise LfsamError("no frames to register")
-    return cam, tracker.objects
+            self.tracker = PoseTracker(self.camera, lightfield.view_shape, self.options,
+                                       categories)
+        spec, name = load_disparity_spec(self.disparity, lightfield)
+        data = _view_arrays(lightfield, result, spec, name, self.views, self.device)
+        entries = self.tracker.add_frame(data, frame=self.frames)
+        self.frames += 1
+        return entries
 
 
 def poses_json(camera: Camera, objects: Sequence[ObjectPoses], **extra: Any) -> dict[str, Any]:
