@@ -104,8 +104,10 @@ class PoseOptions:
     gates_m : tuple of float
         ICP's correspondence gates, coarse to fine (metres); the last one also defines
         ``inliers``.
-    pair_weight : float
-        Weight of the feature pairs in ICP, relative to all the points' residuals together.
+    pair_weight, weak_pair_weight : float
+        Weight of the feature pairs in ICP, relative to all the points' residuals together;
+        the second where the planes leave a direction nearly free
+        (:func:`lfsam.spatial.registration.icp`).
     normal_neighbours : int
         Neighbours of a model point that give its normal.
     max_dense, max_points, max_model : int
@@ -123,6 +125,7 @@ class PoseOptions:
     min_matches: int = 8
     gates_m: tuple[float, ...] = (0.015, 0.008, 0.004, 0.003)
     pair_weight: float = 0.01
+    weak_pair_weight: float = 0.3
     normal_neighbours: int = 12
     max_dense: int = 300_000
     max_points: int = 5000
@@ -354,7 +357,7 @@ class PoseTracker:
                  else None)
         found = icp(_thin(xyz, opts.max_points), track.model, track.normals,
                     np.linalg.inv(init), tree=track.tree, gates=opts.gates_m, pairs=pairs,
-                    pair_weight=opts.pair_weight)
+                    pair_weight=opts.pair_weight, weak_pair_weight=opts.weak_pair_weight)
         if found.inliers < opts.min_inliers:
             track.lost = True
             return FramePose(self.frame, "lost", None, None, found.inliers, None, len(xyz),

@@ -177,8 +177,25 @@ class IcpResult:
     rmse: float
 
 
-def _skew_cross(p: np.ndarray, n: np.ndarray) -> np.ndarray:
-    return np.cross(p, n)
+def _rotation(omega: np.ndarray) -> np.ndarray:
+    angle = float(np.linalg.norm(omega))
+    if angle == 0:
+        return np.eye(3)
+    axis = omega / angle
+    cross = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle) * cross + (1 - np.cos(angle)) * cross @ cross
+
+
+def _pair_system(ps: np.ndarray, targets: np.ndarray, centre: np.ndarray, radius: float):
+    """Normal equations of point-to-point pairs in :func:`icp`'s centred, scaled unknowns."""
+    q = (ps - centre) / radius
+    jp = np.zeros((len(ps), 3, 6))
+    jp[:, 0, 1], jp[:, 0, 2] = q[:, 2], -q[:, 1]
+    jp[:, 1, 0], jp[:, 1, 2] = -q[:, 2], q[:, 0]
+    jp[:, 2, 0], jp[:, 2, 1] = q[:, 1], -q[:, 0]
+    jp[:, :, 3:] = np.eye(3)
+    jp = jp.reshape(-1, 6)
+    return jp.T @ jp, jp.T @ (ps - targets).reshape(-1)
 
 
 def icp(
@@ -192,8 +209,13 @@ def icp(
     iterations: int = 8,
     pairs: tuple[np.ndarray, np.ndarray] | None = None,
     pair_weight: float = 1.0,
+    weak_pair_weight: float | None = None,
+    weak: float = 0.02,
 ) -> IcpResult:
     """Point-to-plane ICP of ``source`` onto ``target`` from ``init``.
+
+    Each Gauss-Newton step solves for a small rotation about the moved points' centroid (scaled
+    by their RMS radius, so rotation and translation weigh alike) and a translation.
 
     Parameters
     ----------
@@ -208,8 +230,12 @@ def icp(
         are made at each gate in turn (coarse to fine).
     pairs : ((K, 3), (K, 3)), optional
         Fixed point pairs (source, target), e.g. feature matches, added as point-to-point
-        residuals with weight ``pair_weight`` relative to one point-to-plane residual per
-        point, scaled by ``N / K``.
+        residuals with weight ``pair_weight`` relative to all the point-to-plane residuals
+        together (each pair ``pair_weight N / K``).
+    weak_pair_weight, weak : float, optional
+        When the planes leave a direction nearly free (the smallest eigenvalue of their
+        normal equations below ``weak`` times the largest: one face of a box, two faces sliding
+        along their edge), the pairs weigh ``weak_pair_weight`` instead.
 
     Returns
     -------
@@ -229,36 +255,30 @@ def icp(
             p = moved[ok]
             q = target[idx[ok]]
             n = target_normals[idx[ok]]
+            centre = p.mean(axis=0)
+            radius = max(float(np.sqrt(((p - centre) ** 2).sum(axis=1).mean())), 1e-6)
             residual = np.einsum("ni,ni->n", p - q, n)
-            jac = np.concatenate([_skew_cross(p, n), n], axis=1)  # d r / d (omega, t)
+            jac = np.concatenate([np.cross((p - centre) / radius, n), n], axis=1)
             hessian = jac.T @ jac
             gradient = jac.T @ residual
             if pairs is not None and len(pairs[0]):
                 ps = transform(current, pairs[0])
-                diff = (ps - pairs[1]).reshape(-1)
-                weight = pair_weight * ok.sum() / len(ps)
-                # d(p + omega x p + t)/d(omega, t) = [-[p]x, I]
-                jp = np.zeros((len(ps), 3, 6))
-                jp[:, 0, 1], jp[:, 0, 2] = ps[:, 2], -ps[:, 1]
-                jp[:, 1, 0], jp[:, 1, 2] = -ps[:, 2], ps[:, 0]
-                jp[:, 2, 0], jp[:, 2, 1] = ps[:, 1], -ps[:, 0]
-                jp[:, :, 3:] = np.eye(3)
-                jp = jp.reshape(-1, 6)
-                hessian = hessian + weight * jp.T @ jp
-                gradient = gradient + weight * jp.T @ diff
+                weight = pair_weight
+                if weak_pair_weight is not None:
+                    values = np.linalg.eigvalsh(hessian)
+                    if values[0] < weak * values[-1]:
+                        weight = weak_pair_weight
+                weight *= ok.sum() / len(ps)
+                pair_h, pair_g = _pair_system(ps, pairs[1], centre, radius)
+                hessian = hessian + weight * pair_h
+                gradient = gradient + weight * pair_g
             step = -np.linalg.solve(hessian + 1e-9 * np.eye(6), gradient)
-            omega, shift = step[:3], step[3:]
-            angle = np.linalg.norm(omega)
+            rot = _rotation(step[:3] / radius)
             update = np.eye(4)
-            if angle > 0:
-                axis = omega / angle
-                cross = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]],
-                                  [-axis[1], axis[0], 0]])
-                update[:3, :3] = (np.eye(3) + np.sin(angle) * cross
-                                  + (1 - np.cos(angle)) * cross @ cross)
-            update[:3, 3] = shift
+            update[:3, :3] = rot
+            update[:3, 3] = centre - rot @ centre + step[3:]
             current = update @ current
-            if angle < 1e-7 and np.linalg.norm(shift) < 1e-8:
+            if np.linalg.norm(step[:3]) < 1e-9 and np.linalg.norm(step[3:]) < 1e-9:
                 break
     moved = transform(current, source)
     gate = gates[-1]
