@@ -1,6 +1,8 @@
 """6D poses (issue 43; docs/design.md section 12): accuracy against rigid-box ground truth, cost.
 
-For every held-out seed (default 1, 2, 3; the tracker's settings were tuned on seed 100 only):
+For every held-out seed (default 4, 5, 6; the tracker's settings were tuned on seed 100, and
+seeds 1-3 served its development: a 1.2-degree error on seed 3 led to the weak-direction
+feature weight):
 
 1. ``lfsam synth VIDEO --rigid --seed N``: three boxes of 10-17 cm at about 1 m, each turning
    2-4 degrees and moving 4-12 mm per frame about its own axis, 10 frames of 7x7 views of
@@ -24,7 +26,7 @@ disparity). Boxes are matched to the oracle's objects by their first frame's lab
 
 Run::
 
-    python benchmarks/bench_poses.py [--seeds 1,2,3] [--work /tmp/bench_poses]
+    python benchmarks/bench_poses.py [--seeds 4,5,6] [--work /tmp/bench_poses]
         [--estimate-views corners|center|all] [--skip-estimate]
 """
 
@@ -179,7 +181,7 @@ def estimate_views(frames, views: str, cache: Path | None = None) -> list[dict]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", default="1,2,3")
+    parser.add_argument("--seeds", default="4,5,6")
     parser.add_argument("--work", default="/tmp/bench_poses")
     parser.add_argument("--estimate-views", choices=("center", "corners", "all"),
                         default="corners")
