@@ -222,11 +222,14 @@ def main() -> None:
                                    work / f"rigid_{seed}_estimates_{args.estimate_views}.npz")
         estimate_seconds = time.perf_counter() - start
         tracker = PoseTracker(camera_of(frames[0].meta), frames[0].view_shape)
+        cpu_seconds: list[float] = []
         for k, lf in enumerate(frames):
             labels = result.frame(k).labels
             data = [ViewData((s - lf.center[0], t - lf.center[1]), lf.views[s, t],
                              labels[s, t], d, c) for (s, t), (d, c) in estimates[k].items()]
-            tracker.add_frame(data, frame=k)
+            cpu = time.process_time()
+            entries = tracker.add_frame(data, frame=k)
+            cpu_seconds.append((time.process_time() - cpu) / max(len(entries), 1))
         objects = tracker.objects
         motions = {mapping[o.object_id]: {f.frame: f.motion for f in o.frames}
                    for o in objects if o.object_id in mapping}
@@ -236,7 +239,8 @@ def main() -> None:
         seconds["estimate"] += per_object
         print(f"  estimated disparity (views {args.estimate_views}): estimates "
               f"{estimate_seconds:.1f} s (0 when cached), tracker {np.mean(per_object):.3f} s "
-              "per box per frame")
+              f"per box per frame (CPU time per object per frame {np.mean(cpu_seconds):.3f} s, "
+              f"max {np.max(cpu_seconds):.3f})")
         table(f"estimated disparity, views {args.estimate_views}", scored)
         center = [estimates[k][lf.center] for k, lf in enumerate(frames)]
         runs["baseline estimate"].append(
