@@ -84,8 +84,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--views", choices=POSE_VIEWS, default="all",
                         help="the views whose pixels become points: every view (default), the "
                         "center and the four corner views (with --disparity estimate: 5 "
-                        "estimates per frame instead of all views', about as accurate), or the "
-                        "center view only (fastest, least accurate)")
+                        "estimates per frame instead of one per view; what the benchmark "
+                        "measures), or the center view only (fastest, least accurate)")
     parser.add_argument("--json", metavar="OUT.json", help="write everything as JSON")
     parser.add_argument("--csv", metavar="OUT.csv",
                         help="write one row per object and frame (quaternions, metres)")
