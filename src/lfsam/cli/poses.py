@@ -129,6 +129,10 @@ def run(args: argparse.Namespace) -> int:
     expect_partner(args.lightfield, args.result, kind, "poses", "--lightfield")
     from tqdm import tqdm
 
+    if args.disparity == "estimate":
+        per_frame = {"all": "every view's", "corners": "5 views'", "center": "the center view's"}
+        print(f"estimating {per_frame[args.views]} disparity in every frame (seconds per view "
+              "on a CPU; --disparity gt or FILE.npy skips it)", file=sys.stderr)
     if kind == "video-result":
         with video_with_result(args.result, args.lightfield) as (video_result, video):
             camera = resolve_camera(video.frame(0), args.camera)  # before any work
