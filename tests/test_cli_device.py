@@ -21,6 +21,7 @@ DEVICE_COMMANDS = {
     "metrics": ["metrics", "RESULT", "--gt", "SCENE"],
     "export": ["export", "RESULT", "--to", "ply", "--lightfield", "SCENE", "--out", "OUT/ply"],
     "objects": ["objects", "RESULT", "--lightfield", "SCENE"],
+    "poses": ["poses", "RESULT", "--lightfield", "SCENE", "--views", "center"],
     "evaluate": ["evaluate", "DATASET", "--model", "oracle", "--disparity", "gt",
                  "--out", "OUT/ev"],
     "demo": ["demo", "--out", "OUT/demo", "--quiet"],

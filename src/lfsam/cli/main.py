@@ -32,6 +32,7 @@ SUBCOMMANDS = [
     "metrics",
     "export",
     "objects",
+    "poses",
     "evaluate",
     "show",
     "demo",

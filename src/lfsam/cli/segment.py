@@ -216,6 +216,9 @@ def run(args: argparse.Namespace) -> int:
         raise LfsamError("--follow-timeout goes with --follow")
     if args.latest:
         raise LfsamError("--latest goes with --follow (a frames folder still being written)")
+    if args.poses or args.camera:
+        raise LfsamError("--poses and --camera go with --follow; for a video's result use "
+                         "lfsam poses RESULT --lightfield VIDEO")
     expect_input(args.path, "segment", ("lightfield", "video"))
     if args.input_format is None and is_video(args.path):  # issue 25: track through frames
         return run_video(args, config, has_prompts)

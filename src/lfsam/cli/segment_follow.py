@@ -51,6 +51,60 @@ def add_follow_arguments(parser: argparse.ArgumentParser) -> None:
         "--poll", type=positive_float, default=0.05, metavar="S",
         help="with --follow: seconds between looks at the folder (default 0.05)",
     )
+    group.add_argument(
+        "--poses", action="store_true",
+        help="with --follow: register every object's 6D pose as each frame lands (as `lfsam "
+        "poses`, docs/design.md section 12) and rewrite OUT/poses.json after each frame; the "
+        "points come from every view with a ground-truth or file disparity, from the center "
+        "view with an estimate",
+    )
+    group.add_argument(
+        "--camera", metavar="CAMERA.json",
+        help="with --poses: the camera (default: each frame's own, checked at the first)",
+    )
+
+
+class _LivePoses:
+    """``--poses``: register each frame's objects and rewrite ``OUT/poses.json``."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        from lfsam.poses import VideoPoses
+
+        views = "center" if args.disparity == "estimate" else "all"
+        self.session = VideoPoses(disparity=args.disparity, camera=args.camera, views=views,
+                                  device=getattr(args, "device", None))
+        self.out = args.out
+        self.quiet = args.quiet
+
+    def __call__(self, timing, result, lightfield) -> None:
+        from pathlib import Path
+
+        from lfsam.fileutil import atomic_output
+        from lfsam.poses import poses_json
+
+        entries = self.session.add(result, lightfield)
+        document = poses_json(self.session.camera, self.session.objects,
+                              disparity=str(self.session.disparity), views=self.session.views,
+                              frames=self.session.frames)
+        with atomic_output(Path(self.out) / "poses.json") as tmp:
+            tmp.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
+        if not self.quiet:
+            states = ", ".join(f"{e.status}" for e in entries)
+            print(f"frame {timing.index}: poses of {len(entries)} objects ({states})",
+                  file=sys.stderr, flush=True)
+
+
+def _pose_session(args: argparse.Namespace) -> _LivePoses | None:
+    """The ``--poses`` registration, its camera file checked before the stream starts."""
+    if not args.poses:
+        if args.camera:
+            raise LfsamError("--camera goes with --poses (lfsam segment --follow --poses)")
+        return None
+    if args.camera:
+        from lfsam.camera import load_camera
+
+        args.camera = load_camera(args.camera)  # a bad file fails now, not at the first frame
+    return _LivePoses(args)
 
 
 def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
@@ -66,6 +120,7 @@ def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
 
     if args.method != "lfsam":
         raise LfsamError("--follow tracks with --method lfsam only")
+    poses = _pose_session(args)
     if args.text and (args.prompt_items or args.prompts):
         raise LfsamError("--follow takes --text or clicks and boxes, not both: the phrases' "
                          "objects are numbered as they are found in the first frame")
@@ -123,7 +178,8 @@ def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
         announce()
 
     report = segment_stream(follower, tracker, args.out, value_range=args.value_range,
-                            on_frame=show, on_skip=skip, latest=args.latest)
+                            on_frame=show, on_skip=skip, latest=args.latest,
+                            on_lightfield=None if poses is None else poses)
     summary = report.summary()
     if not args.quiet or report.ended_by == "interrupted":
         how = {"END": "END file", "timeout": "no new frame for --follow-timeout",

@@ -10,6 +10,7 @@ from lfsam.errors import LfsamError
 from lfsam.fileutil import check_writable
 from lfsam.io import WRITE_FORMATS, resolve_output, write_lightfield
 from lfsam.synth import generate_scene
+from lfsam.synth.rigid import generate_rigid_video
 from lfsam.video.synth import generate_video, write_video_frames
 
 __all__ = ["register", "run"]
@@ -43,6 +44,15 @@ F >= 5); every object keeps its label in every frame. --hard adds the hard cases
 through clutter (issue 47): objects moving at 3-6 pixels per frame, depth order changing, and
 (with 3 objects or more) a small object passing fully behind a near occluder for several
 frames around the middle frame (F >= 10), visible longer in the outer views.
+
+--rigid writes a light-field video of rigid textured boxes under known 3D motion instead, the
+ground truth of `lfsam poses` (6D pose tracking): a metric camera (f = 400 px, baseline 1 cm,
+views converged at 1 m), --objects boxes (default 3) of 10-17 cm at about 1 m in front of a
+textured wall at 1.6 m, each turning 2-4 degrees about an axis of its own and moving 4-12 mm per
+frame, --frames F (default 10) of --grid views (default 7x7) of --size pixels (default 240x320).
+Every view is ray-cast: exact labels (wall = 1, boxes = 2, 3, ...) and disparity; every frame's
+lfsam_scene.json holds the camera and each box's size and 4x4 pose (box frame to the center
+camera's frame, metres) under meta.rigid.
 """
 
 EPILOG = """\
@@ -54,6 +64,8 @@ examples:
   lfsam synth glossy --specular 0.6                    # highlights that move across views
   lfsam synth clip --frames 6 --grid 5x5 --size 96x128 # a light-field video of 6 frames
   lfsam synth hard --frames 12 --grid 5x5 --size 96x128 --objects 5 --hard
+  lfsam synth boxes --rigid --seed 7                   # 3 boxes, 10 frames of 7x7 x 240x320
+  lfsam synth small --rigid --frames 3 --grid 5x5 --size 120x160 --objects 1
 """
 
 
@@ -95,8 +107,53 @@ def _run_video(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_rigid(args: argparse.Namespace) -> int:
+    """``--rigid``: a video of rigid boxes under known 3D motion (docs/design.md section 12)."""
+    if (args.hidden_objects or args.specular or args.hard or args.disparity_range is not None
+            or str(args.out).lower().endswith(".npz")):
+        raise LfsamError(
+            "--rigid writes a folder of frames (give OUT without .npz) and takes neither "
+            "--hidden-objects, --specular, --hard nor --disparity-range (its camera is fixed)"
+        )
+    if args.objects < 1:
+        raise LfsamError("--rigid needs --objects of at least 1 box")
+    check_writable(args.out, folder=True, option="OUT")
+    frames = generate_rigid_video(
+        boxes=args.objects, frames=args.frames, grid=args.grid, size=args.size, seed=args.seed,
+        supersample=args.supersample,
+    )
+    settings = {"seed": args.seed, "objects": args.objects, "frames": args.frames,
+                "rigid": True}
+    out = write_video_frames(frames, args.out, meta=settings)
+    print(
+        f"wrote {out}: {args.frames} frames of {args.grid[0]} x {args.grid[1]} views of "
+        f"{args.size[0]} x {args.size[1]}, seed {args.seed}, {args.objects} rigid boxes "
+        "(poses in each frame's lfsam_scene.json, meta.rigid)"
+    )
+    return 0
+
+
+def _defaults(args: argparse.Namespace) -> None:
+    """Fill the options left unset: the issue-43 setting with --rigid, else the usual ones."""
+    rigid = args.rigid
+    if args.grid is None:
+        args.grid = (7, 7) if rigid else (9, 9)
+    if args.size is None:
+        args.size = (240, 320)
+    if args.objects is None:
+        args.objects = 3 if rigid else 6
+    if rigid and args.frames is None:
+        args.frames = 10
+
+
 def run(args: argparse.Namespace) -> int:
-    """Generate the scene (or with ``--frames``, the video) and write it."""
+    """Generate the scene (or with ``--frames``, the video; ``--rigid``, the boxes) and write
+    it."""
+    _defaults(args)
+    if args.rigid:
+        return _run_rigid(args)
+    if args.disparity_range is None:
+        args.disparity_range = (-2.0, 2.0)
     if args.frames is not None:
         return _run_video(args)
     if args.hard:
@@ -145,20 +202,21 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--grid",
         type=_positive_pair,
-        default="9x9",
+        default=None,
         metavar="SxT",
-        help="views per column x views per row",
+        help="views per column x views per row (default 9x9; 7x7 with --rigid)",
     )
     parser.add_argument(
         "--size",
         type=_positive_pair,
-        default="240x320",
+        default=None,
         metavar="UxV",
         help="pixel rows x columns of each view",
     )
     parser.add_argument("--seed", type=bounded_int(0), default=0, help="random seed (>= 0)")
     parser.add_argument(
-        "--objects", type=bounded_int(0, 1000), default=6, help="objects in front of the background"
+        "--objects", type=bounded_int(0, 1000), default=None,
+        help="objects in front of the background (default 6; boxes with --rigid, default 3)"
     )
     parser.add_argument(
         "--hidden-objects",
@@ -170,9 +228,9 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--disparity-range",
         type=_disparity_range,
-        default="-2,2",
+        default=None,
         metavar="LO,HI",
-        help="disparity range in pixels per view step",
+        help="disparity range in pixels per view step (default -2,2)",
     )
     parser.add_argument(
         "--specular",
@@ -186,7 +244,14 @@ def register(subparsers) -> None:
         type=bounded_int(1, 100000),
         default=None,
         metavar="F",
-        help="write a light-field video of F frames (a folder) with moving objects",
+        help="write a light-field video of F frames (a folder) with moving objects "
+        "(default 10 with --rigid)",
+    )
+    parser.add_argument(
+        "--rigid",
+        action="store_true",
+        help="a video of rigid textured boxes under known 3D motion, every frame's 4x4 pose "
+        "per box in its scene file (the ground truth of `lfsam poses`)",
     )
     parser.add_argument(
         "--hard",

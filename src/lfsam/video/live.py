@@ -133,6 +133,7 @@ def segment_stream(
     on_frame: Callable[[FrameTiming, SegmentationResult], None] | None = None,
     on_skip: Callable[[str], None] | None = None,
     latest: bool = False,
+    on_lightfield: Callable[[FrameTiming, SegmentationResult, LightField], None] | None = None,
 ) -> StreamReport:
     """Segment every frame ``follower`` yields, writing each result into ``out`` at once.
 
@@ -158,6 +159,9 @@ def segment_stream(
         ``meta["skipped"]`` with the reason ``"newer frame available"``
         (:class:`lfsam.video.feed.FrameFeed`). Either way the next frame is read in a
         prefetch thread while the current one is segmented.
+    on_lightfield : callable, optional
+        ``on_lightfield(timing, result, lightfield)`` after ``on_frame``, with the frame's light
+        field (``lfsam segment --follow --poses`` registers its objects there).
 
     Returns
     -------
@@ -218,6 +222,8 @@ def segment_stream(
                 report.frames = writer.frames
                 if on_frame is not None:
                     on_frame(timing, result)
+                if on_lightfield is not None:
+                    on_lightfield(timing, result, lf)
             report.ended_by = follower.ended_by
         except KeyboardInterrupt:
             report.ended_by = "interrupted"

@@ -1,0 +1,255 @@
+"""6D poses (issue 43; docs/design.md section 12): accuracy against rigid-box ground truth, cost.
+
+For every held-out seed (default 4, 5, 6; the tracker's settings were tuned on seed 100, and
+seeds 1-3 served its development: a 1.2-degree error on seed 3 led to the weak-direction
+feature weight):
+
+1. ``lfsam synth VIDEO --rigid --seed N``: three boxes of 10-17 cm at about 1 m, each turning
+   2-4 degrees and moving 4-12 mm per frame about its own axis, 10 frames of 7x7 views of
+   240x320, f = 400 px, b = 1 cm, z0 = 1 m (cached in ``--work``);
+2. ``lfsam segment VIDEO --auto --model oracle --disparity gt``: the masks (the oracle tracks
+   every ground-truth object, the wall included; cached);
+3. ``lfsam poses RESULT --lightfield VIDEO --disparity gt --json`` as a user runs it (a fresh
+   process, timed whole: the 60-s target), and :class:`lfsam.poses.PoseTracker` with the
+   estimated disparity (``--estimate-views``: ``center`` by default, one estimate per frame;
+   ``all`` is 49 estimates per frame, minutes per frame on a CPU), the estimates made once and
+   shared with the baseline;
+4. a plain frame-to-frame baseline (SIFT matches inside the center view's masks, lifted to 3D,
+   RANSAC + Kabsch, chained; nothing else) on the same masks and disparities.
+
+Scores per box and frame (frames after the first): ADD (Hinterstoisser et al. 2012: the mean
+distance between the box's surface points moved by the estimated and the true motion) as a
+share of the box's diameter, the rotation error in degrees; per run: the worst ADD, the share of
+pairs with ADD <= 2 % and <= 5 %, ADD-0.1d recall, median and worst rotation error, and the
+tracker's seconds per object per frame (points, features, registration: beyond segmentation and
+disparity). Boxes are matched to the oracle's objects by their first frame's labels.
+
+Run::
+
+    python benchmarks/bench_poses.py [--seeds 4,5,6] [--work /tmp/bench_poses]
+        [--estimate-views corners|center|all] [--skip-estimate]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from lfsam.camera import camera_of
+from lfsam.disparity import estimate_disparity
+from lfsam.metrics.pose import add_error, add_recall, rotation_error_deg
+from lfsam.poses import PoseTracker, ViewData
+from lfsam.spatial.features import match_features, view_features
+from lfsam.spatial.registration import ransac_rigid, transform
+from lfsam.synth.rigid import box_surface_points
+from lfsam.video import read_video
+from lfsam.video.result import load_video_result
+
+LFSAM = [sys.executable, "-m", "lfsam.cli.main"]
+
+
+def _run(args: list[str]) -> float:
+    start = time.perf_counter()
+    subprocess.run(args, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                   env={**os.environ, "TQDM_DISABLE": "1"})
+    return time.perf_counter() - start
+
+
+def prepare(seed: int, work: Path) -> tuple[Path, Path]:
+    video, result = work / f"rigid_{seed}", work / f"rigid_{seed}_result"
+    if not video.exists():
+        _run([*LFSAM, "synth", str(video), "--rigid", "--seed", str(seed)])
+    if not result.exists():
+        _run([*LFSAM, "segment", str(video), "--auto", "--model", "oracle", "--disparity", "gt",
+              "--out", str(result)])
+    return video, result
+
+
+def truth_of(video) -> tuple[list[dict], dict[int, int]]:
+    """Per frame {label: (pose, size)}, and result id -> box label (first frame's labels)."""
+    frames = [video.frame(k) for k in range(len(video))]
+    poses = [{o["label"]: (np.asarray(o["pose"]), np.asarray(o["size_m"]))
+              for o in lf.meta["rigid"]["objects"]} for lf in frames]
+    return poses, frames
+
+
+def match_ids(result_labels: np.ndarray, gt_labels: np.ndarray, boxes) -> dict[int, int]:
+    mapping = {}
+    for label in boxes:
+        ids, counts = np.unique(result_labels[gt_labels == label], return_counts=True)
+        keep = ids != 0
+        if keep.any():
+            mapping[int(ids[keep][counts[keep].argmax()])] = label
+    return mapping
+
+
+def score(motions: dict[int, dict[int, np.ndarray | None]], truth: list[dict]) -> dict:
+    """ADD shares and rotation errors per (box, frame > first)."""
+    rows = []
+    for label, per_frame in motions.items():
+        pose0, size = truth[0][label]
+        model = transform(pose0, box_surface_points(size))
+        diameter = float(np.linalg.norm(size))
+        for frame, motion in sorted(per_frame.items()):
+            if frame == 0:
+                continue
+            true = truth[frame][label][0] @ np.linalg.inv(pose0)
+            if motion is None:
+                rows.append((label, frame, np.nan, np.nan))
+            else:
+                rows.append((label, frame, add_error(model, motion, true) / diameter,
+                             rotation_error_deg(motion, true)))
+    return {"rows": rows, "add": np.array([r[2] for r in rows]),
+            "rot": np.array([r[3] for r in rows])}
+
+
+def summary(name: str, scored: list[dict], seconds: list[float] | None = None) -> None:
+    add = np.concatenate([s["add"] for s in scored])
+    rot = np.concatenate([s["rot"] for s in scored])
+    finite = np.nan_to_num(add, nan=np.inf)
+    line = (f"{name:<28} pairs {len(add):3d}  ADD max {100 * np.nanmax(add):6.2f} %  "
+            f"<=2 %: {np.mean(finite <= 0.02):5.3f}  <=5 %: {np.mean(finite <= 0.05):5.3f}  "
+            f"ADD-0.1d {add_recall(add):5.3f}  rot median {np.nanmedian(rot):5.2f} max "
+            f"{np.nanmax(rot):5.2f} deg  lost {int(np.isnan(add).sum())}")
+    if seconds:
+        line += f"  {np.mean(seconds):.3f} s/object/frame (max {np.max(seconds):.3f})"
+    print(line)
+
+
+def table(name: str, scored: dict) -> None:
+    print(f"  {name}: ADD % of diameter (rotation error deg) per box, frames 1..")
+    for label in sorted({r[0] for r in scored["rows"]}):
+        cells = [f"{100 * a:5.2f} ({r:4.2f})" for lab, _, a, r in scored["rows"] if lab == label]
+        print(f"    box {label}: " + " ".join(cells))
+
+
+def baseline(frames, result, mapping, disparity: str, estimates=None) -> dict:
+    """SIFT inside the center view's masks, lifted, RANSAC + Kabsch frame to frame, chained."""
+    camera = camera_of(frames[0].meta)
+    motions = {label: {0: np.eye(4)} for label in mapping.values()}
+    previous = None
+    for k, lf in enumerate(frames):
+        labels = result.frame(k).labels[lf.center]
+        d = lf.disparity[lf.center] if disparity == "gt" else estimates[k][0]
+        confident = None if disparity == "gt" else estimates[k][1] >= 0.1
+        found = view_features(lf.views[lf.center], labels, d, camera, confident=confident)
+        if previous is not None:
+            for obj, label in mapping.items():
+                a_xyz, a_desc = previous.of(obj)
+                b_xyz, b_desc = found.of(obj)
+                pairs = match_features(b_desc, a_desc)
+                step, _ = ransac_rigid(a_xyz[pairs[:, 1]], b_xyz[pairs[:, 0]], 0.006)
+                last = motions[label].get(k - 1)
+                motions[label][k] = None if step is None or last is None else step @ last
+        previous = found
+    return motions
+
+
+def estimate_views(frames, views: str, cache: Path | None = None) -> list[dict]:
+    """Per frame {view: (disparity, confidence)} of the default estimator (with its fusion, as
+    ``lfsam poses --disparity estimate``); kept in ``cache`` (an .npz) for the next run."""
+    if cache is not None and cache.is_file():
+        stored = np.load(cache)
+        keys = [tuple(int(x) for x in key) for key in stored["views"]]
+        return [{key: (stored["disparity"][k, i], stored["confidence"][k, i])
+                 for i, key in enumerate(keys)} for k in range(len(frames))]
+    out = []
+    for lf in frames:
+        last_s, last_t = lf.grid_shape[0] - 1, lf.grid_shape[1] - 1
+        chosen = {"center": [lf.center],
+                  "corners": [lf.center, (0, 0), (0, last_t), (last_s, 0), (last_s, last_t)],
+                  "all": [(s, t) for s in range(last_s + 1) for t in range(last_t + 1)]}[views]
+        found = {}
+        for view in chosen:
+            estimate = estimate_disparity(lf, view=view)
+            found[view] = (np.asarray(estimate.disparity), np.asarray(estimate.confidence))
+        out.append(found)
+    if cache is not None:
+        keys = list(out[0])
+        np.savez(cache, views=np.array(keys),
+                 disparity=np.array([[f[key][0] for key in keys] for f in out]),
+                 confidence=np.array([[f[key][1] for key in keys] for f in out]))
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", default="4,5,6")
+    parser.add_argument("--work", default="/tmp/bench_poses")
+    parser.add_argument("--estimate-views", choices=("center", "corners", "all"),
+                        default="corners")
+    parser.add_argument("--skip-estimate", action="store_true")
+    args = parser.parse_args()
+    work = Path(args.work)
+    work.mkdir(parents=True, exist_ok=True)
+    runs: dict[str, list] = {"gt": [], "estimate": [], "baseline gt": [], "baseline estimate": []}
+    seconds: dict[str, list[float]] = {"gt": [], "estimate": []}
+    for seed in (int(s) for s in args.seeds.split(",")):
+        video_path, result_path = prepare(seed, work)
+        out = work / f"poses_{seed}.json"
+        command = _run([*LFSAM, "poses", str(result_path), "--lightfield", str(video_path),
+                        "--disparity", "gt", "--json", str(out)])
+        video = read_video(video_path)
+        result = load_video_result(result_path)
+        truth, frames = truth_of(video)
+        mapping = match_ids(result.frame(0).labels[frames[0].center],
+                            frames[0].labels[frames[0].center], truth[0])
+        document = json.loads(out.read_text())
+        motions = {mapping[o["id"]]: {f["frame"]: None if f["motion"] is None
+                                      else np.asarray(f["motion"]) for f in o["frames"]}
+                   for o in document["objects"] if o["id"] in mapping}
+        scored = score(motions, truth)
+        runs["gt"].append(scored)
+        per_object = [f["seconds"] for o in document["objects"] if o["id"] in mapping
+                      for f in o["frames"]]
+        seconds["gt"] += per_object
+        print(f"seed {seed}: {len(document['objects'])} objects tracked ({len(mapping)} boxes); "
+              f"`lfsam poses --disparity gt` command {command:.1f} s (target <= 60 s), tracker "
+              f"{np.mean(per_object):.3f} s per box per frame")
+        table("gt disparity, views all", scored)
+        runs["baseline gt"].append(score(baseline(frames, result, mapping, "gt"), truth))
+        if args.skip_estimate:
+            continue
+        start = time.perf_counter()
+        estimates = estimate_views(frames, args.estimate_views,
+                                   work / f"rigid_{seed}_estimates_{args.estimate_views}.npz")
+        estimate_seconds = time.perf_counter() - start
+        tracker = PoseTracker(camera_of(frames[0].meta), frames[0].view_shape)
+        cpu_seconds: list[float] = []
+        for k, lf in enumerate(frames):
+            labels = result.frame(k).labels
+            data = [ViewData((s - lf.center[0], t - lf.center[1]), lf.views[s, t],
+                             labels[s, t], d, c) for (s, t), (d, c) in estimates[k].items()]
+            cpu = time.process_time()
+            entries = tracker.add_frame(data, frame=k)
+            cpu_seconds.append((time.process_time() - cpu) / max(len(entries), 1))
+        objects = tracker.objects
+        motions = {mapping[o.object_id]: {f.frame: f.motion for f in o.frames}
+                   for o in objects if o.object_id in mapping}
+        scored = score(motions, truth)
+        runs["estimate"].append(scored)
+        per_object = [f.seconds for o in objects if o.object_id in mapping for f in o.frames]
+        seconds["estimate"] += per_object
+        print(f"  estimated disparity (views {args.estimate_views}): estimates "
+              f"{estimate_seconds:.1f} s (0 when cached), tracker {np.mean(per_object):.3f} s "
+              f"per box per frame (CPU time per object per frame {np.mean(cpu_seconds):.3f} s, "
+              f"max {np.max(cpu_seconds):.3f})")
+        table(f"estimated disparity, views {args.estimate_views}", scored)
+        center = [estimates[k][lf.center] for k, lf in enumerate(frames)]
+        runs["baseline estimate"].append(
+            score(baseline(frames, result, mapping, "estimate", center), truth))
+    print("summary (held-out seeds " + args.seeds + "):")
+    for name, scored in runs.items():
+        if scored:
+            summary(name, scored, seconds.get(name))
+
+
+if __name__ == "__main__":
+    main()

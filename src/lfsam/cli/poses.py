@@ -1,0 +1,174 @@
+"""``lfsam poses``: every object's 6D pose over a light-field video (docs/design.md §12)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+import numpy as np
+
+from lfsam.camera import CAMERA_EXAMPLE
+from lfsam.cli.common import HelpFormatter, add_device_argument
+from lfsam.cli.inputs import expect_input, expect_partner, video_with_result
+from lfsam.errors import LfsamError
+from lfsam.fileutil import atomic_output, check_writable
+from lfsam.objects3d import resolve_camera
+from lfsam.poses import POSE_VIEWS, ObjectPoses, bop_csv, poses_csv, poses_json, poses_of_video
+
+__all__ = ["register", "run"]
+
+DESCRIPTION = f"""\
+Each segmented object's 6D pose, frame by frame: how it has turned and moved since its first
+frame, in metres in the center view's camera frame (x right, y down, z forward), as `lfsam
+objects` uses it.
+
+Per object and frame:
+  motion   the rigid 4x4 transform carrying the object's points at its first frame onto its
+           points at this frame (identity at the first frame);
+  pose     the object's frame in the camera (origin at the first frame's centroid, axes its
+           principal axes): pose = motion . first pose;
+  inliers  the share of the frame's points within 3 mm of the registered model, and rmse_m
+           their RMS point-to-plane distance;
+  status   tracked, lost (too few points or no fit: no pose is given) or found again.
+
+How: the object's points from every view that sees it (--views all, the default; the light
+field sees around occluders), a coarse motion from SIFT matches inside its masks in the center
+and corner views lifted to 3D (RANSAC + Kabsch), refined by point-to-plane ICP of all its
+points onto a keyframe model of the object (no drift from chaining frame to frame). A single
+light field (a result .npz) gives each object's pose with identity motion.
+
+The camera is --camera CAMERA.json ({CAMERA_EXAMPLE}), else the light field's own (an HCI 4D
+parameters.cfg, or an lfsam scene folder's: `lfsam synth` writes one). --disparity estimate
+estimates every used view's disparity (seconds per view on a CPU): --views corners needs 5
+per frame (the center and the corners, the longest baselines), --views center one.
+
+Outputs: the table on the terminal; --json everything ({{"camera", "objects": [{{"id",
+"category", "first_pose", "frames": [{{"frame", "status", "motion", "pose", "inliers",
+"rmse_m", ...}}]}}]}}); --csv one row per object and frame (pose as quaternion w x y z and
+translation in metres, then the motion's); --bop the BOP challenge's results CSV (scene_id,
+im_id = frame, obj_id = object id, score = inliers, R, t in mm, time in s) for the BOP toolkit.
+"""
+
+EPILOG = """\
+examples:
+  lfsam synth boxes --rigid --seed 7          # 3 boxes under known motion, 10 frames of 7x7 views
+  lfsam segment boxes --auto --model oracle --disparity gt --out boxes_result
+  lfsam poses boxes_result --lightfield boxes --disparity gt --json poses.json
+  lfsam poses boxes_result --lightfield boxes --views corners --csv poses.csv --bop bop.csv
+  lfsam segment scene --auto --model oracle --disparity gt --out result.npz
+  lfsam poses result.npz --lightfield scene --camera camera.json      # one light field
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``poses`` subcommand."""
+    parser = subparsers.add_parser(
+        "poses",
+        help="each object's 6D pose (rotation and translation) over a light-field video",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=HelpFormatter,
+    )
+    parser.add_argument("result", metavar="RESULT",
+                        help="a video's result folder (or a single result .npz)")
+    parser.add_argument("--lightfield", required=True, metavar="LF",
+                        help="the light-field video (or light field) the result was computed on")
+    parser.add_argument(
+        "--disparity", default="estimate", metavar="estimate|gt|FILE.npy",
+        help="disparity: estimated per view (with its confidence), the ground truth, or a "
+        "(U, V) / (S, T, U, V) .npy map used for every frame",
+    )
+    parser.add_argument("--camera", metavar="CAMERA.json",
+                        help=f"camera: {CAMERA_EXAMPLE} (default: the light field's own)")
+    parser.add_argument("--views", choices=POSE_VIEWS, default="all",
+                        help="the views whose pixels become points: every view (default), the "
+                        "center and the four corner views (with --disparity estimate: 5 "
+                        "estimates per frame instead of one per view; what the benchmark "
+                        "measures), or the center view only (fastest, least accurate)")
+    parser.add_argument("--json", metavar="OUT.json", help="write everything as JSON")
+    parser.add_argument("--csv", metavar="OUT.csv",
+                        help="write one row per object and frame (quaternions, metres)")
+    parser.add_argument("--bop", metavar="OUT.csv", help="write the BOP challenge results CSV")
+    parser.add_argument("--scene-id", type=int, default=0, metavar="N",
+                        help="scene_id of the --bop rows")
+    add_device_argument(parser)
+    parser.set_defaults(func=run)
+
+
+def _write(path: str, text: str) -> None:
+    with atomic_output(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def _line(obj: ObjectPoses) -> str:
+    tracked = [f for f in obj.frames if f.pose is not None]
+    lost = sum(f.status == "lost" for f in obj.frames)
+    if not tracked:
+        return f"{obj.object_id:>5} {(obj.category or '-')[:14]:<14} lost in every frame"
+    last = tracked[-1]
+    angle = np.degrees(np.arccos(np.clip((np.trace(last.motion[:3, :3]) - 1) / 2, -1, 1)))
+    shift = np.linalg.norm(last.pose[:3, 3] - obj.first_pose[:3, 3])
+    inliers = np.mean([f.inliers for f in tracked])
+    rmse = np.nanmean([f.rmse_m for f in tracked])
+    seconds = np.mean([f.seconds for f in obj.frames])
+    centre = last.pose[:3, 3]
+    return (f"{obj.object_id:>5} {(obj.category or '-')[:14]:<14} frames {obj.frames[0].frame}-"
+            f"{obj.frames[-1].frame} ({lost} lost)  at frame {last.frame}: turned "
+            f"{angle:6.2f} deg, moved {1000 * shift:6.1f} mm, centre "
+            f"[{centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f}] m;  inliers {inliers:.2f}, "
+            f"rmse {1000 * rmse:.2f} mm, {seconds:.2f} s/frame")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Check inputs and outputs, register every object frame by frame, print and write."""
+    for option, path in (("--json", args.json), ("--csv", args.csv), ("--bop", args.bop)):
+        if path:
+            check_writable(path, folder=False, option=option)
+    kind = expect_input(args.result, "poses", ("result", "video-result"))
+    expect_partner(args.lightfield, args.result, kind, "poses", "--lightfield")
+    from tqdm import tqdm
+
+    if args.disparity == "estimate":
+        per_frame = {"all": "every view's", "corners": "5 views'", "center": "the center view's"}
+        print(f"estimating {per_frame[args.views]} disparity in every frame (seconds per view "
+              "on a CPU; --disparity gt or FILE.npy skips it)", file=sys.stderr)
+    if kind == "video-result":
+        with video_with_result(args.result, args.lightfield) as (video_result, video):
+            camera = resolve_camera(video.frame(0), args.camera)  # before any work
+            if args.disparity == "gt" and not video.has_disparity:
+                raise LfsamError(f"{args.lightfield} has no ground-truth disparity; use "
+                                 "--disparity estimate or FILE.npy")
+            frames = tqdm(zip(video_result, video, strict=True), total=len(video),
+                          desc="frames", unit="frame", file=sys.stderr)
+            _, objects = poses_of_video(frames, disparity=args.disparity, camera=camera,
+                                        views=args.views, device=args.device)
+            count = len(video)
+    else:
+        from lfsam.io import read_lightfield
+        from lfsam.lightfield import check_result_shape
+        from lfsam.result import load_result
+
+        result = load_result(args.result)
+        lightfield = read_lightfield(args.lightfield)
+        check_result_shape(result.labels.shape, lightfield, args.result)
+        camera = resolve_camera(lightfield, args.camera)
+        _, objects = poses_of_video([(result, lightfield)], disparity=args.disparity,
+                                    camera=camera, views=args.views, device=args.device)
+        count = 1
+    print(f"{len(objects)} object{'' if len(objects) == 1 else 's'} over {count} frame"
+          f"{'' if count == 1 else 's'}; disparity {args.disparity}, views {args.views}, "
+          f"camera f = {camera.focal_px:.1f} px, b = {camera.baseline_m:.4g} m")
+    for obj in objects:
+        print(_line(obj))
+    if args.json:
+        _write(args.json, json.dumps(poses_json(camera, objects, disparity=args.disparity,
+                                                views=args.views), indent=1) + "\n")
+        print(f"wrote {args.json}")
+    if args.csv:
+        _write(args.csv, poses_csv(objects))
+        print(f"wrote {args.csv}")
+    if args.bop:
+        _write(args.bop, bop_csv(objects, scene_id=args.scene_id))
+        print(f"wrote {args.bop}")
+    return 0

@@ -1,0 +1,608 @@
+"""Every object's 6D pose over a light-field video (docs/design.md section 12).
+
+Per object and frame: the rigid **motion** (4x4, metres, the center camera's frame: x right,
+y down, z forward) that carries the object's points at its first frame to its points at this
+frame, and its **pose** (object frame: origin at the first frame's centroid, axes its principal
+axes, largest variance first, right-handed; ``pose = motion @ first_pose``), with a quality
+(``inliers``: the share of the frame's points within 3 mm of the registered model; ``rmse_m``:
+their RMS point-to-plane distance) and a status (``tracked``, ``lost``, ``found again``). A lost
+object gets no pose.
+
+The light-field way to register (:class:`PoseTracker`, plain arrays in and out):
+
+1. the object's points come from every chosen view that sees it (the light field sees around
+   occluders), voxel-averaged to :attr:`PoseOptions.voxel_m`;
+2. coarse: SIFT features inside the object's masks in a few views (the center and the four
+   corners), matched view by view against the last keyframe and the previous frame, lifted to
+   3D with the disparity, RANSAC + Kabsch (:mod:`lfsam.spatial.features`,
+   :mod:`lfsam.spatial.registration`); a constant-velocity guess without enough matches;
+3. fine: point-to-plane ICP of all the frame's points onto the object's **keyframe model** (its
+   points at the first frame, joined by later keyframes' points moved back by their motion), the
+   feature inliers kept as fixed pairs that pin what planes cannot; registering to the model and
+   not only to the previous frame is what keeps the motion from drifting;
+4. a new keyframe when the object has turned :attr:`PoseOptions.keyframe_deg` since the last
+   one or the model explains less than :attr:`PoseOptions.keyframe_inliers` of its points.
+
+:func:`poses_of_video` runs it over ``(result, light field)`` frames with a disparity source
+(``"estimate"``, ``"gt"``, a map) and a camera, as :mod:`lfsam.objects3d` does.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from lfsam.camera import Camera
+from lfsam.disparity.methods import estimate_disparity
+from lfsam.disparity.source import load_disparity_spec, resolve_view_disparity
+from lfsam.errors import LfsamError
+from lfsam.lightfield import LightField, check_result_shape
+from lfsam.metrics.pose import rotation_error_deg
+from lfsam.objects3d import resolve_camera
+from lfsam.result import SegmentationResult
+from lfsam.spatial import MIN_CONFIDENCE, object_points
+from lfsam.spatial.features import ViewFeatures, match_features, view_features
+from lfsam.spatial.registration import (
+    estimate_normals,
+    icp,
+    ransac_rigid,
+    transform,
+    voxel_downsample,
+)
+
+__all__ = [
+    "POSE_VIEWS",
+    "STATUSES",
+    "FramePose",
+    "ObjectPoses",
+    "PoseOptions",
+    "PoseTracker",
+    "VideoPoses",
+    "ViewData",
+    "bop_csv",
+    "first_pose",
+    "poses_csv",
+    "poses_json",
+    "poses_of_video",
+    "rotation_error_deg",
+]
+
+#: Which views' pixels become points: every present view, the center and the four corner views
+#: (the longest baselines: 5 disparity estimates per frame instead of 49), or the center alone.
+POSE_VIEWS = ("all", "corners", "center")
+
+#: The statuses of an object in a frame.
+STATUSES = ("tracked", "lost", "found again")
+
+
+@dataclass(frozen=True)
+class PoseOptions:
+    """Settings of :class:`PoseTracker` (module docstring).
+
+    Attributes
+    ----------
+    voxel_m : float
+        Points are averaged per voxel of this edge (metres) before registration.
+    min_points : int
+        Fewer voxels than this in a frame: the object is ``lost`` there.
+    min_inliers : float
+        A registration explaining less than this share of the points is refused (``lost``).
+    keyframe_deg, keyframe_inliers : float
+        When to add the frame's points to the object's model (module docstring).
+    ransac_m : float
+        Inlier distance of feature pairs in RANSAC (metres).
+    min_matches : int
+        RANSAC inliers needed to use the feature motion (else the constant-velocity guess).
+    gates_m : tuple of float
+        ICP's correspondence gates, coarse to fine (metres); the last one also defines
+        ``inliers``.
+    pair_weight, weak_pair_weight : float
+        Weight of the feature pairs in ICP, relative to all the points' residuals together;
+        the second where the planes leave a direction nearly free
+        (:func:`lfsam.spatial.registration.icp`).
+    normal_neighbours : int
+        Neighbours of a model point that give its normal.
+    max_dense, max_points, max_model : int
+        Caps (evenly strided subsets, deterministic) on an object's raw points per frame, on
+        the voxels it registers and on its model's points: a wall of a million pixels costs
+        what a box does.
+    """
+
+    voxel_m: float = 0.003
+    min_points: int = 40
+    min_inliers: float = 0.3
+    keyframe_deg: float = 8.0
+    keyframe_inliers: float = 0.8
+    ransac_m: float = 0.006
+    min_matches: int = 8
+    gates_m: tuple[float, ...] = (0.015, 0.008, 0.004, 0.003)
+    pair_weight: float = 0.01
+    weak_pair_weight: float = 0.3
+    normal_neighbours: int = 12
+    max_dense: int = 300_000
+    max_points: int = 5000
+    max_model: int = 30_000
+
+
+@dataclass
+class ViewData:
+    """One view of one frame, as plain arrays: ``offset`` ``(s - s_c, t - t_c)``, ``image``
+    (U, V, 3) uint8, ``labels`` (U, V) int, ``disparity`` (U, V) float and optionally its
+    ``confidence`` (U, V) in [0, 1] (None: confident everywhere)."""
+
+    offset: tuple[int, int]
+    image: np.ndarray
+    labels: np.ndarray
+    disparity: np.ndarray
+    confidence: np.ndarray | None = None
+
+
+@dataclass
+class FramePose:
+    """One object in one frame. ``motion`` and ``pose`` are None where it is ``lost``."""
+
+    frame: int
+    status: str
+    motion: np.ndarray | None
+    pose: np.ndarray | None
+    inliers: float | None
+    rmse_m: float | None
+    points: int
+    matches: int
+    seconds: float
+
+    def to_json(self) -> dict[str, Any]:
+        def matrix(m):
+            return None if m is None else np.round(m, 9).tolist()
+
+        def number(x, digits):
+            return None if x is None or not np.isfinite(x) else round(float(x), digits)
+
+        return {"frame": self.frame, "status": self.status, "motion": matrix(self.motion),
+                "pose": matrix(self.pose), "inliers": number(self.inliers, 4),
+                "rmse_m": number(self.rmse_m, 7), "points": self.points,
+                "feature_matches": self.matches, "seconds": round(self.seconds, 4)}
+
+
+@dataclass
+class ObjectPoses:
+    """One object over the video: its ``first_pose`` (4x4, object frame to camera at its first
+    frame) and one :class:`FramePose` per frame from its first."""
+
+    object_id: int
+    category: str | None
+    first_pose: np.ndarray
+    frames: list[FramePose] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"id": self.object_id, "category": self.category,
+                "first_pose": np.round(self.first_pose, 9).tolist(),
+                "frames": [f.to_json() for f in self.frames]}
+
+
+def first_pose(xyz: np.ndarray) -> np.ndarray:
+    """The object frame of points ``xyz`` (N, 3): origin at their centroid, axes their
+    principal axes (largest variance first, each axis' largest component positive,
+    right-handed), as a 4x4 object-to-camera transform.
+
+    Examples
+    --------
+    >>> pts = np.random.default_rng(0).normal(size=(500, 3)) * [0.01, 0.05, 0.02] + [0, 0, 1]
+    >>> pose = first_pose(pts)
+    >>> np.round(np.abs(pose[:3, 0]), 1).tolist(), round(float(np.linalg.det(pose[:3, :3])), 6)
+    ([0.0, 1.0, 0.0], 1.0)
+    """
+    xyz = np.asarray(xyz, dtype=np.float64)
+    centre = xyz.mean(axis=0)
+    _, vectors = np.linalg.eigh(np.cov((xyz - centre).T))
+    axes = vectors[:, ::-1].copy()  # columns, largest variance first
+    for k in range(2):
+        if axes[np.argmax(np.abs(axes[:, k])), k] < 0:
+            axes[:, k] *= -1
+    axes[:, 2] = np.cross(axes[:, 0], axes[:, 1])
+    pose = np.eye(4)
+    pose[:3, :3], pose[:3, 3] = axes, centre
+    return pose
+
+
+@dataclass
+class _Track:
+    """A tracked object's state."""
+
+    result: ObjectPoses
+    model: np.ndarray
+    normals: np.ndarray
+    tree: cKDTree
+    key_motion: np.ndarray
+    key_features: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]]
+    prev_features: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]]
+    motions: list[np.ndarray]
+    lost: bool = False
+
+
+def _features_in_model(features: dict[tuple[int, int], ViewFeatures], object_id: int,
+                       to_model: np.ndarray) -> dict[tuple[int, int], tuple]:
+    out = {}
+    for view, found in features.items():
+        xyz, descriptors = found.of(object_id)
+        if len(xyz):
+            out[view] = (transform(to_model, xyz), descriptors)
+    return out
+
+
+def _thin(xyz: np.ndarray, cap: int) -> np.ndarray:
+    """At most ``cap`` of the points, evenly strided (deterministic)."""
+    if len(xyz) <= cap:
+        return xyz
+    return xyz[np.linspace(0, len(xyz) - 1, cap).astype(np.int64)]
+
+
+class PoseTracker:
+    """Every object's motion and pose, frame by frame (module docstring).
+
+    Parameters
+    ----------
+    camera : Camera
+    view_size : (U, V)
+    options : PoseOptions, optional
+    categories : dict of id to str, optional
+
+    Examples
+    --------
+    See ``tests/test_poses.py``; :func:`poses_of_video` drives it over a video.
+    """
+
+    def __init__(self, camera: Camera, view_size: tuple[int, int],
+                 options: PoseOptions | None = None,
+                 categories: dict[int, str] | None = None) -> None:
+        self.camera = camera
+        self.view_size = tuple(int(x) for x in view_size)
+        self.options = options or PoseOptions()
+        self.categories = dict(categories or {})
+        self.tracks: dict[int, _Track] = {}
+        self.frame = -1
+
+    @property
+    def objects(self) -> list[ObjectPoses]:
+        """Every object seen so far, by id."""
+        return [self.tracks[i].result for i in sorted(self.tracks)]
+
+    def _points(self, views: Sequence[ViewData], object_ids: list[int]):
+        parts: dict[int, list[np.ndarray]] = {i: [] for i in object_ids}
+        for view in views:
+            clouds = object_points(view.labels, view.disparity, view.image, self.camera,
+                                   confidence=view.confidence, view_offset=view.offset,
+                                   object_ids=object_ids)
+            for obj_id, cloud in clouds.items():
+                if len(cloud.xyz):
+                    parts[obj_id].append(cloud.xyz)
+        cap = self.options.max_dense
+        return {i: _thin(np.concatenate(p), cap) if p else np.zeros((0, 3))
+                for i, p in parts.items()}
+
+    def _features(self, views: Sequence[ViewData],
+                  gray: np.ndarray | None) -> dict[tuple[int, int], ViewFeatures]:
+        offsets = [v.offset for v in views]
+        reach_s = max(abs(o[0]) for o in offsets)
+        reach_t = max(abs(o[1]) for o in offsets)
+        wanted = {(0, 0), (-reach_s, -reach_t), (-reach_s, reach_t), (reach_s, -reach_t),
+                  (reach_s, reach_t)}
+        out = {}
+        for view in views:
+            if tuple(view.offset) not in wanted:
+                continue
+            confident = (None if view.confidence is None
+                         else np.asarray(view.confidence) >= MIN_CONFIDENCE)
+            out[tuple(view.offset)] = view_features(view.image, view.labels, view.disparity,
+                                                    self.camera, view.offset, confident,
+                                                    gray=gray)
+        return out
+
+    def _model(self, xyz: np.ndarray):
+        xyz = _thin(xyz, self.options.max_model)
+        normals = estimate_normals(xyz, self.options.normal_neighbours)
+        return xyz, normals, cKDTree(xyz)
+
+    def _start(self, obj_id: int, xyz: np.ndarray, dense: np.ndarray, features) -> FramePose:
+        pose0 = first_pose(dense)
+        model, normals, tree = self._model(xyz)
+        result = ObjectPoses(obj_id, self.categories.get(obj_id), pose0)
+        found = _features_in_model(features, obj_id, np.eye(4))
+        self.tracks[obj_id] = _Track(result, model, normals, tree, np.eye(4), found, found,
+                                     [np.eye(4)])
+        return FramePose(self.frame, "tracked", np.eye(4), pose0.copy(), 1.0, 0.0, len(xyz),
+                         0, 0.0)
+
+    def _pairs(self, track: _Track, obj_id: int, features) -> tuple[np.ndarray, np.ndarray]:
+        """(model points, current points) of feature matches against the keyframe and the
+        previous frame, view by view."""
+        model_pts, cur_pts = [], []
+        for view, found in features.items():
+            xyz, descriptors = found.of(obj_id)
+            if len(xyz) < 2:
+                continue
+            for reference in (track.key_features, track.prev_features):
+                if view not in reference:
+                    continue
+                ref_xyz, ref_desc = reference[view]
+                pairs = match_features(descriptors, ref_desc)
+                model_pts.append(ref_xyz[pairs[:, 1]])
+                cur_pts.append(xyz[pairs[:, 0]])
+                if reference is track.key_features and track.key_features is track.prev_features:
+                    break
+        if not model_pts:
+            return np.zeros((0, 3)), np.zeros((0, 3))
+        return np.concatenate(model_pts), np.concatenate(cur_pts)
+
+    def _follow(self, track: _Track, obj_id: int, xyz: np.ndarray, features) -> FramePose:
+        opts = self.options
+        motions = track.motions
+        guess = motions[-1]
+        if len(motions) > 1 and not track.lost:
+            guess = motions[-1] @ np.linalg.inv(motions[-2]) @ motions[-1]
+        model_pts, cur_pts = self._pairs(track, obj_id, features)
+        fitted, inliers = ransac_rigid(model_pts, cur_pts, opts.ransac_m,
+                                       seed=self.frame * 1009 + obj_id)
+        matches = int(inliers.sum())
+        init = fitted if fitted is not None and matches >= opts.min_matches else guess
+        pairs = ((cur_pts[inliers], model_pts[inliers]) if matches >= opts.min_matches
+                 else None)
+        found = icp(_thin(xyz, opts.max_points), track.model, track.normals,
+                    np.linalg.inv(init), tree=track.tree, gates=opts.gates_m, pairs=pairs,
+                    pair_weight=opts.pair_weight, weak_pair_weight=opts.weak_pair_weight)
+        if found.inliers < opts.min_inliers:
+            track.lost = True
+            return FramePose(self.frame, "lost", None, None, found.inliers, None, len(xyz),
+                             matches, 0.0)
+        to_model = found.transform
+        motion = np.linalg.inv(to_model)
+        status = "found again" if track.lost else "tracked"
+        track.lost = False
+        motions.append(motion)
+        current = _features_in_model(features, obj_id, to_model)
+        track.prev_features = current
+        turned = rotation_error_deg(motion, track.key_motion)
+        if turned > opts.keyframe_deg or found.inliers < opts.keyframe_inliers:
+            joined = np.concatenate([track.model, transform(to_model, xyz)])
+            (joined,) = voxel_downsample(joined, opts.voxel_m)
+            track.model, track.normals, track.tree = self._model(joined)
+            track.key_motion = motion
+            track.key_features = current
+        pose = motion @ track.result.first_pose
+        return FramePose(self.frame, status, motion, pose, found.inliers, found.rmse, len(xyz),
+                         matches, 0.0)
+
+    def add_frame(self, views: Sequence[ViewData], frame: int | None = None,
+                  grid: np.ndarray | None = None) -> list[FramePose]:
+        """Register every labelled object of one frame; returns its :class:`FramePose` per
+        object seen so far (objects absent from this frame are ``lost``).
+
+        ``grid`` (S, T, U, V, 3), every view of the frame, is given with estimated
+        disparities: the features' disparities are then refined by photo-consistency across
+        the outermost views (:func:`lfsam.spatial.features.refine_disparity`)."""
+        self.frame = self.frame + 1 if frame is None else int(frame)
+        if not views:
+            raise LfsamError("a frame needs at least one view")
+        start = time.perf_counter()
+        seen: set[int] = set()
+        for view in views:
+            counts = np.bincount(np.asarray(view.labels).ravel().clip(0))
+            seen |= {int(i) for i in np.flatnonzero(counts) if i != 0}
+        ids = sorted(seen | set(self.tracks))
+        clouds = self._points(views, ids)
+        gray = None if grid is None else np.asarray(grid, dtype=np.float32).mean(axis=-1)
+        features = self._features(views, gray)
+        shared = (time.perf_counter() - start) / max(len(ids), 1)
+        out = []
+        for obj_id in ids:
+            began = time.perf_counter()
+            dense = clouds[obj_id]
+            (xyz,) = voxel_downsample(dense, self.options.voxel_m)
+            track = self.tracks.get(obj_id)
+            if len(xyz) < self.options.min_points:
+                if track is None:
+                    continue  # not yet seen well enough to start
+                track.lost = True
+                entry = FramePose(self.frame, "lost", None, None, None, None, len(xyz), 0, 0.0)
+            elif track is None:
+                entry = self._start(obj_id, xyz, dense, features)
+            else:
+                entry = self._follow(track, obj_id, xyz, features)
+            entry.seconds = shared + time.perf_counter() - began
+            self.tracks[obj_id].result.frames.append(entry)
+            out.append(entry)
+        return out
+
+
+def _view_arrays(lightfield: LightField, result: SegmentationResult, spec, name: str,
+                 views: str, device: str | None) -> list[ViewData]:
+    present = lightfield.present & result.present_mask
+    center = lightfield.center
+    chosen = [tuple(int(x) for x in v) for v in np.argwhere(present)]
+    if views == "center":
+        chosen = [center]
+    elif views == "corners":
+        last_s, last_t = present.shape[0] - 1, present.shape[1] - 1
+        chosen = [center] + [v for v in ((0, 0), (0, last_t), (last_s, 0), (last_s, last_t))
+                             if present[v] and v != center]
+    out = []
+    for view in chosen:
+        if isinstance(spec, str) and spec == "estimate":
+            estimate = estimate_disparity(lightfield, device=device, view=view)
+            disparity = np.asarray(estimate.disparity)
+            confidence = np.asarray(estimate.confidence)
+        else:
+            disparity, _, _ = resolve_view_disparity(spec, lightfield, view=view,
+                                                     device=device, name=name)
+            disparity, confidence = np.asarray(disparity), None
+        out.append(ViewData((view[0] - center[0], view[1] - center[1]), lightfield.views[view],
+                            result.labels[view], disparity, confidence))
+    return out
+
+
+def poses_of_video(
+    frames: Iterable[tuple[SegmentationResult, LightField]],
+    *,
+    disparity: str | os.PathLike | np.ndarray = "estimate",
+    camera: Camera | str | os.PathLike | None = None,
+    views: str = "all",
+    options: PoseOptions | None = None,
+    device: str | None = None,
+    on_frame: Callable[[int, list[FramePose]], None] | None = None,
+) -> tuple[Camera, list[ObjectPoses]]:
+    """Every object's motion and pose over ``(result, light field)`` frames (module docstring).
+
+    Parameters
+    ----------
+    frames : iterable of (SegmentationResult, LightField)
+        One pair per frame (a single pair: each object's pose, motion identity).
+    disparity : {"estimate", "gt"}, .npy path or ndarray
+        As :func:`lfsam.objects3d.objects_in_3d`; a map or file holds for every frame.
+    camera : Camera, ``--camera`` JSON path, or None (the first frame's own)
+    views : {"all", "corners", "center"}
+        The views whose pixels become points (:data:`POSE_VIEWS`; features use the center and
+        the corners of these). With ``"estimate"``, one estimate per view and frame.
+    options : PoseOptions, optional
+    on_frame : callable, optional
+        Called with ``(frame, [FramePose, ...])`` after each frame (live output).
+
+    Returns
+    -------
+    camera, list of ObjectPoses
+
+    Raises
+    ------
+    LfsamError
+        A result that does not match its light field, no camera, a bad disparity source.
+    """
+    session = VideoPoses(disparity=disparity, camera=camera, views=views, options=options,
+                         device=device)
+    for result, lightfield in frames:
+        entries = session.add(result, lightfield)
+        if on_frame is not None:
+            on_frame(session.frames - 1, entries)
+    if session.camera is None:
+        raise LfsamError("no frames to register")
+    return session.camera, session.objects
+
+
+class VideoPoses:
+    """:func:`poses_of_video` one frame at a time (a live stream: ``lfsam segment --follow
+    --poses``): :meth:`add` each ``(result, light field)`` as it comes.
+
+    Parameters are :func:`poses_of_video`'s. ``camera`` is resolved at the first frame when it
+    is not a :class:`~lfsam.camera.Camera` (:meth:`check_camera` does it earlier).
+    """
+
+    def __init__(self, *, disparity: str | os.PathLike | np.ndarray = "estimate",
+                 camera: Camera | str | os.PathLike | None = None, views: str = "all",
+                 options: PoseOptions | None = None, device: str | None = None) -> None:
+        if views not in POSE_VIEWS:
+            raise LfsamError(f"views must be one of {POSE_VIEWS}, got {views!r}")
+        self.disparity, self.views, self.options, self.device = disparity, views, options, device
+        self._camera_spec = camera
+        self.camera: Camera | None = camera if isinstance(camera, Camera) else None
+        self.tracker: PoseTracker | None = None
+        self.frames = 0
+
+    @property
+    def objects(self) -> list[ObjectPoses]:
+        """Every object seen so far."""
+        return [] if self.tracker is None else self.tracker.objects
+
+    def add(self, result: SegmentationResult, lightfield: LightField) -> list[FramePose]:
+        """Register the objects of the next frame (module docstring)."""
+        check_result_shape(result.labels.shape, lightfield, f"the result of frame {self.frames}")
+        if self.camera is None:
+            self.camera = resolve_camera(lightfield, self._camera_spec)
+        if self.tracker is None:
+            categories = {int(k): str(v) for k, v in
+                          (result.meta.get("categories") or {}).items() if v}
+            self.tracker = PoseTracker(self.camera, lightfield.view_shape, self.options,
+                                       categories)
+        spec, name = load_disparity_spec(self.disparity, lightfield)
+        data = _view_arrays(lightfield, result, spec, name, self.views, self.device)
+        entries = self.tracker.add_frame(data, frame=self.frames)
+        self.frames += 1
+        return entries
+
+
+def poses_json(camera: Camera, objects: Sequence[ObjectPoses], **extra: Any) -> dict[str, Any]:
+    """The ``--json`` document: ``{"camera", "frame", "objects": [{"id", "category",
+    "first_pose", "frames": [...]}]}`` plus ``extra`` keys."""
+    return {"camera": camera.to_json(),
+            "frame": "center view camera: x right, y down, z forward, metres; pose = object "
+                     "frame (origin: first frame's centroid, axes: its principal axes) to camera; "
+                     "motion = pose @ inverse(first_pose)",
+            **extra, "objects": [o.to_json() for o in objects]}
+
+
+def _quaternion(rot: np.ndarray) -> np.ndarray:
+    """Unit quaternion ``(w, x, y, z)`` with ``w >= 0`` of a rotation matrix."""
+    m = rot
+    candidates = np.array([
+        [1 + m[0, 0] + m[1, 1] + m[2, 2], m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]],
+        [m[2, 1] - m[1, 2], 1 + m[0, 0] - m[1, 1] - m[2, 2], m[0, 1] + m[1, 0], m[0, 2] + m[2, 0]],
+        [m[0, 2] - m[2, 0], m[0, 1] + m[1, 0], 1 - m[0, 0] + m[1, 1] - m[2, 2], m[1, 2] + m[2, 1]],
+        [m[1, 0] - m[0, 1], m[0, 2] + m[2, 0], m[1, 2] + m[2, 1], 1 - m[0, 0] - m[1, 1] + m[2, 2]],
+    ])
+    q = candidates[int(np.argmax(np.diag(candidates)))]
+    q = q / np.linalg.norm(q)
+    return -q if q[0] < 0 else q
+
+
+def poses_csv(objects: Sequence[ObjectPoses]) -> str:
+    """One row per object and frame: ``id, category, frame, status, qw, qx, qy, qz, x_m, y_m,
+    z_m`` (the pose) then the motion's ``motion_qw .. motion_z_m``, ``inliers, rmse_m``;
+    empty cells where the object is lost."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(["id", "category", "frame", "status", "qw", "qx", "qy", "qz", "x_m", "y_m",
+                     "z_m", "motion_qw", "motion_qx", "motion_qy", "motion_qz", "motion_x_m",
+                     "motion_y_m", "motion_z_m", "inliers", "rmse_m"])
+    for obj in objects:
+        for entry in obj.frames:
+            cells = []
+            for matrix in (entry.pose, entry.motion):
+                if matrix is None:
+                    cells += [""] * 7
+                else:
+                    cells += [f"{v:.9f}" for v in _quaternion(matrix[:3, :3])]
+                    cells += [f"{v:.6f}" for v in matrix[:3, 3]]
+            quality = ["" if x is None or not np.isfinite(x) else f"{x:.6g}"
+                       for x in (entry.inliers, entry.rmse_m)]
+            writer.writerow([obj.object_id, obj.category or "", entry.frame, entry.status,
+                             *cells, *quality])
+    return buffer.getvalue()
+
+
+def bop_csv(objects: Sequence[ObjectPoses], scene_id: int = 0) -> str:
+    """The BOP challenge's results CSV (``scene_id,im_id,obj_id,score,R,t,time``: R row-major
+    and t in millimetres, space-separated; time in seconds, the same for every estimate of an
+    image, -1 where unknown), one row per tracked object and frame (Hodaň et al., BOP 2020)."""
+    lines = ["scene_id,im_id,obj_id,score,R,t,time"]
+    per_frame: dict[int, float] = {}
+    for obj in objects:
+        for entry in obj.frames:
+            per_frame[entry.frame] = per_frame.get(entry.frame, 0.0) + entry.seconds
+    rows = []
+    for obj in objects:
+        for entry in obj.frames:
+            if entry.pose is None:
+                continue
+            rot = " ".join(f"{v:.9f}" for v in entry.pose[:3, :3].ravel())
+            trans = " ".join(f"{v:.4f}" for v in entry.pose[:3, 3] * 1000.0)
+            score = entry.inliers if entry.inliers is not None else 1.0
+            rows.append((entry.frame, obj.object_id,
+                         f"{scene_id},{entry.frame},{obj.object_id},{score:.4f},{rot},{trans},"
+                         f"{per_frame[entry.frame]:.4f}"))
+    lines += [row for _, _, row in sorted(rows)]
+    return "\n".join(lines) + "\n"
