@@ -12,7 +12,15 @@ import math
 import torch
 import torch.nn.functional as F
 
-__all__ = ["box_blur", "gaussian_blur", "gaussian_kernel1d", "guided_filter", "smooth_axis"]
+__all__ = [
+    "box_blur",
+    "box_blur_rect",
+    "colour_guided_filter",
+    "gaussian_blur",
+    "gaussian_kernel1d",
+    "guided_filter",
+    "smooth_axis",
+]
 
 
 def gaussian_kernel1d(sigma: float, device: torch.device | None = None) -> torch.Tensor:
@@ -144,3 +152,85 @@ def guided_filter(
     a = (box_blur(image * guide, radius) - mean_i * mean_p) / (var_i + eps)
     b = mean_p - a * mean_i
     return box_blur(a, radius) * guide + box_blur(b, radius)
+
+
+def box_blur_rect(image: torch.Tensor, radius_rows: int, radius_cols: int) -> torch.Tensor:
+    """Mean over a ``(2 radius_rows + 1) x (2 radius_cols + 1)`` window of the last two axes.
+
+    Separable running means (``avg_pool1d`` along each axis, borders replicated); a radius of 0
+    leaves that axis alone, so ``(0, r)`` is a horizontal line window and ``(r, 0)`` a vertical one
+    (the oriented windows of :mod:`lfsam.disparity.aggregation`).
+    """
+    shape = image.shape
+    x = image.reshape(-1, shape[-2], shape[-1])
+    if radius_cols > 0:
+        x = F.pad(x, (radius_cols, radius_cols), mode="replicate")
+        x = F.avg_pool1d(x, 2 * radius_cols + 1, stride=1)
+    if radius_rows > 0:
+        x = x.transpose(1, 2)
+        x = F.pad(x, (radius_rows, radius_rows), mode="replicate")
+        x = F.avg_pool1d(x, 2 * radius_rows + 1, stride=1).transpose(1, 2)
+    return x.reshape(shape)
+
+
+def _inverse_3x3(m: torch.Tensor) -> torch.Tensor:
+    """Inverse of symmetric positive definite 3x3 matrices stored as ``(3, 3, rows, cols)``
+    (adjugate over determinant: no batched LAPACK call per pixel)."""
+    a, b, c = m[0, 0], m[0, 1], m[0, 2]
+    d, e, f = m[1, 1], m[1, 2], m[2, 2]
+    c00, c01, c02 = d * f - e * e, c * e - b * f, b * e - c * d
+    c11, c12, c22 = a * f - c * c, b * c - a * e, a * d - b * b
+    det = a * c00 + b * c01 + c * c02
+    rows = [[c00, c01, c02], [c01, c11, c12], [c02, c12, c22]]
+    return torch.stack([torch.stack(row) for row in rows]) / det
+
+
+def colour_guided_filter(
+    guide: torch.Tensor, image: torch.Tensor, radius: tuple[int, int], eps: float
+) -> torch.Tensor:
+    """Edge-preserving smoothing of ``image`` steered by a colour ``guide`` (guided filter).
+
+    The colour form of :func:`guided_filter` (He, Sun & Tang, TPAMI 2013, eqs. 13-16): in every
+    window the output is the least-squares affine function of the three guide channels,
+    ``q = a . I + b`` with ``a = (Sigma + eps U)^-1 cov(I, p)``; the coefficients of all windows
+    covering a pixel are averaged. A colour guide keeps windows from crossing edges between
+    surfaces of equal brightness but different hue, which a gray guide cannot see. Windows are
+    rectangles (:func:`box_blur_rect`), so line windows are possible.
+
+    Parameters
+    ----------
+    guide : torch.Tensor, shape (3, rows, cols)
+        Colour guide image (intensities in [0, 1]).
+    image : torch.Tensor, shape (D, rows, cols)
+        What to smooth (e.g. a cost volume).
+    radius : (int, int)
+        Window radius along rows and along columns (pixels).
+    eps : float
+        Regulariser: guide variances well below it count as flat.
+
+    Returns
+    -------
+    torch.Tensor, shape of ``image``
+    """
+
+    def box(x: torch.Tensor) -> torch.Tensor:
+        return box_blur_rect(x, radius[0], radius[1])
+
+    mean_i = box(guide)
+    mean_p = box(image)
+    sigma = torch.empty((3, 3, *guide.shape[1:]), dtype=guide.dtype, device=guide.device)
+    for i in range(3):
+        for j in range(i, 3):
+            sigma[i, j] = box(guide[i] * guide[j]) - mean_i[i] * mean_i[j]
+            sigma[j, i] = sigma[i, j]
+        sigma[i, i] += eps
+    inverse = _inverse_3x3(sigma)
+    cov = [box(image * guide[i]) - mean_i[i] * mean_p for i in range(3)]
+    out = None
+    offset = mean_p
+    for i in range(3):
+        a_i = inverse[i, 0] * cov[0] + inverse[i, 1] * cov[1] + inverse[i, 2] * cov[2]
+        offset = offset - a_i * mean_i[i]
+        term = box(a_i) * guide[i]
+        out = term if out is None else out + term
+    return out + box(offset)

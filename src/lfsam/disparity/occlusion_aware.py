@@ -8,11 +8,15 @@ Steps, all whole-image torch operations (any device, CUDA when present):
    apart.
 2. *Cost volume* (:mod:`lfsam.disparity.cost_volume`): every present view of the grid resampled
    at each hypothesis, truncated differences of locally normalised intensities, the best of the
-   four half-grids per pixel (occlusion-aware view selection after Wang et al., ICCV 2015).
-3. *Aggregation.* Every cost slice is smoothed by a guided filter with the reference view as the
-   guide (:func:`lfsam.disparity.filters.guided_filter`; He et al. 2010, as the cost-volume filter
-   of Hosni et al. 2013): costs are averaged over a small window but not across the reference's
-   intensity edges, which are where depth edges usually are.
+   four half-grids per pixel where one is clearly better than all views together
+   (occlusion-aware view selection after Wang et al., ICCV 2015), else all views.
+3. *Aggregation* (:mod:`lfsam.disparity.aggregation`). Every cost slice is smoothed by a colour
+   guided filter with the reference view as the guide (He et al. 2010, as the cost-volume filter
+   of Hosni et al. 2013) over a square and over a horizontal and a vertical line window, and every
+   pixel keeps the window with the lowest cost: costs are averaged over a window that does not
+   cross the reference's colour edges (where depth edges usually are) and, on a surface slanted in
+   depth, can follow a line of constant disparity. ``aggregation="guided"`` keeps the earlier gray
+   guided filter over one square window.
 4. *Winner-take-all and sub-pixel refinement.* The lowest aggregated cost per pixel, refined by
    the equiangular (V-shaped) line fit through it and its two neighbours (the step between
    hypotheses is then no longer the resolution; :func:`subpixel_winner`).
@@ -22,10 +26,10 @@ Steps, all whole-image torch operations (any device, CUDA when present):
    the structure tensor's disparity where this one is unsure and the tensor sure (the bands
    along depth edges), the mean of the two where they agree within a quarter step.
 
-Measured (``benchmarks/bench_disparity.py``; docs/performance.md): on HCI antinous BadPix(0.07)
-7.3 % against 21.3 % for the sheared structure tensor, and lower BadPix and MSE than it on the
-synthetic scenes; a 9x9x512x512 light field in about the time of the cost volume (4-5 s on two
-CPU cores) plus the structure tensor's (2-3.5 s).
+Measured (``benchmarks/bench_disparity.py``; docs/performance.md, "Disparity"): BadPix(0.07) on
+HCI antinous 6.1 % and cotton 2.3 % (8-pixel border excluded; 7.3 % and 2.6 % before issue 45's
+view-set choice and aggregation), lower BadPix and MSE than the sheared structure tensor on the
+synthetic scenes.
 """
 
 from __future__ import annotations
@@ -43,6 +47,7 @@ from lfsam.disparity.confidence import (
 )
 from lfsam.disparity.cost_volume import build_cost_volume, view_set
 from lfsam.disparity.estimate import DisparityEstimate
+from lfsam.disparity.aggregation import aggregate_costs
 from lfsam.disparity.filters import guided_filter
 from lfsam.disparity.fusion import fuse_disparities
 from lfsam.disparity.range import estimate_disparity_range
@@ -186,7 +191,10 @@ def estimate_disparity_occlusion_aware(
     truncation: float = 1.0,
     selection_radius: int = 2,
     occlusion_aware: bool = True,
-    aggregation_radius: int = 3,
+    full_set_ratio: float | None = 0.08,
+    aggregation: str = "oriented",
+    aggregation_radius: int = 4,
+    line_radius: int = 8,
     aggregation_eps: float = 1e-4,
     edge_refinement: bool = False,
     subpixel_fit: str = "equiangular",
@@ -220,9 +228,19 @@ def estimate_disparity_occlusion_aware(
     selection_radius : int
         Window radius over which the half-grids are compared.
     occlusion_aware : bool
-        Keep the best half-grid (True) or average all views.
+        Keep the best half-grid where one is clearly better (True) or average all views.
+    full_set_ratio : float, optional
+        How much lower (relative) the best half's cost must be for it to replace all views
+        (:func:`lfsam.disparity.cost_volume.build_cost_volume`); None: always the best half (the
+        estimator before issue 45).
+    aggregation : {"oriented", "guided"}
+        ``"oriented"``: colour guided filter over a square and two line windows, the best window
+        per pixel (:func:`lfsam.disparity.aggregation.aggregate_costs`); ``"guided"``: the gray
+        guided filter over the square window only (before issue 45, with radius 3).
     aggregation_radius, aggregation_eps : int, float
-        Window radius and regulariser of the guided filter that aggregates the costs.
+        Radius of the square window and regulariser of the guided filter.
+    line_radius : int
+        Half length of the line windows of ``aggregation="oriented"`` (0: square only).
     edge_refinement : bool
         Finish with the confidence-weighted joint bilateral smoothing of
         :func:`lfsam.disparity.refine.refine_disparity` (off by default: on HCI antinous it
@@ -245,9 +263,11 @@ def estimate_disparity_occlusion_aware(
     Raises
     ------
     LfsamError
-        View outside the grid or absent, too few views in its row and column, or an invalid
-        range.
+        View outside the grid or absent, too few views in its row and column, an invalid range,
+        or an unknown ``aggregation``.
     """
+    if aggregation not in ("oriented", "guided"):
+        raise LfsamError(f"unknown aggregation {aggregation!r}: use 'oriented' or 'guided'")
     start = time.perf_counter()
     with torch.no_grad():
         views_around = view_set(
@@ -266,8 +286,18 @@ def estimate_disparity_occlusion_aware(
             truncation=truncation,
             selection_radius=selection_radius,
             occlusion_aware=occlusion_aware,
+            full_set_ratio=full_set_ratio,
         )
-        cost = guided_filter(views_around.gray, cost, aggregation_radius, aggregation_eps)
+        if aggregation == "oriented":
+            cost = aggregate_costs(
+                cost,
+                views_around.colour,
+                square_radius=aggregation_radius,
+                line_radius=line_radius,
+                eps=aggregation_eps,
+            )
+        else:
+            cost = guided_filter(views_around.gray, cost, aggregation_radius, aggregation_eps)
         cost = cost.contiguous()
         values = torch.as_tensor(hypotheses, dtype=torch.float32, device=cost.device)
         disparity, index = subpixel_winner(cost, values, subpixel_fit)
@@ -305,7 +335,10 @@ def estimate_disparity_occlusion_aware(
         "truncation": truncation,
         "selection_radius": selection_radius,
         "occlusion_aware": occlusion_aware,
+        "full_set_ratio": full_set_ratio,
+        "aggregation": aggregation,
         "aggregation_radius": aggregation_radius,
+        "line_radius": line_radius,
         "aggregation_eps": aggregation_eps,
         "edge_refinement": edge_refinement,
         "subpixel_fit": subpixel_fit,
