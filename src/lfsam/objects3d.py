@@ -10,7 +10,9 @@ trajectory and speed (:func:`lfsam.spatial.trajectories`).
 
 The disparity is the default estimator's **with** its structure-tensor fusion
 (:func:`lfsam.disparity.estimate_disparity`, the lower depth error; docs/design.md section 3.2)
-and its confidence, the ground truth (``"gt"``, every pixel confident), or a map (a ``.npy``
+and its confidence, each object whose inside shows something else than its surface (glass,
+mirror: :func:`lfsam.disparity.non_lambertian.surface_disparity`) given its silhouette's depth
+there, the ground truth (``"gt"``, every pixel confident), or a map (a ``.npy``
 file or an array, every pixel confident). The camera is given (:class:`lfsam.camera.Camera` or
 a ``--camera`` JSON path) or the one the light field carries (:func:`lfsam.camera.camera_of`).
 """
@@ -35,6 +37,7 @@ from lfsam.camera import (
     missing_camera_message,
 )
 from lfsam.disparity.methods import estimate_disparity
+from lfsam.disparity.non_lambertian import surface_disparity_of_view
 from lfsam.disparity.range import estimate_disparity_range
 from lfsam.disparity.source import load_disparity_spec, resolve_view_disparity
 from lfsam.errors import LfsamError
@@ -200,10 +203,21 @@ def estimates_for(lightfield: LightField, device: str | None = None) -> ViewEsti
 
 
 def _view_disparity(spec, lightfield: LightField, view, device, name: str,
-                    estimates: ViewEstimates | None):
-    """(disparity, confidence or None) of one view."""
+                    estimates: ViewEstimates | None, labels=None, ids=(), surface: bool = True):
+    """(disparity, confidence or None) of one view; an estimate gets its glass and mirror
+    objects' surface depth from their silhouettes (``labels``, ``ids``;
+    :func:`lfsam.disparity.non_lambertian.surface_disparity`)."""
     if isinstance(spec, str) and spec == "estimate":
-        return (estimates or estimates_for(lightfield, device))(view)
+        disparity, confidence = (estimates or estimates_for(lightfield, device))(view)
+        if not (surface and len(ids)):
+            return disparity, confidence
+        confidence = np.array(confidence, dtype=np.float32)  # the kept estimate stays as it is
+        masks = np.stack([labels == i for i in ids])
+        disparity, _ = surface_disparity_of_view(
+            lightfield.views, view, disparity, masks, lightfield.present,
+            device=device, confidence=confidence,
+        )
+        return disparity, confidence
     disparity, _, _ = resolve_view_disparity(spec, lightfield, view=view, device=device,
                                              name=name)
     return np.asarray(disparity), None
@@ -220,6 +234,7 @@ def objects_in_3d(
     device: str | None = None,
     progress: Callable[[Iterable], Iterable] | None = None,
     estimates: ViewEstimates | None = None,
+    surface_depth: bool = True,
 ) -> Objects3D:
     """Every object of ``result`` as points and measures in metres (module docstring).
 
@@ -245,6 +260,9 @@ def objects_in_3d(
         Wraps the iterable of views (e.g. ``tqdm``) with ``views="all"``.
     estimates : ViewEstimates, optional
         The estimates to use and fill (default: the set kept for ``lightfield``).
+    surface_depth : bool
+        With ``"estimate"``: glass and mirror objects get their silhouette's depth inside
+        (:func:`lfsam.disparity.non_lambertian.surface_disparity`; docs/design.md section 3.2).
 
     Returns
     -------
@@ -278,7 +296,8 @@ def objects_in_3d(
     has_truth = lightfield.disparity is not None and name != "gt"
     parts: dict[int, list[ObjectPoints]] = {i: [] for i in ids}
     for view in progress(chosen) if progress is not None else chosen:
-        disp, confidence = _view_disparity(spec, lightfield, view, device, name, estimates)
+        disp, confidence = _view_disparity(spec, lightfield, view, device, name, estimates,
+                                           result.labels[view], ids, surface_depth)
         truth = None
         if has_truth:
             truth, _, _ = resolve_view_disparity("gt", lightfield, view=view, device=device)

@@ -6,9 +6,10 @@ averages cost curves whose minima lie at different disparities, which flattens t
 the aggregated curve, and where it is flat the winner is decided by noise (the floor of HCI
 antinous, whose disparity changes by 0.06 px per row, held 58 % of that scene's BadPix(0.07)
 errors with a 7 x 7 window). Along a line of constant disparity (on a plane, a straight line)
-the minima agree (a strip 3 pixels wide, not 1, keeps some robustness to noise). So every cost slice is filtered three times, each time by the colour guided
-filter (:func:`lfsam.disparity.filters.colour_guided_filter`, the reference view as guide, so
-that no window crosses a colour edge: cost-volume filtering, Hosni et al., TPAMI 2013):
+the minima agree (a strip 3 pixels wide, not 1, keeps some robustness to noise). So every cost
+slice is filtered three times, each time by the colour guided filter
+(:func:`lfsam.disparity.filters.colour_guided_filter`, the reference view as guide, so that no
+window crosses a colour edge: cost-volume filtering, Hosni et al., TPAMI 2013):
 
 - over a ``(2 r + 1)^2`` square (``r = square_radius``),
 - over a horizontal and a vertical strip of ``2 l + 1`` by 3 pixels (``l = line_radius``),

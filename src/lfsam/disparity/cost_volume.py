@@ -109,6 +109,9 @@ class ViewSet:
     colour : torch.Tensor, shape (3, U, V), or None
         The reference view in RGB, [0, 1] (the colour guide of the aggregation); None when the
         set was built without it.
+    grays : torch.Tensor, shape (N, U, V), or None
+        The other views in gray levels, [0, 1] (the photo-consistency residual of
+        :mod:`lfsam.disparity.non_lambertian`).
     """
 
     def __init__(
@@ -119,6 +122,7 @@ class ViewSet:
         reference_features: torch.Tensor,
         offsets: np.ndarray,
         colour: torch.Tensor | None = None,
+        grays: torch.Tensor | None = None,
     ) -> None:
         self.reference = reference
         self.gray = gray
@@ -126,6 +130,7 @@ class ViewSet:
         self.reference_features = reference_features
         self.offsets = offsets
         self.colour = colour
+        self.grays = grays
 
     @property
     def device(self) -> torch.device:
@@ -177,7 +182,8 @@ def view_set(
     reference_features = matching_features(reference_gray, feature_radius, feature_eps)
     offsets = np.array([(s - s_r, t - t_r) for s, t in others], dtype=np.int64).reshape(-1, 2)
     return ViewSet(
-        (s_r, t_r), reference_gray, features, reference_features, offsets, colour.contiguous()
+        (s_r, t_r), reference_gray, features, reference_features, offsets, colour.contiguous(),
+        stack,
     )
 
 

@@ -40,6 +40,7 @@ import time
 import numpy as np
 import torch
 
+from lfsam.disparity.aggregation import aggregate_costs
 from lfsam.disparity.confidence import (
     combine_confidence,
     consistency_confidence,
@@ -47,7 +48,6 @@ from lfsam.disparity.confidence import (
 )
 from lfsam.disparity.cost_volume import build_cost_volume, view_set
 from lfsam.disparity.estimate import DisparityEstimate
-from lfsam.disparity.aggregation import aggregate_costs
 from lfsam.disparity.filters import guided_filter
 from lfsam.disparity.fusion import fuse_disparities
 from lfsam.disparity.range import estimate_disparity_range

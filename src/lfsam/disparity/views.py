@@ -66,6 +66,11 @@ class ViewDisparities:
             self._cache[key] = (disparity, source, holes)
         return self._cache[key]
 
+    @property
+    def estimated(self) -> bool:
+        """Whether the disparity is the estimator's (``"estimate"``), not a given map."""
+        return isinstance(self._spec, str) and self._spec == "estimate"
+
     def get(self, view: tuple[int, int] | None = None) -> np.ndarray:
         """Disparity of ``view`` (default the center), ``(U, V)`` float32, read-only."""
         return self._resolve(view)[0]

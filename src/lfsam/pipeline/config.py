@@ -61,6 +61,10 @@ class PipelineConfig:
         view's mask of each object is voted by its own and its nearest refined views' masks,
         carried by disparity (:mod:`lfsam.pipeline.voting`); a refined mask the vote changes
         beyond recognition is replaced and counted (result ``meta["consensus_replaced"]``).
+    surface_depth : bool
+        With an estimated disparity: an object whose inside shows something else than its
+        surface (glass, a mirror) gets its silhouette's depth there before its mask is carried
+        (:func:`lfsam.disparity.non_lambertian.surface_disparity`, docs/design.md section 3.2).
 
     Raises
     ------
@@ -79,6 +83,7 @@ class PipelineConfig:
     encode_batch_size: int | None = None
     refine_views: str | int = "all"
     consensus: bool = False
+    surface_depth: bool = True
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "refine_views", check_refine_views(self.refine_views))

@@ -20,6 +20,7 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
+from lfsam.disparity.non_lambertian import surface_disparity_of_view
 from lfsam.disparity.views import ViewDisparities
 from lfsam.embeddings import EmbeddingStore
 from lfsam.lightfield import LightField
@@ -100,6 +101,9 @@ class StreamingEngine:
             segmenter, lightfield.views, cache_dir=cache_dir, memory_budget_mb=memory_budget_mb
         )
         self._disp_tensors: dict[tuple[View, bool], torch.Tensor] = {}
+        #: Silhouettes of the objects referenced in a view (the surface depth of glass and
+        #: mirrors, :meth:`_surface_masks`).
+        self._surfaces: dict[View, np.ndarray] = {}
         self._warps: OrderedDict[tuple[View, View, bool], ForwardWarp] = OrderedDict()
         self._base: frozenset[View] | None = None
         #: The fill and the consensus: votes of refined views (:mod:`lfsam.pipeline.voting`).
@@ -123,6 +127,11 @@ class StreamingEngine:
         if key not in self._disp_tensors:
             with self.timer("disparity"):
                 disp = self.disparities.carried(view) if carried else self.disparities.get(view)
+                if view in self._surfaces and not carried:
+                    disp, _ = surface_disparity_of_view(
+                        self.lightfield.views, view, disp, self._surfaces[view],
+                        self.lightfield.present, device=self.device,
+                    )
             self._disp_tensors[key] = torch.tensor(disp, dtype=torch.float32, device=self.device)
         return self._disp_tensors[key]
 
@@ -201,6 +210,21 @@ class StreamingEngine:
                     score=scores[i],
                     feature=None if features is None else features[k],
                 )
+            self._surface_masks(objects, view)
+
+    def _surface_masks(self, objects: Mapping[int, TrackedObject], view: View) -> None:
+        """Keep the silhouettes of every object referenced in ``view`` for its disparity
+        (an estimate only; ``config.surface_depth``) and forget what its old disparity gave."""
+        if not (self.config.surface_depth and self.disparities.estimated):
+            return
+        refs = [objects[i].reference for i in objects]
+        masks = [r.mask for r in refs if r is not None and r.view == view]
+        if not masks:
+            return
+        self._surfaces[view] = torch.stack(masks).bool().cpu().numpy()
+        self._disp_tensors.pop((view, False), None)
+        for key in [key for key in self._warps if key[0] == view and not key[2]]:
+            self._warp_bytes -= _warp_nbytes(self._warps.pop(key))
 
     def _decode_references(
         self,

@@ -23,6 +23,16 @@ from tqdm import tqdm
 from lfsam.camera import synthetic_camera
 from lfsam.devices import resolve_device
 from lfsam.lightfield import LightField
+from lfsam.synth.materials import (
+    GLASS_REFLECTANCE,
+    REFLECTANCE,
+    SEE_THROUGH,
+    assign_materials,
+    inner_region,
+    mirror_colour,
+    reflection_texture,
+    refracted_grid,
+)
 from lfsam.synth.raster import region, zbuffer
 from lfsam.synth.scene import random_scene
 from lfsam.synth.shapes import inside
@@ -58,11 +68,15 @@ def _render_rgb(
     vs: torch.Tensor,
     specular: float = 0.0,
     reach: float = 1.0,
+    materials: dict[int, str] | None = None,
+    reflections: dict[int, torch.Tensor] | None = None,
 ) -> torch.Tensor:
     """Z-buffer and colour every sample in one pass; returns ``[3, rows, cols]``.
 
     Each patch is evaluated on its bounding box only: where its outline covers a sample and it
-    is closer than what is there, its bilinearly sampled texture replaces the colour.
+    is closer than what is there, its bilinearly sampled texture replaces the colour. Inside the
+    frame of a glass or mirror object (``materials``, :mod:`lfsam.synth.materials`) the colour
+    mixes in the scene behind it (rendered without it, refracted) or its reflection.
     """
     shape = (us.shape[0], vs.shape[1])
     rgb = torch.zeros((3, *shape), dtype=torch.float32, device=us.device)
@@ -89,6 +103,12 @@ def _render_rgb(
         )[0]
         if specular > 0 and obj.shape != "plane":
             sampled = add_highlight(sampled, obj, x, y, ds, dt, reach, specular)
+        material = (materials or {}).get(obj.label, "matte")
+        if material != "matte" and obj.shape != "plane":
+            sampled = _see_inside(
+                sampled, obj, material, x, y, u, v, (objects, textures, ds, dt, us, vs),
+                (rows, cols), reflections,
+            )
         if first and obj.shape == "plane":
             best, rgb = d.expand(shape).clone(), sampled  # the first, unbounded patch
             first = False
@@ -98,6 +118,39 @@ def _render_rgb(
         best[rows, cols] = torch.where(take, d, best[rows, cols])
         rgb[:, rows, cols] = torch.where(take[None], sampled, rgb[:, rows, cols])
     return rgb
+
+
+def _see_inside(
+    sampled: torch.Tensor,
+    obj: PlanarObject,
+    material: str,
+    x: torch.Tensor,
+    y: torch.Tensor,
+    u: torch.Tensor,
+    v: torch.Tensor,
+    scene: tuple,
+    window: tuple[slice, slice],
+    reflections: dict[int, torch.Tensor] | None,
+) -> torch.Tensor:
+    """The colour of a glass or mirror object's samples: its texture on the frame, inside the
+    frame the scene behind (glass) or the reflection (mirror) mixed with it."""
+    objects, textures, ds, dt, us, vs = scene
+    if material == "glass":
+        keep = [i for i, other in enumerate(objects) if other is not obj]
+        ru, rv = refracted_grid(obj, ds, dt, us, vs)
+        behind = _render_rgb(
+            [objects[i] for i in keep], [textures[i] for i in keep], ds, dt, ru, rv
+        )[:, window[0], window[1]]
+        reflected = mirror_colour(obj, ds, dt, u, v, (reflections or {})[obj.label])
+        mixed = (
+            SEE_THROUGH * behind
+            + GLASS_REFLECTANCE * reflected
+            + (1.0 - SEE_THROUGH - GLASS_REFLECTANCE) * sampled
+        )
+    else:
+        reflected = mirror_colour(obj, ds, dt, u, v, (reflections or {})[obj.label])
+        mixed = REFLECTANCE * reflected + (1.0 - REFLECTANCE) * sampled
+    return torch.where(inner_region(obj, x, y)[None], mixed, sampled)
 
 
 def _box_average(rgb: torch.Tensor, k: int) -> torch.Tensor:
@@ -116,6 +169,7 @@ def render_scene(
     supersample: int = 2,
     device: str | torch.device | None = None,
     specular: float = 0.0,
+    materials: dict[int, str] | None = None,
 ) -> LightField:
     """Render every view of a scene with its exact disparity and labels.
 
@@ -130,6 +184,10 @@ def render_scene(
     specular : float
         Brightness of a specular highlight on every object that moves across views
         (:mod:`lfsam.synth.specular`; 0 = Lambertian surfaces, the default).
+    materials : dict, optional
+        ``{label: "glass" | "mirror" | "matte"}`` (:mod:`lfsam.synth.materials`): glass and
+        mirror objects show the scene behind them or a reflection inside an opaque frame; the
+        disparity and labels stay their surface's. Default: every object matte.
 
     Returns
     -------
@@ -146,6 +204,12 @@ def render_scene(
     center = spec.center
     objects = spec.objects
     textures = [_texture(obj, supersample, device) for obj in objects]
+    materials = {int(k): str(m) for k, m in (materials or {}).items() if m != "matte"}
+    reflections = {
+        obj.label: reflection_texture(obj, tuple(textures[i].shape[1:]), supersample).to(device)
+        for i, obj in enumerate(objects)
+        if materials.get(obj.label) in ("glass", "mirror")
+    }
     label_of = torch.tensor([obj.label for obj in objects] + [0], dtype=torch.int32, device=device)
     us, vs = _sample_grid(spec.size, supersample, torch.float32, device)
     pu, pv = _sample_grid(spec.size, 1, torch.float64, device)
@@ -156,7 +220,9 @@ def render_scene(
     reach = float(max(center[0], s_count - 1 - center[0], center[1], t_count - 1 - center[1], 1))
     for s, t in tqdm(order, desc="rendering views", unit="view", disable=None, leave=False):
         ds, dt = float(s - center[0]), float(t - center[1])
-        rgb = _render_rgb(objects, textures, ds, dt, us, vs, specular, reach)
+        rgb = _render_rgb(
+            objects, textures, ds, dt, us, vs, specular, reach, materials, reflections
+        )
         if supersample > 1:
             rgb = _box_average(rgb, supersample)
         rgb = (rgb * 255.0).round().clamp(0, 255).to(torch.uint8)
@@ -174,6 +240,7 @@ def render_scene(
             **spec.meta,
             "supersample": supersample,
             **({"specular": float(specular)} if specular > 0 else {}),
+            **({"materials": {str(k): m for k, m in materials.items()}} if materials else {}),
             "objects": [obj.describe() for obj in objects],
         },
     }
@@ -231,6 +298,8 @@ def generate_scene(
     device: str | torch.device | None = None,
     hidden_objects: int = 0,
     specular: float = 0.0,
+    glass: int = 0,
+    mirror: int = 0,
 ) -> LightField:
     """A random synthetic light field with exact per-view disparity and instance labels.
 
@@ -275,6 +344,11 @@ def generate_scene(
         Brightness (0 to 1) of a specular highlight on every object that slides over it from
         view to view (non-Lambertian surfaces, :mod:`lfsam.synth.specular`); 0 (default): none.
         The geometry and labels are those of ``specular=0``.
+    glass, mirror : int
+        How many objects are glass (the first ``glass`` objects after the background) and how
+        many mirrors (the next ``mirror``): inside an opaque frame they show the scene behind
+        them, refracted, or a reflection (:mod:`lfsam.synth.materials`). Geometry, labels and
+        ground truth are those of ``glass=mirror=0`` (the same scene made matte).
 
     Returns
     -------
@@ -297,7 +371,11 @@ def generate_scene(
         label_background=label_background,
         hidden_objects=hidden_objects,
     )
-    return render_scene(spec, supersample=supersample, device=device, specular=specular)
+    labels = [obj.label for obj in spec.objects[1:]]
+    materials = assign_materials(labels, glass, mirror) if glass or mirror else None
+    return render_scene(
+        spec, supersample=supersample, device=device, specular=specular, materials=materials
+    )
 
 
 def demo_scene() -> LightField:
