@@ -154,9 +154,11 @@ def sweep_points(
     rows: np.ndarray,
     cols: np.ndarray,
     hypotheses: np.ndarray,
+    base: np.ndarray | None = None,
 ) -> float:
     """The one disparity at which a set of reference pixels (e.g. an object's rim) is most
-    photo-consistent: for each hypothesis every view is sampled where each pixel would be seen,
+    photo-consistent (with ``base``, per pixel: the offset added to ``base`` at which they are):
+    for each hypothesis every view is sampled where each pixel would be seen,
     a pixel's residual is the mean absolute gray difference over its best half-grid (an
     occluder hides one side first), and the hypothesis with the lowest median residual over
     the pixels wins, refined by a parabola through its neighbours."""
@@ -164,11 +166,14 @@ def sweep_points(
     r = torch.as_tensor(rows, dtype=torch.float32, device=device)
     c = torch.as_tensor(cols, dtype=torch.float32, device=device)
     ref = reference[r.long(), c.long()]
+    shift = torch.zeros_like(r) if base is None else torch.as_tensor(
+        base, dtype=torch.float32, device=device)
     halves = [[k for k, (ds, dt) in enumerate(np.asarray(offsets).tolist()) if on(ds, dt)]
               for on in (lambda ds, dt: dt < 0, lambda ds, dt: dt > 0,
                          lambda ds, dt: ds < 0, lambda ds, dt: ds > 0)]
     costs = []
-    for d in np.asarray(hypotheses, dtype=np.float64).tolist():
+    for value in np.asarray(hypotheses, dtype=np.float64).tolist():
+        d = shift + value
         diffs = torch.stack([
             (_sample_points(grays[k], r - d * ds, c - d * dt) - ref).abs()
             for k, (ds, dt) in enumerate(np.asarray(offsets).tolist())
@@ -192,16 +197,15 @@ def rim_plane(
     views: tuple[torch.Tensor, torch.Tensor, np.ndarray],
     rows: np.ndarray,
     cols: np.ndarray,
+    estimate: np.ndarray,
     search: tuple[float, float],
-    sectors: int = 8,
-) -> np.ndarray | None:
-    """The plane ``d = a + b u + c v`` of an object's rim, from the silhouette itself.
+) -> np.ndarray:
+    """The plane ``d = a + b u + c v`` of an object's rim, its level from the silhouette itself.
 
-    The whole rim is swept first (steps of 0.1 over ``search``), then each of ``sectors``
-    angular sectors of it around its centroid is swept within 0.8 of that (steps of 0.05,
-    :func:`sweep_points`); a plane is fitted robustly through the sectors' centres (a single
-    disparity when fewer than three sectors have ten pixels). The rim's own pixels decide, not
-    the estimator's windows, which straddle a thin rim and the inside.
+    The slope ``(b, c)`` is the robust plane fit to the estimate on the rim; the level ``a`` is
+    swept (:func:`sweep_points` with that slope as ``base``: steps of 0.1 over ``search``, then
+    of 0.02 within 0.2 of the best): the rim's own pixels decide it, not the estimator's
+    windows, which straddle a thin rim and the inside and pull its level towards the inside's.
 
     Parameters
     ----------
@@ -209,29 +213,23 @@ def rim_plane(
         As :func:`gray_views` returns them.
     rows, cols : ndarray
         The rim's pixels.
+    estimate : ndarray
+        The estimated disparity at those pixels.
     search : (lo, hi)
         Disparities to search.
     """
     reference, grays, offsets = views
-    lo, hi = search
+    coef, _ = _plane_fit(rows.astype(np.float64), cols.astype(np.float64),
+                         estimate.astype(np.float64), np.ones(len(rows)))
+    base = coef[1] * rows + coef[2] * cols
+    lo, hi = search[0] - float(base.max()), search[1] - float(base.min())
     coarse = np.arange(lo, hi + 1e-9, 0.1)
     if len(coarse) < 3:
         coarse = np.linspace(lo, hi, 3)
-    level = sweep_points(grays, reference, offsets, rows, cols, coarse)
-    fine = np.arange(level - 0.8, level + 0.8 + 1e-9, 0.05)
-    angle = np.arctan2(rows - rows.mean(), cols - cols.mean())
-    sector = np.minimum(((angle + np.pi) / (2 * np.pi) * sectors).astype(int), sectors - 1)
-    points = []
-    for k in range(sectors):
-        chosen = sector == k
-        if chosen.sum() >= 10:
-            d = sweep_points(grays, reference, offsets, rows[chosen], cols[chosen], fine)
-            points.append((rows[chosen].mean(), cols[chosen].mean(), d, chosen.sum()))
-    if len(points) < 3:
-        return np.array([level, 0.0, 0.0])
-    pr, pc, pd, pw = (np.array(x, dtype=np.float64) for x in zip(*points, strict=True))
-    coef, _ = _plane_fit(pr, pc, pd, pw)
-    return coef
+    level = sweep_points(grays, reference, offsets, rows, cols, coarse, base)
+    fine = np.arange(level - 0.2, level + 0.2 + 1e-9, 0.02)
+    level = sweep_points(grays, reference, offsets, rows, cols, fine, base)
+    return np.array([level, coef[1], coef[2]])
 
 
 def surface_disparity(
@@ -240,7 +238,7 @@ def surface_disparity(
     residual: np.ndarray,
     views: tuple[torch.Tensor, torch.Tensor, np.ndarray],
     *,
-    rim: int = 3,
+    rim: int = 2,
     ratio: float = 1.25,
     min_residual: float = 0.006,
     margin: float = 0.25,
@@ -306,7 +304,7 @@ def surface_disparity(
         # cheap first look: the estimate's own inside against its rim
         if float(np.median(disparity[iu, iv]) - np.median(disparity[rr, cc])) >= -margin:
             continue
-        coef = rim_plane(views, rr, cc, search)
+        coef = rim_plane(views, rr, cc, disparity[rr, cc], search)
         plane = coef[0] + coef[1] * iu + coef[2] * iv
         behind = float(np.median(disparity[iu, iv] - plane))
         info["behind"] = round(behind, 4)
