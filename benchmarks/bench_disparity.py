@@ -31,7 +31,7 @@ object its mean view IoU minus that of the same object in the same scene made ma
 within 0.01) and the relative error of its median depth from ``objects_in_3d`` (target: 2 %).
 
 Usage: python benchmarks/bench_disparity.py [--size 240x320] [--timing-size 512x512] [--no-real]
-       [--no-glass] [--no-timing]
+       [--no-glass] [--no-timing] [--glass-only]
 """
 
 from __future__ import annotations
@@ -155,10 +155,15 @@ def main() -> None:
     parser.add_argument("--no-real", action="store_true", help="skip the HCI scenes")
     parser.add_argument("--no-glass", action="store_true", help="skip glass and mirror objects")
     parser.add_argument("--no-timing", action="store_true", help="skip the 512x512 timing runs")
+    parser.add_argument("--glass-only", action="store_true",
+                        help="only the glass and mirror figures")
     args = parser.parse_args()
     size = tuple(int(x) for x in args.size.split("x"))
     timing_size = tuple(int(x) for x in args.timing_size.split("x"))
     torch.set_num_threads(2)
+    if args.glass_only:
+        glass_part()
+        return
     matte = generate_scene(grid=(9, 9), size=size, seed=11, disparity_range=(-3.0, 3.0))
     glossy = generate_scene(grid=(9, 9), size=size, seed=11, disparity_range=(-3.0, 3.0),
                             specular=SPECULAR)

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import torch
 
+from lfsam.disparity import estimate_disparity
 from lfsam.disparity.aggregation import aggregate_costs
 from lfsam.disparity.cost_volume import build_cost_volume, view_set
 from lfsam.disparity.filters import (
@@ -16,7 +17,6 @@ from lfsam.disparity.filters import (
     guided_filter,
 )
 from lfsam.errors import LfsamError
-from lfsam.disparity import estimate_disparity
 
 
 def _random(shape, seed=0):

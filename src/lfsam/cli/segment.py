@@ -148,6 +148,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     add_refine_views_argument(method)
     add_consensus_argument(method)
+    method.add_argument(
+        "--no-surface-depth", action="store_true",
+        help="with --disparity estimate, carry a glass or mirror object's mask by what its "
+        "inside shows instead of by its silhouette's depth (docs/design.md section 3.2)",
+    )
     add_tracking_argument(method)
     add_follow_arguments(parser)
     method.add_argument(
@@ -209,6 +214,7 @@ def run(args: argparse.Namespace) -> int:
         t_iou=args.t_iou,
         refine_views=args.refine_views,
         consensus=args.consensus,
+        surface_depth=not args.no_surface_depth,
     )
     if args.follow:  # issue 35: a frames folder still being written
         return run_follow(args, config, has_prompts)

@@ -62,6 +62,7 @@ examples:
   lfsam synth wide --disparity-range=-4,4              # note the '=' for negative numbers
   lfsam synth hidden.npz --hidden-objects 3            # 3 objects only the outer views see
   lfsam synth glossy --specular 0.6                    # highlights that move across views
+  lfsam synth glassy --glass 1 --mirror 1              # a see-through and a mirror object
   lfsam synth clip --frames 6 --grid 5x5 --size 96x128 # a light-field video of 6 frames
   lfsam synth hard --frames 12 --grid 5x5 --size 96x128 --objects 5 --hard
   lfsam synth boxes --rigid --seed 7                   # 3 boxes, 10 frames of 7x7 x 240x320
@@ -85,10 +86,11 @@ def _positive_pair(text: str) -> tuple[int, int]:
 
 def _run_video(args: argparse.Namespace) -> int:
     """``--frames F``: a synthetic light-field video folder, written frame by frame."""
-    if args.hidden_objects or args.specular or str(args.out).lower().endswith(".npz"):
+    special = args.hidden_objects or args.specular or args.glass or args.mirror
+    if special or str(args.out).lower().endswith(".npz"):
         raise LfsamError(
-            "--frames writes a folder of frames (give OUT without .npz) and takes neither "
-            "--hidden-objects nor --specular"
+            "--frames writes a folder of frames (give OUT without .npz) and takes none of "
+            "--hidden-objects, --specular, --glass, --mirror"
         )
     check_writable(args.out, folder=True, option="OUT")
     frames = generate_video(
@@ -110,10 +112,11 @@ def _run_video(args: argparse.Namespace) -> int:
 def _run_rigid(args: argparse.Namespace) -> int:
     """``--rigid``: a video of rigid boxes under known 3D motion (docs/design.md section 12)."""
     if (args.hidden_objects or args.specular or args.hard or args.disparity_range is not None
-            or str(args.out).lower().endswith(".npz")):
+            or args.glass or args.mirror or str(args.out).lower().endswith(".npz")):
         raise LfsamError(
-            "--rigid writes a folder of frames (give OUT without .npz) and takes neither "
-            "--hidden-objects, --specular, --hard nor --disparity-range (its camera is fixed)"
+            "--rigid writes a folder of frames (give OUT without .npz) and takes none of "
+            "--hidden-objects, --specular, --hard, --glass, --mirror, --disparity-range (its "
+            "camera is fixed)"
         )
     if args.objects < 1:
         raise LfsamError("--rigid needs --objects of at least 1 box")
@@ -158,6 +161,11 @@ def run(args: argparse.Namespace) -> int:
         return _run_video(args)
     if args.hard:
         raise LfsamError("--hard makes a hard light-field video: give it with --frames F")
+    if args.glass + args.mirror > args.objects:
+        raise LfsamError(
+            f"--glass {args.glass} + --mirror {args.mirror} objects asked for but only "
+            f"--objects {args.objects}; raise --objects or lower them"
+        )
     npz = args.format == "npz" if args.format else str(args.out).lower().endswith(".npz")
     check_writable(args.out, folder=not npz, option="OUT")  # fail before the work, not after
     resolve_output(args.out, args.format)
@@ -177,10 +185,14 @@ def run(args: argparse.Namespace) -> int:
         supersample=args.supersample,
         hidden_objects=args.hidden_objects,
         specular=args.specular,
+        glass=args.glass,
+        mirror=args.mirror,
     )
     out = write_lightfield(lf, args.out, format=args.format)
     hidden = f" + {args.hidden_objects} hidden" if args.hidden_objects else ""
     hidden += f", specular {args.specular:g}" if args.specular else ""
+    hidden += f", {args.glass} glass" if args.glass else ""
+    hidden += f", {args.mirror} mirror" if args.mirror else ""
     print(
         f"wrote {out}: {args.grid[0]}x{args.grid[1]} views of {args.size[0]}x{args.size[1]}, "
         f"seed {args.seed}, {args.objects} objects{hidden}, disparity "
@@ -238,6 +250,20 @@ def register(subparsers) -> None:
         default=0.0,
         metavar="STRENGTH",
         help="peak brightness (0-1) of a highlight on each object that moves across views",
+    )
+    parser.add_argument(
+        "--glass",
+        type=bounded_int(0),
+        default=0,
+        metavar="N",
+        help="make the first N objects see-through (glass: the scene behind shows, refracted)",
+    )
+    parser.add_argument(
+        "--mirror",
+        type=bounded_int(0),
+        default=0,
+        metavar="N",
+        help="make the next N objects mirrors (a reflection moving with its own disparity)",
     )
     parser.add_argument(
         "--frames",

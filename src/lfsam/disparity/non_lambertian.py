@@ -31,6 +31,7 @@ import torch
 import torch.nn.functional as F
 from scipy import ndimage
 
+from lfsam.devices import resolve_device
 from lfsam.disparity.filters import box_blur
 
 __all__ = [
@@ -118,10 +119,11 @@ def _plane_fit(
 
 def gray_views(
     views: np.ndarray, reference: tuple[int, int], present: np.ndarray | None = None,
-    device: str | torch.device = "cpu",
+    device: str | torch.device | None = "cpu",
 ) -> tuple[torch.Tensor, torch.Tensor, np.ndarray]:
     """The reference and the other present views in gray levels, with their offsets (the
     arguments of :func:`photo_residual`)."""
+    device = resolve_device(device)
     luma = torch.tensor((0.299, 0.587, 0.114), device=device)
     s_count, t_count = views.shape[:2]
     present = np.ones((s_count, t_count), bool) if present is None else present
@@ -155,6 +157,7 @@ def sweep_points(
     cols: np.ndarray,
     hypotheses: np.ndarray,
     base: np.ndarray | None = None,
+    margin: list[float] | None = None,
 ) -> float:
     """The one disparity at which a set of reference pixels (e.g. an object's rim) is most
     photo-consistent (with ``base``, per pixel: the offset added to ``base`` at which they are):
@@ -183,6 +186,10 @@ def sweep_points(
         costs.append(float(best.median()))
     costs_arr = np.asarray(costs)
     i = int(np.argmin(costs_arr))
+    if margin is not None:  # the cost-curve margin of the winner (as margin_confidence)
+        far = np.abs(np.arange(len(costs_arr)) - i) > 2
+        second = float(costs_arr[far].min()) if far.any() else float(costs_arr[i])
+        margin.append(max(0.0, (second - float(costs_arr[i])) / (second + 1e-3)))
     value = float(hypotheses[i])
     if 0 < i < len(costs_arr) - 1:
         below, mid, above = costs_arr[i - 1], costs_arr[i], costs_arr[i + 1]
@@ -199,6 +206,7 @@ def rim_plane(
     cols: np.ndarray,
     estimate: np.ndarray,
     search: tuple[float, float],
+    margin: list[float] | None = None,
 ) -> np.ndarray:
     """The plane ``d = a + b u + c v`` of an object's rim, its level from the silhouette itself.
 
@@ -217,6 +225,9 @@ def rim_plane(
         The estimated disparity at those pixels.
     search : (lo, hi)
         Disparities to search.
+    margin : list, optional
+        Receives the coarse sweep's cost-curve margin ``(c2 - c1) / (c2 + 0.001)`` (``c2`` the
+        best cost more than two steps away): how clearly the silhouette decides.
     """
     reference, grays, offsets = views
     coef, _ = _plane_fit(rows.astype(np.float64), cols.astype(np.float64),
@@ -226,7 +237,7 @@ def rim_plane(
     coarse = np.arange(lo, hi + 1e-9, 0.1)
     if len(coarse) < 3:
         coarse = np.linspace(lo, hi, 3)
-    level = sweep_points(grays, reference, offsets, rows, cols, coarse, base)
+    level = sweep_points(grays, reference, offsets, rows, cols, coarse, base, margin)
     fine = np.arange(level - 0.2, level + 0.2 + 1e-9, 0.02)
     level = sweep_points(grays, reference, offsets, rows, cols, fine, base)
     return np.array([level, coef[1], coef[2]])
@@ -254,9 +265,10 @@ def surface_disparity(
 
     - its median photo-consistency residual (:func:`photo_residual`) is at least ``ratio`` times
       the rim's and at least ``min_residual``: the views disagree there once aligned, and
-    - its median disparity lies more than ``margin`` pixels per view step behind the rim's plane:
-      what is seen is farther than the outline that encloses it (the scene through a glass, the
-      virtual image in a mirror; a Lambertian concave object keeps a low residual),
+    - its disparity lies more than ``margin`` pixels per view step behind the rim's plane (its
+      lower quartile: the inside starts with the rest of a wide frame): what is seen is farther
+      than the outline that encloses it (the scene through a glass, the virtual image in a
+      mirror; a Lambertian concave object keeps a low residual),
 
     and then takes the plane's disparity. An inside more than ``far * margin`` behind its rim
     is filled without the residual: a mirror whose reflection dominates is photo-consistent at
@@ -274,15 +286,15 @@ def surface_disparity(
     rim, ratio, min_residual, margin, far
         See above.
     confidence : ndarray, shape (U, V), optional
-        The disparity's confidence, updated in place: a filled inside takes the median
-        confidence of its rim.
+        The disparity's confidence, updated in place: a filled inside takes the margin of its
+        rim's sweep (:func:`rim_plane`; ``confidence`` in the report).
 
     Returns
     -------
     disparity : ndarray, shape (U, V), float32
     objects : list of dict
-        Per mask: ``index``, ``inside_residual``, ``rim_residual``, ``behind`` (median of the
-        inside minus the rim's plane), ``filled``.
+        Per mask: ``index``, ``inside_residual``, ``rim_residual``, ``behind`` (lower quartile
+        of the inside minus the rim's plane), ``filled``.
     """
     out = np.array(disparity, dtype=np.float32, copy=True)
     search = (float(np.nanmin(disparity)) - 0.5, float(np.nanmax(disparity)) + 0.5)
@@ -302,17 +314,19 @@ def surface_disparity(
         info.update(inside_residual=round(inside_res, 5), rim_residual=round(rim_res, 5))
         disagree = inside_res >= max(ratio * rim_res, min_residual)
         # cheap first look: the estimate's own inside against its rim
-        if float(np.median(disparity[iu, iv]) - np.median(disparity[rr, cc])) >= -margin:
+        if float(np.percentile(disparity[iu, iv], 25) - np.median(disparity[rr, cc])) >= -margin:
             continue
-        coef = rim_plane(views, rr, cc, disparity[rr, cc], search)
+        sharpness: list[float] = []
+        coef = rim_plane(views, rr, cc, disparity[rr, cc], search, sharpness)
         plane = coef[0] + coef[1] * iu + coef[2] * iv
-        behind = float(np.median(disparity[iu, iv] - plane))
+        behind = float(np.percentile(disparity[iu, iv] - plane, 25))
         info["behind"] = round(behind, 4)
         if behind < -margin and (disagree or behind < -far * margin):
             out[iu, iv] = plane
             info["filled"] = True
+            info["confidence"] = round(sharpness[0], 4)
             if confidence is not None:
-                confidence[iu, iv] = np.median(confidence[rr, cc])
+                confidence[iu, iv] = sharpness[0]
     return out, report
 
 
@@ -322,7 +336,7 @@ def surface_disparity_of_view(
     disparity: np.ndarray,
     masks: np.ndarray,
     present: np.ndarray | None = None,
-    device: str | torch.device = "cpu",
+    device: str | torch.device | None = "cpu",
     confidence: np.ndarray | None = None,
 ) -> tuple[np.ndarray, list[dict]]:
     """:func:`surface_disparity` for one view of a light field: its residual is measured first.
