@@ -288,7 +288,7 @@ class PoseTracker:
         return {i: _thin(np.concatenate(p), cap) if p else np.zeros((0, 3))
                 for i, p in parts.items()}
 
-    def _features(self, views: Sequence[ViewData],
+    def _view_features(self, views: Sequence[ViewData],
                   gray: np.ndarray | None) -> dict[tuple[int, int], ViewFeatures]:
         offsets = [v.offset for v in views]
         reach_s = max(abs(o[0]) for o in offsets)
@@ -399,7 +399,7 @@ class PoseTracker:
         ids = sorted(seen | set(self.tracks))
         clouds = self._points(views, ids)
         gray = None if grid is None else np.asarray(grid, dtype=np.float32).mean(axis=-1)
-        features = self._features(views, gray)
+        features = self._view_features(views, gray)
         shared = (time.perf_counter() - start) / max(len(ids), 1)
         out = []
         for obj_id in ids:
