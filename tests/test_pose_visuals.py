@@ -15,7 +15,7 @@ unit = st.floats(-1.0, 1.0, allow_nan=False)
 
 def _pose(axis, angle, shift) -> np.ndarray:
     pose = np.eye(4)
-    pose[:3, :3] = rotation_about(np.asarray(axis) + [0.0, 0.0, 1e-3], angle)
+    pose[:3, :3] = rotation_about(np.asarray(axis) + np.array([0.0, 0.0, 1e-3]), angle)
     pose[:3, 3] = shift
     return pose
 
