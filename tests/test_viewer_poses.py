@@ -3,8 +3,8 @@ over a light-field video's frames in a thread of its own, draws each object's ax
 on the slider and its path, and the slider moves the axes.
 
 A tiny rigid-box video (3 frames of 3x3 views of 60x80, one box under known motion, its camera
-in its scene files) with the ground-truth labels shown frame by frame and the ground-truth
-disparity. Needs a display: run under ``xvfb-run``.
+in its scene files) with the ground-truth labels (shown frame by frame, or reopened as a saved
+track) and the ground-truth disparity. Needs a display: run under ``xvfb-run``.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from lfsam.metrics.pose import rotation_error_deg
 from lfsam.poses import poses_of_video
 from lfsam.result import SegmentationResult
 from lfsam.synth.rigid import generate_rigid_video
+from lfsam.video.result import load_video_result, video_result_writer
 from lfsam.video.synth import write_video_frames
 from lfsam.viewer import layers as L
 from lfsam.viewer import pose_visuals as PV
@@ -37,24 +38,35 @@ def rigid(tmp_path_factory):
                                        box_size_m=(0.05, 0.07), texels=32))
     path = tmp_path_factory.mktemp("viewer_poses") / "boxes"
     write_video_frames(iter(frames), path)
-    return frames, path
+    track = path.parent / "track"
+    with video_result_writer(track) as writer:
+        for lightfield in frames:
+            writer.write(SegmentationResult(labels=lightfield.labels))
+    return frames, path, track
 
 
 def _origin(obj, frame):
     return next(f.pose for f in obj.frames if f.frame == frame)[:3, 3]
 
 
+@pytest.mark.parametrize("masks", ["shown", "track"])
 def test_poses_draw_axes_and_paths_and_the_frame_slider_moves_the_axes(
-        make_napari_viewer, qtbot, rigid):
-    frames, path = rigid
+        make_napari_viewer, qtbot, rigid, masks):
+    frames, path, track = rigid
     viewer = make_napari_viewer()
     viewer.open(str(path), plugin="lfsam")
     widget = LightFieldWidget(viewer, model="oracle", disparity="gt")
     viewer.window.add_dock_widget(widget)
     qtbot.waitUntil(lambda: widget.session.loaded and not widget.busy, timeout=TIMEOUT)
     assert widget.is_video
-    for index, lightfield in enumerate(frames):  # the truth's masks, as a track shows them
-        widget.masks.show_frame(index, lightfield.labels)
+    if masks == "shown":  # the truth's masks, frame by frame as a running track shows them
+        for index, lightfield in enumerate(frames):
+            widget.masks.show_frame(index, lightfield.labels)
+    else:  # a saved track reopened: its frames are read from its folder
+        widget.show_tracked(load_video_result(track))
+        qtbot.waitUntil(lambda: not widget.busy, timeout=TIMEOUT)
+        assert widget.layers[L.COMMITTED].data.result is not None
+        assert widget.layers[L.COMMITTED].data.written() == []
     dock = ObjectsDock(viewer)
     viewer.window.add_dock_widget(dock, name="lfsam 3D", area="right")
     assert dock.widget is widget and not dock.axes.visible and not dock.paths.visible
@@ -112,7 +124,7 @@ def test_poses_draw_axes_and_paths_and_the_frame_slider_moves_the_axes(
 
 
 def test_a_single_light_field_gives_each_objects_first_pose(make_napari_viewer, qtbot, rigid):
-    frames, _ = rigid
+    frames = rigid[0]
     lightfield = frames[0]
     viewer = make_napari_viewer()
     widget = LightFieldWidget(viewer, lightfield=lightfield, model="oracle", disparity="gt",
