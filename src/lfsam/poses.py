@@ -275,6 +275,17 @@ class PoseTracker:
         """Every object seen so far, by id."""
         return [self.tracks[i].result for i in sorted(self.tracks)]
 
+    def model_points(self, object_id: int) -> np.ndarray:
+        """Object ``object_id``'s keyframe model ``(N, 3)``: its points in its first frame's
+        camera coordinates (module docstring, step 3; the viewer sizes its axes by them).
+
+        Raises
+        ------
+        KeyError
+            For an object not tracked (never seen well enough to start).
+        """
+        return self.tracks[int(object_id)].model.copy()
+
     def _points(self, views: Sequence[ViewData], object_ids: list[int]):
         parts: dict[int, list[np.ndarray]] = {i: [] for i in object_ids}
         for view in views:

@@ -310,9 +310,23 @@ class MaskLayers:
     def composite(self) -> np.ndarray:
         """Every object as the mask layers show it, ``(S, T, U, V)`` int32: the current object
         over the committed ones over the automatic ones (a copy)."""
-        labels = np.array(self.array(AUTO), dtype=np.int32)
+        return self._joined(self.array)
+
+    def composite_at(self, frame: int) -> np.ndarray:
+        """:meth:`composite` of a video's frame ``frame``, read without storing anything (any
+        thread: the 3D dock's poses read every frame in their own); a single light field's
+        :meth:`composite` for any ``frame``."""
+        def read(name: str) -> np.ndarray:
+            data = self.layers[name].data
+            return data[int(frame)] if hasattr(data, "frame_array") else data
+
+        return self._joined(read)
+
+    @staticmethod
+    def _joined(read: Callable[[str], np.ndarray]) -> np.ndarray:
+        labels = np.array(read(AUTO), dtype=np.int32)
         for name in (COMMITTED, CURRENT):
-            layer = np.asarray(self.array(name))
+            layer = np.asarray(read(name))
             labels[layer != 0] = layer[layer != 0]
         return labels
 
