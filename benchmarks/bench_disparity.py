@@ -105,8 +105,9 @@ def confidence_rank(name: str, estimate: np.ndarray, confidence: np.ndarray,
             f"{a:.2f} % there, {b:.2f} % elsewhere: {'ranks' if a < b else 'DOES NOT rank'}")
 
 
-def glass_part() -> None:
-    """Glass and mirror objects against the same objects made matte (module docstring)."""
+def glass_part(grid: tuple[int, int] = (9, 9), size: tuple[int, int] = (160, 224)) -> None:
+    """Glass and mirror objects against the same objects made matte (module docstring), on
+    ``grid`` views of ``size`` pixels."""
     from lfsam.api import RunOptions, SegmentOptions, segment
     from lfsam.metrics.accuracy import per_view_iou
     from lfsam.objects3d import objects_in_3d
@@ -116,7 +117,7 @@ def glass_part() -> None:
           "error | matte's |")
     print("|---|---|---|---|---|---|---|---|")
     for seed in (3, 5):
-        scenes = {kind: generate_scene(grid=(9, 9), size=(160, 224), seed=seed, num_objects=4,
+        scenes = {kind: generate_scene(grid=grid, size=size, seed=seed, num_objects=4,
                                        disparity_range=(-2.0, 2.0), glass=n, mirror=n)
                   for kind, n in (("special", 1), ("matte", 0))}
         materials = scenes["special"].meta["generator"]["materials"]
@@ -157,12 +158,17 @@ def main() -> None:
     parser.add_argument("--no-timing", action="store_true", help="skip the 512x512 timing runs")
     parser.add_argument("--glass-only", action="store_true",
                         help="only the glass and mirror figures")
+    parser.add_argument("--glass-grid", default="9x9", help="glass scenes' view grid, S x T")
+    parser.add_argument("--glass-size", default="160x224",
+                        help="glass scenes' view size, rows x columns")
     args = parser.parse_args()
     size = tuple(int(x) for x in args.size.split("x"))
     timing_size = tuple(int(x) for x in args.timing_size.split("x"))
+    glass = {"grid": tuple(int(x) for x in args.glass_grid.split("x")),
+             "size": tuple(int(x) for x in args.glass_size.split("x"))}
     torch.set_num_threads(2)
     if args.glass_only:
-        glass_part()
+        glass_part(**glass)
         return
     matte = generate_scene(grid=(9, 9), size=size, seed=11, disparity_range=(-3.0, 3.0))
     glossy = generate_scene(grid=(9, 9), size=size, seed=11, disparity_range=(-3.0, 3.0),
@@ -233,7 +239,7 @@ def main() -> None:
     for line in summary:
         print(line)
     if not args.no_glass:
-        glass_part()
+        glass_part(**glass)
     if args.no_timing:
         return
     views = np.random.default_rng(0).integers(0, 256, size=(9, 9, *timing_size, 3), dtype=np.uint8)

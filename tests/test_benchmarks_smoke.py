@@ -36,7 +36,8 @@ CASES = {
         "max |low-res logits - Meta batched|",
     ),
     "bench_disparity.py": (
-        ["--size", "48x64", "--timing-size", "48x64", "--no-real"], "occlusion-aware on 9x9"
+        ["--size", "48x64", "--timing-size", "48x64", "--no-real", "--glass-grid", "5x5",
+         "--glass-size", "64x96"], "occlusion-aware on 9x9"
     ),
     "bench_metrics.py": (["--grid", "3x3", "--size", "64x96", "--masks", "5"], "bench_metrics:"),
     "bench_interactive.py": (
