@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -33,6 +32,7 @@ from lfsam.video.online import OnlineTracker
 from lfsam.video.result import RESULT_MARKER, live_video_result_writer, load_video_result
 from lfsam.video.synth import generate_video, write_video_frames
 from lfsam.video.track import track_video
+from stream_files import land_frame
 
 QUIET = SegmentOptions(run=RunOptions(progress=False))
 #: The ground-truth label of the object clicked (label 1 is the backdrop).
@@ -56,12 +56,6 @@ def _click(lf, label: int, frame: int | None = None) -> PointPrompt:
     row, col = np.unravel_index(int(np.argmax(depth)), depth.shape)
     return PointPrompt(float(col), float(row), True, None, frame)
 
-
-def _put(source: Path, folder: Path) -> None:
-    """Land a frame the way a camera writer should: written under a hidden name, renamed in."""
-    hidden = folder / f".{source.name}.part"
-    shutil.copytree(source, hidden)
-    os.rename(hidden, folder / source.name)
 
 
 def _wait_for(check, seconds: float = 60.0) -> None:
@@ -195,7 +189,7 @@ def test_ctrl_c_mid_frame_keeps_the_frames_done(clip, tmp_path):
     folder = tmp_path / "in"
     folder.mkdir()
     for source in sorted(clip.glob("frame_*"))[:3]:
-        _put(source, folder)
+        land_frame(source, folder)
     tracker = OnlineTracker("oracle", disparity="gt", options=QUIET)
     tracker.add_prompts([ObjectPrompts(1, (_click(read_video(clip).frame(0), OBJECT),))])
     real = tracker.track
@@ -233,7 +227,7 @@ def test_follow_segments_frames_as_they_land_and_ends_at_END(clip, tmp_path):
         frames = sorted(clip.glob("frame_*"))
         seen_live = []
         for index, source in enumerate(frames):
-            _put(source, folder)
+            land_frame(source, folder)
             # this frame's result is in the folder before the next frame exists
             _wait_for(lambda i=index: _frames_in(out) == i + 1 or proc.poll() is not None)
             seen_live.append(lfsam.load_result(out).complete)
@@ -262,9 +256,9 @@ def test_follow_timeout_and_a_corrupt_frame(clip, tmp_path, capsys):
     folder, out = tmp_path / "in", tmp_path / "out"
     folder.mkdir()
     frames = sorted(clip.glob("frame_*"))
-    _put(frames[0], folder)
+    land_frame(frames[0], folder)
     (folder / "frame_0001.npz").write_bytes(b"not a light field")
-    _put(frames[2], folder)
+    land_frame(frames[2], folder)
     click = _click(read_video(clip).frame(0), OBJECT)
     code = main(["segment", str(folder), "--follow", "--follow-timeout", "0.5", "--point",
                  f"{click.x:g},{click.y:g}", "--model", "oracle", "--disparity", "gt",
@@ -307,9 +301,9 @@ def test_follow_ctrl_c_exits_130_with_a_valid_folder(clip, tmp_path):
                             stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "OMP_NUM_THREADS": "1"})
     try:
-        _put(frames[0], folder)
+        land_frame(frames[0], folder)
         _wait_for(lambda: _frames_in(out) == 1 or proc.poll() is not None)
-        _put(frames[1], folder)
+        land_frame(frames[1], folder)
         time.sleep(0.03)  # the second frame is (most likely) being segmented
         proc.send_signal(signal.SIGINT)
         _, stderr = proc.communicate(timeout=60)
@@ -386,7 +380,7 @@ def test_follow_with_text_finds_the_phrase_in_the_first_frame_and_tracks_it(clip
     folder.mkdir()
     frames = sorted(clip.glob("frame_*"))
     for source in frames:
-        _put(source, folder)
+        land_frame(source, folder)
     (folder / "END").write_bytes(b"")
     code = main(["segment", str(folder), "--follow", "--text", "tile", "--model", "oracle",
                  "--disparity", "gt", "--out", str(out), "--poll", "0.02"])

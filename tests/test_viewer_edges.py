@@ -6,8 +6,6 @@ line. Oracle, ground-truth disparity, tiny synthetic frames. Needs a display (``
 
 from __future__ import annotations
 
-import os
-import shutil
 from dataclasses import replace
 
 import numpy as np
@@ -23,6 +21,7 @@ from lfsam.video.synth import generate_video, write_video_frames
 from lfsam.viewer import controls as C
 from lfsam.viewer.widget import LightFieldWidget
 from napari_events import register_plugin
+from stream_files import frame_folders, land_frame
 
 TIMEOUT = 60_000
 CENTER = (1, 1)
@@ -40,14 +39,6 @@ def source(tmp_path_factory):
     return path
 
 
-def _frames(source):
-    return sorted(p for p in source.iterdir() if p.is_dir())
-
-
-def _put(frame, folder):
-    hidden = folder / f".{frame.name}.part"
-    shutil.copytree(frame, hidden)
-    os.rename(hidden, folder / frame.name)
 
 
 def _dock(make_napari_viewer, **options):
@@ -87,8 +78,8 @@ def test_follow_box_finds_every_object_of_the_first_frame(make_napari_viewer, qt
     _viewer, widget, _statuses = _dock(make_napari_viewer)
     live, out = tmp_path / "cam", tmp_path / "out"
     live.mkdir()
-    for frame in _frames(source):
-        _put(frame, live)
+    for frame in frame_folders(source):
+        land_frame(frame, live)
     (live / "END").write_text("")
     monkeypatch.setattr(C, "ask_open_folder", lambda *a, **k: str(live))
     monkeypatch.setattr(C, "ask_save_file", lambda *a, **k: str(out))
@@ -106,8 +97,8 @@ def test_lfsam_view_follow_auto_and_text(make_napari_viewer, qtbot, source, tmp_
     ``--auto`` checks the dock's box."""
     live, out = tmp_path / "cam", tmp_path / "out"
     live.mkdir()
-    for frame in _frames(source):
-        _put(frame, live)
+    for frame in frame_folders(source):
+        land_frame(frame, live)
     (live / "END").write_text("")
     args = build_parser().parse_args(["view", str(live), "--follow", "--out", str(out),
                                       "--model", "oracle", "--disparity", "gt",
@@ -143,7 +134,7 @@ def test_a_click_after_the_last_frame_is_reported_not_dropped(make_napari_viewer
     live.mkdir()
     follow = widget.follow
     follow.start(live, tmp_path / "out")
-    _put(_frames(source)[0], live)
+    land_frame(frame_folders(source)[0], live)
     qtbot.waitUntil(lambda: len(follow.names) == 1, timeout=TIMEOUT)
     follow.click((*CENTER, 20, 30))  # posted for the next frame, which never comes
     (live / "END").write_text("")
@@ -159,7 +150,7 @@ def test_a_configuration_fault_stops_the_stream_in_one_line(make_napari_viewer, 
     _viewer, widget, statuses = _dock(make_napari_viewer, disparity="estimate")
     live = tmp_path / "cam"
     live.mkdir()
-    for index, frame in enumerate(_frames(source)):
+    for index, frame in enumerate(frame_folders(source)):
         lf = read_video(source).frame(index)
         write_lightfield(replace(lf, labels=None, categories=None, disparity=None),
                          live / frame.name)

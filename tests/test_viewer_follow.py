@@ -8,9 +8,7 @@ ground-truth disparity, whose answers are exact. Needs a display: run under ``xv
 
 from __future__ import annotations
 
-import os
 import re
-import shutil
 import threading
 import time
 
@@ -31,6 +29,7 @@ from lfsam.viewer import layers as L
 from lfsam.viewer.follow_dock import default_out
 from lfsam.viewer.widget import LightFieldWidget
 from napari_events import MouseEvent, register_plugin
+from stream_files import frame_folders, land_frame
 
 TIMEOUT = 60_000
 CENTER = (1, 1)
@@ -48,14 +47,6 @@ def source(tmp_path_factory):
     return path
 
 
-def _frames(source):
-    return sorted(p for p in source.iterdir() if p.is_dir())
-
-
-def _put(frame, folder):
-    hidden = folder / f".{frame.name}.part"
-    shutil.copytree(frame, hidden)
-    os.rename(hidden, folder / frame.name)
 
 
 def _land(frames, folder, end=False, pause=0.0):
@@ -63,7 +54,7 @@ def _land(frames, folder, end=False, pause=0.0):
 
     def write():
         for frame in frames:
-            _put(frame, folder)
+            land_frame(frame, folder)
             time.sleep(pause)
         if end:
             (folder / "END").write_text("")
@@ -118,7 +109,7 @@ def test_following_an_empty_folder_shows_each_frame_and_a_click_starts_an_object
     assert "waiting for frames" in statuses[-1]
     qtbot.wait(200)
     assert follow.layers == {} and follow.names == []  # nothing landed, nothing shown
-    frames, video = _frames(source), read_video(source)
+    frames, video = frame_folders(source), read_video(source)
     with pytest.raises(LfsamError, match="once it is shown"):
         follow.click((*CENTER, 10, 10))
 
@@ -183,9 +174,9 @@ def test_a_stream_already_in_the_folder_ends_at_END(make_napari_viewer, qtbot, s
     _viewer, widget, statuses = _dock(make_napari_viewer)
     live = tmp_path / "cam"
     live.mkdir()
-    frames = _frames(source)
+    frames = frame_folders(source)
     for frame in frames[:2]:
-        _put(frame, live)
+        land_frame(frame, live)
     out = widget.follow.start(live, auto=True)
     assert out == tmp_path / "cam_live"
     writer = _land(frames[2:], live, end=True, pause=0.2)
@@ -213,9 +204,9 @@ def test_newest_frame_only_skips_the_backlog(make_napari_viewer, qtbot, source, 
     _viewer, widget, statuses = _dock(make_napari_viewer)
     live = tmp_path / "cam"
     live.mkdir()
-    frames = _frames(source)
+    frames = frame_folders(source)
     for frame in frames:
-        _put(frame, live)
+        land_frame(frame, live)
     (live / "END").write_bytes(b"")
     widget.controls.latest_box.setChecked(True)
     out = widget.follow.start(live, tmp_path / "out", auto=True)
@@ -247,7 +238,7 @@ def test_the_gui_thread_runs_while_a_frame_is_segmented_and_stop_keeps_that_fram
     live.mkdir()
     follow = widget.follow
     follow.start(live, tmp_path / "out")
-    _land(_frames(source)[:1], live).join()
+    _land(frame_folders(source)[:1], live).join()
     qtbot.waitUntil(entered.is_set, timeout=TIMEOUT)
     ticks = []
     timer = QTimer()

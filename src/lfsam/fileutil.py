@@ -28,6 +28,7 @@ __all__ = [
     "check_output_path",
     "check_writable",
     "replace_folder",
+    "write_text_atomic",
 ]
 
 
@@ -212,6 +213,14 @@ def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
         raise
+
+
+def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` through :func:`atomic_output`: the file is complete
+    or absent, never partial (docs/design.md section 8); returns the path."""
+    with atomic_output(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Path(path)
 
 
 @contextlib.contextmanager

@@ -11,7 +11,7 @@ import numpy as np
 from lfsam.camera import CAMERA_EXAMPLE
 from lfsam.cli.common import HelpFormatter, add_device_argument, positive_float, unit_interval
 from lfsam.cli.inputs import expect_input, expect_partner, video_with_result
-from lfsam.fileutil import atomic_output, check_writable
+from lfsam.fileutil import check_writable, write_text_atomic
 from lfsam.objects3d import (
     VIEWS,
     Objects3D,
@@ -116,11 +116,6 @@ def _measures_csv(found: Objects3D) -> str:
     return "\n".join(rows) + "\n"
 
 
-def _write(path: str, text: str) -> None:
-    with atomic_output(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
-
-
 def measure_options(args: argparse.Namespace) -> dict:
     """:func:`objects_in_3d`'s options from the command line (called once per run: it says
     first what will take long)."""
@@ -168,10 +163,10 @@ def run(args: argparse.Namespace) -> int:
              if found.camera.focus_distance_m else ", parallel views"))
     print(format_table(found))
     if args.json:
-        _write(args.json, json.dumps(found.to_json(), indent=1) + "\n")
+        write_text_atomic(args.json, json.dumps(found.to_json(), indent=1) + "\n")
         print(f"wrote {args.json}")
     if args.csv:
-        _write(args.csv, _measures_csv(found))
+        write_text_atomic(args.csv, _measures_csv(found))
         print(f"wrote {args.csv}")
     return 0
 
@@ -196,13 +191,13 @@ def _run_video(args: argparse.Namespace) -> int:
               f"  from z {start[2]:.3f} to {end[2]:.3f} m  path {path.path_length_m:.3f} m  "
               f"mean speed {mean} {unit}")
     if args.json:
-        _write(args.json, json.dumps({
+        write_text_atomic(args.json, json.dumps({
             "frames": [found.to_json() for found in per_frame],
             "fps": args.fps,
             "trajectories": [path.to_json() for path in paths],
         }, indent=1) + "\n")
         print(f"wrote {args.json}")
     if args.csv:
-        _write(args.csv, trajectories_csv(paths))
+        write_text_atomic(args.csv, trajectories_csv(paths))
         print(f"wrote {args.csv}")
     return 0

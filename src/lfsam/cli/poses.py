@@ -12,7 +12,8 @@ from lfsam.camera import CAMERA_EXAMPLE
 from lfsam.cli.common import HelpFormatter, add_device_argument
 from lfsam.cli.inputs import expect_input, expect_partner, video_with_result
 from lfsam.errors import LfsamError
-from lfsam.fileutil import atomic_output, check_writable
+from lfsam.fileutil import check_writable, write_text_atomic
+from lfsam.metrics.pose import rotation_error_deg
 from lfsam.objects3d import resolve_camera
 from lfsam.poses import POSE_VIEWS, ObjectPoses, bop_csv, poses_csv, poses_json, poses_of_video
 
@@ -96,18 +97,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
-def _write(path: str, text: str) -> None:
-    with atomic_output(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
-
-
 def _line(obj: ObjectPoses) -> str:
     tracked = [f for f in obj.frames if f.pose is not None]
     lost = sum(f.status == "lost" for f in obj.frames)
     if not tracked:
         return f"{obj.object_id:>5} {(obj.category or '-')[:14]:<14} lost in every frame"
     last = tracked[-1]
-    angle = np.degrees(np.arccos(np.clip((np.trace(last.motion[:3, :3]) - 1) / 2, -1, 1)))
+    angle = rotation_error_deg(last.motion, np.eye(4))  # the motion's rotation angle
     shift = np.linalg.norm(last.pose[:3, 3] - obj.first_pose[:3, 3])
     inliers = np.mean([f.inliers for f in tracked])
     rmse = np.nanmean([f.rmse_m for f in tracked])
@@ -162,13 +158,13 @@ def run(args: argparse.Namespace) -> int:
     for obj in objects:
         print(_line(obj))
     if args.json:
-        _write(args.json, json.dumps(poses_json(camera, objects, disparity=args.disparity,
-                                                views=args.views), indent=1) + "\n")
+        document = poses_json(camera, objects, disparity=args.disparity, views=args.views)
+        write_text_atomic(args.json, json.dumps(document, indent=1) + "\n")
         print(f"wrote {args.json}")
     if args.csv:
-        _write(args.csv, poses_csv(objects))
+        write_text_atomic(args.csv, poses_csv(objects))
         print(f"wrote {args.csv}")
     if args.bop:
-        _write(args.bop, bop_csv(objects, scene_id=args.scene_id))
+        write_text_atomic(args.bop, bop_csv(objects, scene_id=args.scene_id))
         print(f"wrote {args.bop}")
     return 0

@@ -15,7 +15,7 @@ from lfsam.cli.models import model_options_from_args
 from lfsam.cli.prompts import objects_from_items
 from lfsam.cli.text import check_text_weights, report_text
 from lfsam.errors import LfsamError
-from lfsam.fileutil import check_cache_dir, check_writable
+from lfsam.fileutil import check_cache_dir, check_writable, write_text_atomic
 from lfsam.prompts import load_prompts
 
 __all__ = ["add_follow_arguments", "run_follow"]
@@ -79,15 +79,13 @@ class _LivePoses:
     def __call__(self, timing, result, lightfield) -> None:
         from pathlib import Path
 
-        from lfsam.fileutil import atomic_output
         from lfsam.poses import poses_json
 
         entries = self.session.add(result, lightfield)
         document = poses_json(self.session.camera, self.session.objects,
                               disparity=str(self.session.disparity), views=self.session.views,
                               frames=self.session.frames)
-        with atomic_output(Path(self.out) / "poses.json") as tmp:
-            tmp.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
+        write_text_atomic(Path(self.out) / "poses.json", json.dumps(document, indent=1) + "\n")
         if not self.quiet:
             states = ", ".join(f"{e.status}" for e in entries)
             print(f"frame {timing.index}: poses of {len(entries)} objects ({states})",

@@ -59,7 +59,7 @@ from lfsam.disparity.epi import checked_reference
 from lfsam.disparity.filters import box_blur
 from lfsam.lightfield import LightField
 
-__all__ = ["HALVES", "ViewSet", "build_cost_volume", "matching_features", "view_set"]
+__all__ = ["HALVES", "ViewSet", "build_cost_volume", "halves_of", "matching_features", "view_set"]
 
 #: The four half-grids, in the order of the accumulator's first axis.
 HALVES = ("left", "right", "top", "bottom")
@@ -187,8 +187,9 @@ def view_set(
     )
 
 
-def _halves_of(ds: int, dt: int) -> list[int]:
-    """Indices into :data:`HALVES` of the half-grids a view offset belongs to."""
+def halves_of(ds: float, dt: float) -> list[int]:
+    """Indices into :data:`HALVES` of the half-grids a view offset ``(ds, dt)`` belongs to
+    (docs/design.md section 3.2, step 3)."""
     halves = []
     if dt < 0:
         halves.append(0)
@@ -277,7 +278,7 @@ def build_cost_volume(
                 continue
             warped = _resample(padded[k], pad, shift_u, shift_v, in_u, in_v)
             cost = (warped - views.reference_features[in_u, in_v]).abs_().clamp_(max=truncation)
-            targets = _halves_of(ds, dt) if occlusion_aware else [0]
+            targets = halves_of(ds, dt) if occlusion_aware else [0]
             for half in targets + ([4] if with_all else []):
                 sums[half, in_u, in_v] += cost
                 seen[half, in_u, in_v] += 1.0

@@ -32,6 +32,7 @@ import torch.nn.functional as F
 from scipy import ndimage
 
 from lfsam.devices import resolve_device
+from lfsam.disparity.cost_volume import halves_of
 from lfsam.disparity.filters import box_blur
 
 __all__ = [
@@ -88,8 +89,7 @@ def photo_residual(
             gray[k][None, None], grid[None], mode="bilinear", align_corners=True
         )[0, 0]
         diff = (sampled - reference).abs() * inside
-        halves = [h for h, on in enumerate((dt < 0, dt > 0, ds < 0, ds > 0)) if on]
-        for half in halves:
+        for half in halves_of(ds, dt):
             sums[half] += diff
             seen[half] += inside.float()
     means = torch.where(seen > 0.5, sums / seen.clamp(min=1.0), torch.inf)
@@ -171,15 +171,15 @@ def sweep_points(
     ref = reference[r.long(), c.long()]
     shift = torch.zeros_like(r) if base is None else torch.as_tensor(
         base, dtype=torch.float32, device=device)
-    halves = [[k for k, (ds, dt) in enumerate(np.asarray(offsets).tolist()) if on(ds, dt)]
-              for on in (lambda ds, dt: dt < 0, lambda ds, dt: dt > 0,
-                         lambda ds, dt: ds < 0, lambda ds, dt: ds > 0)]
+    pairs = np.asarray(offsets).tolist()
+    halves = [[k for k, (ds, dt) in enumerate(pairs) if half in halves_of(ds, dt)]
+              for half in range(4)]
     costs = []
     for value in np.asarray(hypotheses, dtype=np.float64).tolist():
         d = shift + value
         diffs = torch.stack([
             (_sample_points(grays[k], r - d * ds, c - d * dt) - ref).abs()
-            for k, (ds, dt) in enumerate(np.asarray(offsets).tolist())
+            for k, (ds, dt) in enumerate(pairs)
         ])
         means = [torch.nanmean(diffs[half], 0) for half in halves if half]
         best = torch.stack(means).nan_to_num(1.0).amin(0)

@@ -27,7 +27,6 @@ __all__ = [
     "icp",
     "kabsch",
     "ransac_rigid",
-    "rotation_angle_deg",
     "transform",
     "voxel_downsample",
 ]
@@ -36,12 +35,6 @@ __all__ = [
 def transform(matrix: np.ndarray, xyz: np.ndarray) -> np.ndarray:
     """``xyz`` (N, 3) moved by the 4x4 ``matrix``."""
     return xyz @ matrix[:3, :3].T + matrix[:3, 3]
-
-
-def rotation_angle_deg(matrix: np.ndarray) -> float:
-    """The angle (degrees) of the rotation part of a 3x3 or 4x4 matrix."""
-    rot = np.asarray(matrix)[:3, :3]
-    return float(np.degrees(np.arccos(np.clip((np.trace(rot) - 1) / 2, -1.0, 1.0))))
 
 
 def _kabsch_batch(src: np.ndarray, dst: np.ndarray, w: np.ndarray) -> np.ndarray:
