@@ -107,6 +107,20 @@ def test_an_input_in_the_wrong_role_is_named_in_one_line(
     assert list(tmp_path.iterdir()) == []  # nothing written
 
 
+@pytest.mark.parametrize("command", ["objects", "poses"])
+def test_a_missing_result_is_named_not_its_light_field(command, inputs, tmp_path, capsys):
+    """A RESULT that does not exist is said to be missing in one line, not taken for a result
+    whose --lightfield is of the wrong kind (here a video beside a missing result)."""
+    missing = tmp_path / "nothere.npz"
+    assert main([command, str(missing), "--lightfield", str(inputs["CLIP"]),
+                 "--json", str(tmp_path / "out.json")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("lfsam: error: ") and err.count("\n") == 1, err
+    assert "not found" in err and str(missing) in err
+    assert "light-field video" not in err
+    assert list(tmp_path.iterdir()) == []  # nothing written
+
+
 def test_inputs_in_their_roles_still_work(inputs, tmp_path, capsys):
     assert main(["metrics", str(inputs["RESULT"]), "--gt", str(inputs["SCENE"]),
                  "--device", "cpu"]) == 0

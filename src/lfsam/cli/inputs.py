@@ -145,7 +145,12 @@ def expect_partner(
     ------
     LfsamError
         As :func:`expect_input`; the hint names the input the result records.
+
+    A result that is missing (``result_kind`` None) has no partner to check: its reader says
+    what is wrong with it, rather than a line about the partner.
     """
+    if result_kind is None and not Path(result).exists():
+        return None
     result_kind = result_kind if result_kind in PARTNER else "result"
     partner = PARTNER[result_kind]
     source = _recorded_input(result, result_kind)
