@@ -153,6 +153,7 @@ def test_live_writer_publishes_each_frame_and_leaves_nothing_without_frames(tmp_
         assert not (out / RESULT_MARKER).exists()
         for f in range(3):
             writer.write(lfsam.SegmentationResult(labels=labels + f))
+            writer.flush()  # the files are written behind (issue 44)
             seen = lfsam.load_result(out)
             assert len(seen) == f + 1 and not seen.complete and int(seen.labels[f].max()) == f
     final = lfsam.load_result(out)

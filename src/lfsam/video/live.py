@@ -4,8 +4,10 @@
 :func:`segment_stream` joins the three parts: :class:`lfsam.video.follow.FrameFollower` yields
 each frame as it lands, :class:`lfsam.video.online.OnlineTracker` segments it at once (ids and
 video memory kept), and :func:`lfsam.video.result.live_video_result_writer` writes its result
-into the result folder before the next frame is looked at (each file atomic; the folder reads
-as a valid result of the frames so far at any moment).
+into the result folder in a writer thread while the next frame is segmented (issue 44: each
+file atomic; the folder reads as a valid result of the frames on disk at any moment, and every
+frame handed over is written before :func:`segment_stream` returns, also on an error or
+Ctrl-C).
 
 A frame at fault (:class:`lfsam.errors.FrameError`: one that cannot be read — damaged,
 half-written by a writer that does not rename — is read once more after :data:`RETRY_SECONDS`
@@ -57,7 +59,8 @@ class FrameTiming:
     name : str
         Its entry's name in the followed folder.
     latency : float
-        Seconds from its arrival to its result on disk.
+        Seconds from its arrival to its result (handed to ``on_frame``; the writer thread puts
+        its file on disk after, ``StreamReport.disk_latencies``).
     seconds : float
         Seconds spent segmenting it (it was read ahead while the frame before was segmented).
     superseded : int
@@ -81,10 +84,15 @@ class StreamReport:
     skipped: list[dict[str, str]] = field(default_factory=list)
     latencies: list[float] = field(default_factory=list)
     object_ids: list[int] = field(default_factory=list)
+    #: Seconds each frame's file took to write (in the writer thread), in order.
+    write_seconds: list[float] = field(default_factory=list)
+    #: Seconds from each frame's arrival to its file on disk.
+    disk_latencies: list[float] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
         """Frames, skipped frames (of them ``superseded``: left out for a newer frame), how it
-        ended and latency median, 95th percentile and worst (seconds)."""
+        ended, latency median, 95th percentile and worst, and the result files' writing
+        (:meth:`write_summary`), in seconds."""
         lat = self.latencies
         return {
             "out": str(self.out), "frames": self.frames, "skipped": len(self.skipped),
@@ -93,7 +101,18 @@ class StreamReport:
             "latency_median_s": round(statistics.median(lat), 3) if lat else None,
             "latency_p95_s": round(percentile(lat, 95), 3) if lat else None,
             "latency_worst_s": round(max(lat), 3) if lat else None,
+            **self.write_summary(),
         }
+
+    def write_summary(self) -> dict[str, float | None]:
+        """Per-frame write time (median, 95th percentile) and arrival to file on disk (95th
+        percentile), seconds (``meta["write"]`` of the result)."""
+        def p(values: list[float], q: float) -> float | None:
+            return round(percentile(values, q), 4) if values else None
+
+        return {"write_median_s": p(self.write_seconds, 50),
+                "write_p95_s": p(self.write_seconds, 95),
+                "disk_latency_p95_s": p(self.disk_latencies, 95)}
 
 
 def percentile(values: list[float], q: float) -> float:
@@ -185,8 +204,9 @@ def segment_stream(
     }
     superseded: list[str] = []
 
-    def supersede(arrived: ArrivedFrame) -> None:
-        report.skipped.append({"name": arrived.path.name, "reason": NEWER_FRAME})
+    def supersede(arrived: ArrivedFrame) -> None:  # in the feed's thread
+        with writer.lock:
+            report.skipped.append({"name": arrived.path.name, "reason": NEWER_FRAME})
         superseded.append(arrived.path.name)
 
     feed = FrameFeed(follower, lambda arrived: _read_frame(arrived, value_range),
@@ -202,24 +222,28 @@ def segment_stream(
                     result = tracker.track(lf)
                 except FrameError as exc:
                     line = f"frame {arrived.path.name} skipped: {exc}"
-                    report.skipped.append({"name": arrived.path.name, "error": str(exc),
-                                           "reason": "unreadable" if lf is None else "refused"})
+                    with writer.lock:
+                        report.skipped.append({
+                            "name": arrived.path.name, "error": str(exc),
+                            "reason": "unreadable" if lf is None else "refused"})
                     if on_skip is not None:
                         on_skip(line)
                     continue
                 result.meta["frame_source"] = arrived.path.name
                 result.meta["arrival_index"] = arrived.index
-                meta["tracking"] = tracker.tracking
-                if tracker.texts:  # what the phrases found in the first frame
-                    meta["text"] = tracker.text_finds
-                record_states(meta["tracks"], result.meta.get("tracks", {}), writer.frames)
-                writer.write(result)
-                timing = FrameTiming(writer.frames - 1, arrived.path.name,
+                with writer.lock:  # the writer thread builds manifests from meta
+                    meta["tracking"] = tracker.tracking
+                    if tracker.texts:  # what the phrases found in the first frame
+                        meta["text"] = tracker.text_finds
+                    record_states(meta["tracks"], result.meta.get("tracks", {}),
+                                  writer.accepted)
+                writer.write(result, arrived=arrived.arrived)
+                timing = FrameTiming(writer.accepted - 1, arrived.path.name,
                                      time.time() - arrived.arrived,
                                      time.perf_counter() - start, len(superseded))
                 superseded.clear()
                 report.latencies.append(timing.latency)
-                report.frames = writer.frames
+                report.frames = writer.accepted
                 if on_frame is not None:
                     on_frame(timing, result)
                 if on_lightfield is not None:
@@ -229,14 +253,18 @@ def segment_stream(
             report.ended_by = "interrupted"
         except LfsamError as exc:  # not the frame's: every frame would fail so
             feed.close()
-            report.ended_by = meta["ended_by"] = "error"
-            meta["error"] = str(exc)
-            done = (f"the {writer.frames} frame(s) done are in {out}" if writer.frames
+            with writer.lock:
+                report.ended_by = meta["ended_by"] = "error"
+                meta["error"] = str(exc)
+            done = (f"the {writer.accepted} frame(s) done are in {out}" if writer.accepted
                     else "nothing was written")
             where = f"at {current}; " if current else ""
             raise LfsamError(f"{exc} ({where}the stream stopped: {done})") from exc
         feed.close()
+        writer.flush()  # every frame on disk: its objects, its write time
+        report.write_seconds, report.disk_latencies = writer.write_seconds, writer.disk_latencies
         meta["ended_by"] = report.ended_by
         meta["latency"] = {k: v for k, v in report.summary().items() if k.startswith("latency")}
+        meta["write"] = report.write_summary()
         report.object_ids = sorted(writer.object_ids)
     return report

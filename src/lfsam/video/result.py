@@ -24,7 +24,10 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import queue
 import shutil
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -34,7 +37,7 @@ import numpy as np
 from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_folder_output, atomic_output
 from lfsam.prompts import ObjectPrompts, prompts_from_json, prompts_to_json
-from lfsam.result import SegmentationResult, load_result, save_result
+from lfsam.result import FAST_LEVEL, SegmentationResult, label_ids, load_result, save_result
 
 __all__ = [
     "RESULT_MARKER",
@@ -104,14 +107,29 @@ class _Writer:
 
     def write(self, result: SegmentationResult) -> None:
         """Append the next frame's result."""
+        self.check(result, self.frames)
+        self.store(result)
+
+    def check(self, result: SegmentationResult, index: int) -> None:
+        """Check that frame ``index``'s labels have the first frame's shape.
+
+        Raises
+        ------
+        LfsamError
+            One line naming both shapes.
+        """
         shape = list(np.shape(result.labels))
         if self.grid is None:
             self.grid, self.view_size = shape[:2], shape[2:]
         elif shape != [*self.grid, *self.view_size]:
-            raise LfsamError(f"frame {self.frames} has labels {shape}, the first frame "
+            raise LfsamError(f"frame {index} has labels {shape}, the first frame "
                              f"{[*self.grid, *self.view_size]}")
-        save_result(result, self.folder / frame_name(self.frames))
-        self.object_ids.update(int(i) for i in np.unique(result.labels) if i > 0)
+
+    def store(self, result: SegmentationResult) -> None:
+        """Write the next frame's file (zlib :data:`lfsam.result.FAST_LEVEL`: a video's frames
+        are written as they come, issue 44) and note its objects and categories."""
+        save_result(result, self.folder / frame_name(self.frames), level=FAST_LEVEL)
+        self.object_ids.update(int(i) for i in label_ids(result.labels) if i > 0)
         for key, phrase in (result.meta.get("categories") or {}).items():
             self.categories.setdefault(int(key), str(phrase))
         self.frames += 1
@@ -222,27 +240,124 @@ def check_live_folder(path: str | os.PathLike) -> Path:
     return path
 
 
+#: Frames a live writer holds at most before :meth:`_LiveWriter.write` waits for the disk.
+QUEUE_FRAMES = 4
+#: The manifest is rewritten once the writer has caught up, or at the latest after this many
+#: frames (rewriting it costs in the number of frames so far).
+PUBLISH_EVERY = 8
+_STOP = object()
+
+
 class _LiveWriter(_Writer):
-    """Writes each frame into the result folder itself and updates the manifest after it."""
+    """Writes each frame into the result folder itself, in a thread of its own (write-behind,
+    issue 44), and updates the manifest after it (see :func:`live_video_result_writer`)."""
 
     def __init__(self, folder: Path, meta: dict[str, Any],
-                 objects: Callable[[], Sequence[ObjectPrompts]] | None) -> None:
+                 objects: Callable[[], Sequence[ObjectPrompts]] | None,
+                 queue_frames: int = QUEUE_FRAMES) -> None:
         super().__init__(folder)
         self.meta = meta
         self.objects = objects
+        #: Held while the manifest is built; whoever changes ``meta`` during the stream holds it.
+        self.lock = threading.Lock()
+        #: Frames handed to :meth:`write` (``frames`` counts those on disk).
+        self.accepted = 0
+        #: Seconds each frame's file took (the manifest's rewrites not counted), in order.
+        self.write_seconds: list[float] = []
+        #: Seconds from each frame's arrival (as given to :meth:`write`) to its file on disk.
+        self.disk_latencies: list[float] = []
+        self._queue: queue.Queue[Any] = queue.Queue(maxsize=max(1, int(queue_frames)))
+        self._error: BaseException | None = None
+        self._abandon = threading.Event()
+        self._unpublished = 0
+        self._thread = threading.Thread(target=self._run, name="lfsam-result-writer",
+                                        daemon=True)
+        self._thread.start()
 
-    def write(self, result: SegmentationResult) -> None:
-        """Append the next frame (file written atomically), then publish it in the manifest."""
-        super().write(result)
-        self.publish(complete=False)
+    def write(self, result: SegmentationResult, arrived: float | None = None) -> None:
+        """Hand over the next frame: checked now, written by the writer thread (this waits only
+        while :data:`QUEUE_FRAMES` frames are still to write; no frame is ever dropped).
+
+        Parameters
+        ----------
+        result : SegmentationResult
+        arrived : float, optional
+            The frame's arrival (``time.time()``), for :attr:`disk_latencies`.
+
+        Raises
+        ------
+        LfsamError
+            Labels of another shape than the first frame's.
+        Exception
+            Whatever made the writer thread fail on an earlier frame (a full disk).
+        """
+        self._raise_error()
+        self.check(result, self.accepted)
+        self._queue.put((result, arrived))
+        self.accepted += 1
+
+    def flush(self) -> None:
+        """Wait until every frame handed over is on disk and in the manifest.
+
+        Raises
+        ------
+        Exception
+            Whatever made the writer thread fail.
+        """
+        self._queue.join()
+        self._raise_error()
+
+    def close(self) -> None:
+        """Write every frame still queued, then stop the thread (idempotent). A Ctrl-C while
+        waiting leaves the frames not yet started unwritten (the one being written finishes:
+        no partial file) and is raised again."""
+        if not self._thread.is_alive():
+            return
+        self._queue.put(_STOP)
+        try:
+            self._thread.join()
+        except KeyboardInterrupt:
+            self._abandon.set()
+            self._thread.join()
+            raise
 
     def publish(self, complete: bool) -> None:
-        """Write the manifest of the frames so far, atomically."""
-        objects = None if self.objects is None else self.objects()
-        text = json.dumps(self.manifest(self.meta, objects, complete=complete), indent=1,
-                          default=str)
+        """Write the manifest of the frames on disk so far, atomically."""
+        with self.lock:
+            objects = None if self.objects is None else self.objects()
+            text = json.dumps(self.manifest(self.meta, objects, complete=complete), indent=1,
+                              default=str)
         with atomic_output(self.folder / RESULT_MARKER) as tmp:
             Path(tmp).write_text(text, encoding="utf-8")
+        self._unpublished = 0
+
+    def _raise_error(self) -> None:
+        if self._error is not None:
+            raise self._error
+
+    def _run(self) -> None:
+        """The writer thread: each frame's file, then the manifest once caught up."""
+        while True:
+            item = self._queue.get()
+            try:
+                if item is _STOP:
+                    return
+                if self._error is None and not self._abandon.is_set():
+                    self._store(*item)
+            except BaseException as exc:  # handed to the tracking thread (write, flush)
+                self._error = exc
+            finally:
+                self._queue.task_done()
+
+    def _store(self, result: SegmentationResult, arrived: float | None) -> None:
+        start = time.perf_counter()
+        self.store(result)
+        self.write_seconds.append(time.perf_counter() - start)
+        if arrived is not None:
+            self.disk_latencies.append(time.time() - arrived)
+        self._unpublished += 1
+        if self._queue.qsize() == 0 or self._unpublished >= PUBLISH_EVERY:
+            self.publish(complete=False)
 
 
 @contextlib.contextmanager
@@ -251,20 +366,28 @@ def live_video_result_writer(
     objects: Callable[[], Sequence[ObjectPrompts]] | None = None,
 ) -> Iterator[_LiveWriter]:
     """Write a video result frame by frame *in place*, readable while it grows (a followed
-    stream, issue 35).
+    stream, issue 35), the files written behind the tracking thread (issue 44).
 
-    Each frame's file is written atomically and then the manifest is rewritten atomically with
-    ``"complete": false``, so :func:`load_video_result` sees exactly the frames done so far at
-    any moment (also after a crash or a kill). On leaving the block, whatever ended it (the
-    stream's end, an error, Ctrl-C), the manifest is written once more with ``"complete":
-    true``; a folder that received no frame is removed.
+    ``writer.write(result)`` checks the frame and hands it to a writer thread (a bounded queue
+    of :data:`QUEUE_FRAMES` frames: it waits when the disk is that far behind, and never drops
+    a frame), which writes each frame's file atomically (zlib level
+    :data:`lfsam.result.FAST_LEVEL`) and then rewrites the manifest atomically with
+    ``"complete": false`` once it has caught up (at the latest every :data:`PUBLISH_EVERY`
+    frames), so :func:`load_video_result` sees a valid result of the frames on disk at any
+    moment (also after a crash or a kill); ``writer.flush()`` waits for all of them. On leaving
+    the block, whatever ended it (the stream's end, an error, Ctrl-C), every frame handed over
+    is written, then the manifest once more with ``"complete": true``; a folder that received
+    no frame is removed. A failed write (a full disk) stops the writing and is raised in the
+    calling thread by the next ``write``, ``flush`` or the block's end. ``writer.lock`` guards
+    ``meta`` while the manifest is built: change it only holding the lock during a stream.
 
     Parameters
     ----------
     path : path-like
         The result folder (:func:`check_live_folder`: new or empty).
     meta : dict, optional
-        The manifest's ``meta``, read at every frame (so it may be completed meanwhile).
+        The manifest's ``meta``, read at every manifest (so it may be completed meanwhile,
+        under ``writer.lock``).
     objects : callable, optional
         Returns the objects' prompts so far (they may grow during the stream), kept as
         ``meta["objects"]``.
@@ -275,7 +398,9 @@ def live_video_result_writer(
     writer = _LiveWriter(path, meta if meta is not None else {}, objects)
     try:
         yield writer
+        writer.flush()
     finally:
+        writer.close()
         if writer.frames:
             writer.publish(complete=True)
         elif created:
