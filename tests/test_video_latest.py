@@ -126,6 +126,9 @@ def test_latest_keeps_latency_bounded_where_the_backlog_grows(clip, tmp_path, mo
     assert arrivals == sorted(arrivals) and indices == list(range(len(result)))
     assert result.meta["latest"] is True and held <= 3  # segmented + read ahead + being read
     assert (result.labels[0] == 1).any()  # the clicked object is segmented
+    # every frame's file was written behind the tracker and timed (issue 44)
+    assert len(fast.write_seconds) == len(fast.disk_latencies) == fast.frames
+    assert result.meta["write"] == fast.write_summary() and fast.write_summary()["write_p95_s"]
 
     count = 12
     slow, _, held = _stream(clip, tmp_path, "backlog", False, period, count, monkeypatch)

@@ -24,6 +24,7 @@ from lfsam.cli.main import main
 from lfsam.errors import LfsamError
 from lfsam.video import read_video
 from lfsam.video.online import OnlineTracker
+from lfsam.video.result import RESULT_MARKER
 from lfsam.video.synth import generate_video, write_video_frames
 from lfsam.viewer import layers as L
 from lfsam.viewer.follow_dock import default_out
@@ -74,7 +75,13 @@ def _dock(make_napari_viewer, **options):
 
 
 def _shown(qtbot, follow, count):
+    """Frame ``count - 1`` is shown and its file, written behind the tracking (issue 44), is in
+    the live result folder."""
     qtbot.waitUntil(lambda: len(follow.names) >= count, timeout=TIMEOUT)
+    out = follow.out
+    if out is not None:
+        qtbot.waitUntil(lambda: (out / RESULT_MARKER).is_file() and len(
+            lfsam.load_result(out)) >= count, timeout=TIMEOUT)
 
 
 def _ended(qtbot, widget):
