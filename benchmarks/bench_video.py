@@ -1,6 +1,6 @@
 """Light-field video (issue 25; docs/design.md section 10): the cost of tracking.
 
-Two parts, each printing its table:
+Parts, each printing its table:
 
 * ``speed`` — a synthetic 9x9 video (``--size``, ``--frames``), ground-truth disparity, for each
   model (``--models``: the oracle tracks with constrained prompts, a SAM 2 model with random
@@ -35,6 +35,13 @@ Two parts, each printing its table:
   arrival to result on disk (median, 95th percentile, worst) in seconds and in frame times,
   frames skipped, and the process's resident memory after the first 10 % of the frames and at
   the end. Target: 95th percentile under two frame times with ``--latest``, memory flat.
+* ``write`` (issue 44) — writing one frame's result: the oracle tracker's result on a synthetic
+  5x5 frame of ``--write-size`` (default 480x640, 3 objects), written ``--write-repeats`` times
+  (median and best, milliseconds; file size) as result format 1 did (int32 labels,
+  ``numpy.savez_compressed``) and as format 2 does at zlib levels 6, 1 (a video's frames) and 0;
+  the object ids of its labels by ``numpy.unique`` and by ``label_ids``; and a live writer's
+  cost to the tracking thread per frame (the hand-over) against its writer thread's.
+  Target: a 30-per-second stream not bounded by writing (33 ms per frame).
 
 Usage::
 
@@ -42,6 +49,7 @@ Usage::
         [--grid 9x9] [--frames 6] [--models oracle,sam2-tiny-test] [--settings all,sparse]
         [--memory-frames 3,6,12] [--stream-runs edgetam:memory,...] [--rate 1]
         [--latest-model oracle] [--latest-frames 100] [--latest-size 96x128]
+        [--write-size 480x640] [--write-repeats 7]
 """
 
 from __future__ import annotations
@@ -347,6 +355,78 @@ def latest_part(args: argparse.Namespace, work: Path) -> None:
     print("\ntarget: with --latest the 95th-percentile latency under 2 frame times; memory flat")
 
 
+def format1_save(result, path: Path) -> None:
+    """A result file as ``save_result`` wrote it before format 2 (issue 44): int32 labels,
+    ``numpy.savez_compressed`` (zlib level 6), atomically; the baseline of the write part."""
+    from lfsam.fileutil import atomic_output
+
+    arrays = {"format_version": np.array(1), "labels": np.asarray(result.labels, np.int32),
+              "timings": np.array(json.dumps(result.timings)),
+              "meta": np.array(json.dumps(result.meta, default=str)),
+              "masks_packed": result.masks.data,
+              "masks_shape": np.array(result.masks.shape, dtype=np.int64)}
+    for name in ("scores", "fallback", "refine_iou", "present"):
+        if getattr(result, name) is not None:
+            arrays[name] = np.asarray(getattr(result, name))
+    with atomic_output(path) as tmp, open(tmp, "wb") as handle:
+        np.savez_compressed(handle, **arrays)
+
+
+def write_part(args: argparse.Namespace, work: Path) -> None:
+    from lfsam.result import FAST_LEVEL, label_ids, save_result
+    from lfsam.video.result import live_video_result_writer
+
+    size, repeats = parse_size(args.write_size), args.write_repeats
+    lf = next(iter(generate_video(grid=(5, 5), size=size, frames=1, seed=0, num_objects=3)))
+    tracker = OnlineTracker("oracle", disparity="gt", options=SegmentOptions(
+        pipeline=PipelineConfig(refine_views=1), run=RunOptions(progress=False)))
+    tracker.add_prompts([obj for obj in clicks(lf) if obj.obj_id != 1])
+    result = tracker.track(lf)
+    ids = [int(i) for i in np.unique(result.labels) if i > 0]
+    print(f"\n## write: one frame's result, 5x5 views of {size[0]}x{size[1]}, objects {ids} "
+          f"(the oracle tracker on a synthetic frame; {result.masks.num_masks} packed masks), "
+          f"median of {repeats}, CPU\n")
+    print("| writer | ms per frame (median) | best | file (KiB) |")
+    print("|---|---|---|---|")
+
+    def timed(call) -> tuple[float, float]:
+        times = []
+        for _ in range(repeats):
+            start = time.perf_counter()
+            call()
+            times.append(time.perf_counter() - start)
+        return statistics.median(times) * 1000, min(times) * 1000
+
+    path = work / "one.npz"
+    writers = [("format 1: int32, numpy.savez_compressed (before)",
+                lambda: format1_save(result, path)),
+               ("format 2, level 6 (save_result's default)", lambda: save_result(result, path)),
+               (f"format 2, level {FAST_LEVEL} (a video's frames)",
+                lambda: save_result(result, path, level=FAST_LEVEL)),
+               ("format 2, level 0 (stored)", lambda: save_result(result, path, level=0))]
+    for name, call in writers:
+        median, best = timed(call)
+        print(f"| {name} | {median:.1f} | {best:.1f} | {path.stat().st_size / 1024:.0f} |")
+    for name, call in (("object ids: numpy.unique (before)", lambda: np.unique(result.labels)),
+                       ("object ids: label_ids (run ends)", lambda: label_ids(result.labels))):
+        median, best = timed(call)
+        print(f"| {name} | {median:.1f} | {best:.1f} | |")
+    handed: list[float] = []
+    with live_video_result_writer(work / "live") as writer:
+        for _ in range(repeats):
+            start = time.perf_counter()
+            writer.write(result)
+            handed.append(time.perf_counter() - start)
+            time.sleep(0.1)  # a tracker's frame: the writer thread catches up meanwhile
+    behind = statistics.median(writer.write_seconds) * 1000
+    print(f"| the tracking thread's cost per frame, live writer (hand-over) | "
+          f"{statistics.median(handed) * 1000:.2f} | {min(handed) * 1000:.2f} | |")
+    print(f"| the live writer's thread per frame (file, ids; behind the tracking) | "
+          f"{behind:.1f} | {min(writer.write_seconds) * 1000:.1f} | |")
+    print("\ntarget (issue 44): a 30-per-second stream not bounded by writing its results "
+          "(33 ms per frame)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--parts", default="speed,memory")
@@ -368,6 +448,8 @@ def main() -> None:
     parser.add_argument("--latest-frames", type=int, default=100)
     parser.add_argument("--latest-size", default="96x128")
     parser.add_argument("--latest-grid", default="5x5")
+    parser.add_argument("--write-size", default="480x640")
+    parser.add_argument("--write-repeats", type=int, default=7)
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     args.models = args.models.split(",")
@@ -388,6 +470,8 @@ def main() -> None:
             stream_part(args, work)
         if "latest" in parts:
             latest_part(args, work)
+        if "write" in parts:
+            write_part(args, work)
 
 
 if __name__ == "__main__":
