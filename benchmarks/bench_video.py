@@ -22,8 +22,9 @@ Parts, each printing its table:
   the object-score bias is raised so the objects stay present and are segmented in every
   frame, as trained weights would. Printed per model: one encoder pass (median of 5, seconds), the
   mean seconds per frame spent reading and segmenting it, the sustained rate that allows
-  (1 / mean), the per-frame cost in encoder passes, the latency from arrival to result on
-  disk (median and worst) and the range of objects present in the center view per frame.
+  (1 / mean), the per-frame cost in encoder passes, the latency from arrival to result
+  (median and worst), the range of objects present in the center view per frame, and the
+  result files' writing behind the tracker (issue 44: median per frame, arrival to disk p95).
   Targets: EdgeTAM at least 1 frame per second; Hiera-T at most 1.3
   encoder passes per frame.
 * ``latest`` (issue 44) — a camera twice as fast as the tracker: the tracker's frame time is
@@ -32,9 +33,10 @@ Parts, each printing its table:
   a writer process lands ``--latest-frames`` frames (a 10-frame synthetic clip in turn) at twice
   that rate while :func:`lfsam.video.live.segment_stream` follows, once with ``latest=True``
   (``--latest``) and once without. Printed for each: frames processed per second, latency from
-  arrival to result on disk (median, 95th percentile, worst) in seconds and in frame times,
-  frames skipped, and the process's resident memory after the first 10 % of the frames and at
-  the end. Target: 95th percentile under two frame times with ``--latest``, memory flat.
+  arrival to result (median, 95th percentile, worst) in seconds and in frame times,
+  frames skipped, the process's resident memory after the first 10 % of the frames and at
+  the end, and the result files' writing (median per frame, arrival to disk p95).
+  Target: 95th percentile under two frame times with ``--latest``, memory flat.
 * ``write`` (issue 44) — writing one frame's result: the oracle tracker's result on a synthetic
   5x5 frame of ``--write-size`` (default 480x640, 3 objects), written ``--write-repeats`` times
   (median and best, milliseconds; file size) as result format 1 did (int32 labels,
@@ -209,8 +211,9 @@ def stream_part(args: argparse.Namespace, work: Path) -> None:
           f"{args.rate:g}/s, 3 objects, --refine-views 1, video memory, ground-truth "
           "disparity, CPU, random weights\n")
     print("| model | tracking | encoder pass (s) | s/frame (mean) | sustained frames/s | "
-          "encoder passes per frame | latency median (s) | latency worst (s) | objects |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "encoder passes per frame | latency median (s) | latency worst (s) | objects | "
+          "write median (ms) | arrival to disk p95 (s) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     objects = [obj for obj in clicks(first) if obj.obj_id != 1]  # label 1: the backdrop
     for run in args.stream_runs:
         name, tracking = run.split(":")
@@ -253,7 +256,9 @@ def stream_part(args: argparse.Namespace, work: Path) -> None:
         lat = report.summary()
         print(f"| {name} | {tracking} | {encoder:.3f} | {mean:.3f} | {1 / mean:.2f} | "
               f"{mean / encoder:.2f} | {lat['latency_median_s']:.3f} | "
-              f"{lat['latency_worst_s']:.3f} | {min(present)}-{max(present)} |", flush=True)
+              f"{lat['latency_worst_s']:.3f} | {min(present)}-{max(present)} | "
+              f"{lat['write_median_s'] * 1000:.1f} | {lat['disk_latency_p95_s']:.3f} |",
+              flush=True)
     print("\ntargets: edgetam >= 1 frame/s sustained; sam2.1-hiera-tiny <= 1.3 encoder passes "
           "per frame")
 
@@ -312,8 +317,9 @@ def latest_part(args: argparse.Namespace, work: Path) -> None:
           f"{args.latest_frames} frames landing at {rate:.1f}/s\n")
     print("| --latest | frames processed | processed per s | s per frame | latency median (s) | "
           "latency p95 (s) | p95 in frame times | latency worst (s) | skipped | "
-          "reads per frame | RSS after 10 % (MiB) | RSS at end (MiB) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "reads per frame | RSS after 10 % (MiB) | RSS at end (MiB) | write median (ms) | "
+          "arrival to disk p95 (s) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     reads = [0]
     read_lightfield = live.read_lightfield
 
@@ -350,7 +356,8 @@ def latest_part(args: argparse.Namespace, work: Path) -> None:
               f"{report.frames / (done[-1] - began):.2f} | {period:.3f} | "
               f"{statistics.median(lat):.3f} | {p95:.3f} | {p95 / period:.2f} | "
               f"{max(lat):.3f} | {len(report.skipped)} | {reads[0] / report.frames:.2f} | "
-              f"{early:.0f} | {rss[-1]:.0f} |", flush=True)
+              f"{early:.0f} | {rss[-1]:.0f} | {statistics.median(report.write_seconds) * 1000:.1f}"
+              f" | {percentile(report.disk_latencies, 95):.3f} |", flush=True)
     live.read_lightfield = read_lightfield
     print("\ntarget: with --latest the 95th-percentile latency under 2 frame times; memory flat")
 
