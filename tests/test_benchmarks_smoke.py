@@ -56,11 +56,13 @@ CASES = {
         "sparse speed-up over all",
     ),
     "bench_video.py": (
-        ["--parts", "speed,memory,stream,latest", "--grid", "3x3", "--size", "24x32",
+        ["--parts", "speed,memory,stream,latest,write", "--grid", "3x3", "--size", "24x32",
          "--frames", "2", "--models", "oracle", "--settings", "all", "--memory-frames", "2,3",
          "--memory-model", "oracle", "--stream-runs", "sam2-tiny-test:memory",
          "--stream-size", "32x40", "--stream-frames", "2", "--rate", "20",
-         "--latest-frames", "6", "--latest-grid", "3x3", "--latest-size", "24x32"],
+         "--latest-frames", "6", "--latest-grid", "3x3", "--latest-size", "24x32",
+         "--write-size", "24x32", "--write-repeats", "1", "--write-frames", "4",
+         "--write-rate", "20"],
         "target: with --latest the 95th-percentile latency under 2 frame times",
     ),
     "bench_tracking.py": (
@@ -119,5 +121,6 @@ def test_bench_gpu_smoke_runs_every_case_and_writes_json(tmp_path):
         assert got["frames_processed"] >= 1 and got["tracking"] == "edgetam-memory"
         assert got["frames_processed"] + got["skipped"] == got["frames_arrived"]
         assert got["latency_p95_s"] > 0
+        assert got["write_median_s"] > 0 and got["disk_latency_p95_s"] > 0  # written behind
     assert numbers["targets"]["stream_per_second"] == 30
     assert "| live stream, estimate disparity, --latest |" in run.stdout
