@@ -168,7 +168,8 @@ def segment_stream(
     value_range : int, optional
         Passed to :func:`lfsam.io.read_lightfield` for each frame.
     on_frame : callable, optional
-        ``on_frame(timing, result)`` after each frame's result is on disk, in this thread.
+        ``on_frame(timing, result)`` after each frame is segmented, in this thread; its file
+        follows from the writer thread (the folder lists it once written).
     on_skip : callable, optional
         ``on_skip(message)`` with one line for each frame skipped as unreadable or refused
         (not for frames superseded with ``latest``: each frame's timing counts those).
