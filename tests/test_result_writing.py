@@ -205,3 +205,18 @@ def test_a_real_save_failure_leaves_no_partial_file(tmp_path, monkeypatch):
             writer.write(_frame(0))
     assert not out.exists()  # no frame written: no folder, no temporary file
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_file_holds_the_frame_as_handed_over_whatever_the_caller_changes(
+        tmp_path, monkeypatch):
+    gate, _ = _gate(monkeypatch)
+    out = tmp_path / "live"
+    frame = _frame(0)
+    with live_video_result_writer(out) as writer:
+        writer.write(frame)
+        frame.labels[:] = 7  # e.g. a viewer painting its labels layer while the file waits
+        frame.meta["frame"] = 99
+        gate.set()
+    written = lfsam.load_result(out).frame(0)
+    np.testing.assert_array_equal(written.labels, _frame(0).labels)
+    assert written.meta == {"frame": 0}

@@ -254,7 +254,9 @@ def save_result(result: SegmentationResult, path: str | os.PathLike,
     --------
     See :func:`load_result`, which reads it back.
     """
-    labels = np.asarray(result.labels, dtype=np.int32)
+    labels = np.asarray(result.labels)
+    if labels.dtype.kind not in "iu":
+        labels = labels.astype(np.int32)
     arrays: dict[str, np.ndarray] = {
         "format_version": np.array(FORMAT_VERSION),
         "labels": labels.astype(label_storage_dtype(labels), copy=False),

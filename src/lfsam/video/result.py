@@ -22,6 +22,8 @@ nothing. Memory stays flat in the number of frames. :func:`load_video_result` (a
 from __future__ import annotations
 
 import contextlib
+import copy
+import dataclasses
 import json
 import os
 import queue
@@ -37,7 +39,14 @@ import numpy as np
 from lfsam.errors import LfsamError
 from lfsam.fileutil import atomic_folder_output, atomic_output
 from lfsam.prompts import ObjectPrompts, prompts_from_json, prompts_to_json
-from lfsam.result import FAST_LEVEL, SegmentationResult, label_ids, load_result, save_result
+from lfsam.result import (
+    FAST_LEVEL,
+    SegmentationResult,
+    label_ids,
+    label_storage_dtype,
+    load_result,
+    save_result,
+)
 
 __all__ = [
     "RESULT_MARKER",
@@ -293,7 +302,7 @@ class _LiveWriter(_Writer):
         """
         self._raise_error()
         self.check(result, self.accepted)
-        self._queue.put((result, arrived))
+        self._queue.put((_owned(result), arrived))
         self.accepted += 1
 
     def flush(self) -> None:
@@ -358,6 +367,18 @@ class _LiveWriter(_Writer):
         self._unpublished += 1
         if self._queue.qsize() == 0 or self._unpublished >= PUBLISH_EVERY:
             self.publish(complete=False)
+
+
+def _owned(result: SegmentationResult) -> SegmentationResult:
+    """``result`` with its labels and meta copied for the writer thread (the caller, e.g. the
+    viewer's labels layer, may change its own while the file is written): the labels in their
+    storage dtype (:func:`lfsam.result.label_storage_dtype`: uint8 for a few objects, about 2 ms
+    for a 5x5x480x640 frame), which is also what the file holds."""
+    labels = np.asarray(result.labels)
+    if labels.dtype.kind not in "iu":
+        labels = labels.astype(np.int32)
+    return dataclasses.replace(result, labels=labels.astype(label_storage_dtype(labels)),
+                               meta=copy.deepcopy(result.meta))
 
 
 @contextlib.contextmanager
