@@ -220,3 +220,25 @@ def test_the_file_holds_the_frame_as_handed_over_whatever_the_caller_changes(
     written = lfsam.load_result(out).frame(0)
     np.testing.assert_array_equal(written.labels, _frame(0).labels)
     assert written.meta == {"frame": 0}
+
+
+def test_a_ctrl_c_while_the_end_waits_for_the_disk_finishes_the_file_in_progress(
+        tmp_path, monkeypatch):
+    gate, started = _gate(monkeypatch)
+    out = tmp_path / "live"
+    with pytest.raises(KeyboardInterrupt):
+        with live_video_result_writer(out) as writer:
+            for f in range(4):
+                writer.write(_frame(f))
+            _wait(lambda: started == [0])  # frame 0's file under way, 3 queued
+            join = writer._queue.join
+
+            def interrupted_once():  # Ctrl-C while the block's end waits for the disk
+                writer._queue.join = join
+                threading.Timer(0.2, gate.set).start()
+                raise KeyboardInterrupt
+
+            writer._queue.join = interrupted_once
+    video = lfsam.load_result(out)
+    assert video.complete and len(video) == 1 and started == [0]  # the rest left unwritten
+    assert _files(out) == [frame_name(0), RESULT_MARKER]

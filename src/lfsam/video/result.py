@@ -306,14 +306,20 @@ class _LiveWriter(_Writer):
         self.accepted += 1
 
     def flush(self) -> None:
-        """Wait until every frame handed over is on disk and in the manifest.
+        """Wait until every frame handed over is on disk and in the manifest. A Ctrl-C while
+        waiting leaves the frames not yet started unwritten (as :meth:`close`) and is raised
+        again.
 
         Raises
         ------
         Exception
             Whatever made the writer thread fail.
         """
-        self._queue.join()
+        try:
+            self._queue.join()
+        except KeyboardInterrupt:
+            self._abandon.set()
+            raise
         self._raise_error()
 
     def close(self) -> None:
@@ -421,11 +427,13 @@ def live_video_result_writer(
         yield writer
         writer.flush()
     finally:
-        writer.close()
-        if writer.frames:
-            writer.publish(complete=True)
-        elif created:
-            shutil.rmtree(path, ignore_errors=True)
+        try:
+            writer.close()  # a Ctrl-C here still leaves a complete manifest (below)
+        finally:
+            if writer.frames:
+                writer.publish(complete=True)
+            elif created:
+                shutil.rmtree(path, ignore_errors=True)
 
 
 class FrameLabels:
