@@ -19,15 +19,24 @@ all seeds:
   in every view for at least one frame; ``latency``: frames from the first frame it shows
   ``--min-pixels`` again in some view to the first frame it is found (IoU >= 0.5 in such a
   view; ``never`` counts those not found by the end; target: 0 frames for gaps up to 5);
-* ``ms_per_frame``: mean milliseconds of :meth:`OnlineTracker.track` per frame, and the ratio
-  of the search against the run without it (target <= 1.2), measured in this process.
+* the cost (target: the search costs at most 20 % more per frame than the tracking before
+  it), measured in this process, each frame's least time over ``--repeat`` runs, four ways:
+  ``ms/frame`` and ``ratio``: the whole :meth:`OnlineTracker.track` call against ``before``
+  (this includes the light-field pipeline segmenting the objects that ``before`` dropped,
+  work a track that keeps its objects has to do); ``carrying``: the carrying / search alone
+  (``OnlineTracker.carry_seconds``) and its ratio; ``search extra``: the search's extra
+  carrying time as a share of ``before``'s whole frame; ``same-objects ratio``: the whole
+  frame over only the frames where both placed the same object ids (the pipeline's work
+  alike, so the difference is the search's). ``--easy`` tracks videos without the hard cases,
+  where ``before`` loses few objects, so the whole-frame ratio there is the search's cost.
 
-The default seeds (101-103) are held out: the tracker was developed on seeds 1-4.
+The default seeds (101-103) are held out: the tracker was developed on seeds 1-40.
 
 Usage::
 
     OMP_NUM_THREADS=1 python benchmarks/bench_tracking.py [--seeds 101,102,103]
-        [--frames 12] [--objects 5] [--jitter 0,1] [--modes search,before] [--json OUT]
+        [--frames 12] [--objects 5] [--jitter 0,1] [--modes search,before] [--easy]
+        [--repeat 2] [--json OUT]
 """
 
 from __future__ import annotations
@@ -69,19 +78,26 @@ def clicks(lf, min_pixels: int) -> tuple[list[ObjectPrompts], dict[int, int]]:
     return prompts, truth
 
 
-def track(frames, prompts, search: bool, jitter: int, seed: int):
-    """Labels of every frame and the seconds of each ``track`` call."""
+def track(frames, prompts, search: bool, jitter: int, seed: int, repeat: int = 1):
+    """Labels of every frame, the seconds of each ``track`` call and of its carrying (the
+    least over ``repeat`` runs, frame by frame: the labels are the same every run)."""
     options = SegmentOptions(run=RunOptions(progress=False), model=ModelOptions(
         name="oracle", oracle={"boundary_jitter": jitter} if jitter else None, seed=seed))
-    tracker = OnlineTracker("oracle", disparity="gt", options=options, search=search)
-    tracker.add_prompts(prompts)
-    labels, seconds = [], []
-    for lf in frames:
-        start = time.perf_counter()
-        result = tracker.track(lf)
-        seconds.append(time.perf_counter() - start)
-        labels.append(result.labels)
-    return labels, seconds, tracker.carry_seconds / len(frames)
+    best_seconds = best_carrying = None
+    for _ in range(repeat):
+        tracker = OnlineTracker("oracle", disparity="gt", options=options, search=search)
+        tracker.add_prompts(prompts)
+        labels, seconds, carrying = [], [], []
+        for lf in frames:
+            start, carried = time.perf_counter(), tracker.carry_seconds
+            result = tracker.track(lf)
+            seconds.append(time.perf_counter() - start)
+            carrying.append(tracker.carry_seconds - carried)
+            labels.append(result.labels)
+        best_seconds = seconds if best_seconds is None else np.minimum(best_seconds, seconds)
+        best_carrying = (carrying if best_carrying is None
+                         else np.minimum(best_carrying, carrying))
+    return labels, list(best_seconds), list(best_carrying)
 
 
 def score(frames, labels, truth: dict[int, int], min_pixels: int) -> dict:
@@ -123,8 +139,40 @@ def score(frames, labels, truth: dict[int, int], min_pixels: int) -> dict:
             "returns": returns, "latencies": latencies, "never": never}
 
 
+def _ids(labels: np.ndarray) -> frozenset[int]:
+    return frozenset(int(i) for i in np.unique(labels) if i > 0)
+
+
+def timing(totals: dict, mode: str, jitter: int) -> dict:
+    """The cost figures of one run against ``before`` with the same jitter (see the module
+    docstring): whole frame, carrying, the search's own extra as a share of the earlier
+    frame, and the whole frame over the frames where both placed the same objects."""
+    total, base = totals[(mode, jitter)], totals.get(("before", jitter))
+    ms = 1000 * float(np.mean(total["seconds"]))
+    carry_ms = 1000 * float(np.mean(total["carrying"]))
+    out = {"ms_per_frame": ms, "carrying_ms_per_frame": carry_ms}
+    if base is None:
+        return out
+    base_ms = 1000 * float(np.mean(base["seconds"]))
+    base_carry = 1000 * float(np.mean(base["carrying"]))
+    same = [(a, b) for a, b, ia, ib in zip(total["seconds"], base["seconds"], total["ids"],
+                                           base["ids"], strict=True) if ia == ib]
+    out.update({
+        "ratio": ms / base_ms, "carrying_ratio": carry_ms / base_carry,
+        "search_extra_share": (carry_ms - base_carry) / base_ms,
+        "same_objects_frames": len(same), "frames": len(total["seconds"]),
+        "same_objects_ratio": (sum(a for a, _ in same) / sum(b for _, b in same)
+                               if same else float("nan"))})
+    return out
+
+
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        epilog="examples: OMP_NUM_THREADS=1 python benchmarks/bench_tracking.py --seeds 1,2 "
+               "--jitter 0\n  python benchmarks/bench_tracking.py --easy --repeat 2 "
+               "--modes search,before --jitter 0   # the search's cost where nothing is lost",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", default="101,102,103")
     parser.add_argument("--frames", type=int, default=12)
     parser.add_argument("--objects", type=int, default=5)
@@ -133,6 +181,11 @@ def main() -> None:
     parser.add_argument("--jitter", default="0,1")
     parser.add_argument("--modes", default="search,before")
     parser.add_argument("--min-pixels", type=int, default=100)
+    parser.add_argument("--easy", action="store_true",
+                        help="videos without the hard cases (hard=False), where the earlier "
+                             "tracking loses few objects: the search's cost on the same work")
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="track each video this many times; each frame's least time counts")
     parser.add_argument("--json", default=None, help="also write the numbers here")
     args = parser.parse_args()
     grid = tuple(int(x) for x in args.grid.lower().split("x"))
@@ -143,41 +196,38 @@ def main() -> None:
     totals: dict[tuple[str, int], dict] = {}
     for seed in seeds:
         frames = list(generate_video(grid=grid, size=size, frames=args.frames, seed=seed,
-                                     num_objects=args.objects, hard=True))
+                                     num_objects=args.objects, hard=not args.easy))
         prompts, truth = clicks(frames[0], args.min_pixels)
         for jitter in jitters:
             for mode in modes:
-                labels, seconds, carrying = track(frames, prompts, MODES[mode], jitter, seed)
+                labels, seconds, carrying = track(frames, prompts, MODES[mode], jitter, seed,
+                                                  args.repeat)
                 row = score(frames, labels, truth, args.min_pixels)
                 row["seconds"] = seconds
-                row["carrying"] = [carrying]
+                row["carrying"] = carrying
+                row["ids"] = [_ids(x) for x in labels]
                 total = totals.setdefault((mode, jitter), {
                     "visible": 0, "lost": 0, "iou_sum": 0.0, "switches": 0, "returns": 0,
-                    "latencies": [], "never": 0, "seconds": [],
-                    "carrying": []})
+                    "latencies": [], "never": 0, "seconds": [], "carrying": [], "ids": []})
                 for key, value in row.items():
                     total[key] = total[key] + value
                 print(f"seed {seed} jitter {jitter} {mode:>6}: {row['lost']}/{row['visible']} "
                       f"lost, mean IoU {row['iou_sum'] / max(row['visible'], 1):.4f}, "
                       f"{row['switches']} switches, returns {row['returns']} latencies "
                       f"{row['latencies']} never {row['never']}, "
-                      f"{1000 * np.mean(seconds):.0f} ms/frame ({1000 * carrying:.0f} carrying)",
-                      flush=True)
+                      f"{1000 * np.mean(seconds):.0f} ms/frame "
+                      f"({1000 * np.mean(carrying):.0f} carrying)", flush=True)
     print()
-    print(f"{len(seeds)} videos (seeds {args.seeds}), {args.frames} frames of {grid[0]}x{grid[1]} "
-          f"views of {size[0]}x{size[1]}, {args.objects} objects, oracle, gt disparity")
+    print(f"{len(seeds)} videos (seeds {args.seeds}{', easy' if args.easy else ''}), "
+          f"{args.frames} frames of {grid[0]}x{grid[1]} views of {size[0]}x{size[1]}, "
+          f"{args.objects} objects, oracle, gt disparity, least of {args.repeat} timing(s)")
     header = ("mode", "jitter", "visible", "lost %", "mean IoU", "switches", "returns",
               "latency mean", "latency max", "never", "ms/frame", "ratio", "carrying ms/frame",
-              "carrying ratio")
+              "carrying ratio", "search extra % of before frame",
+              "same-objects frames", "same-objects ratio")
     print(" | ".join(header))
     out = []
     for (mode, jitter), total in totals.items():
-        ms = 1000 * float(np.mean(total["seconds"]))
-        base = totals.get(("before", jitter))
-        ratio = ms / (1000 * float(np.mean(base["seconds"]))) if base else float("nan")
-        carry_ms = 1000 * float(np.mean(total["carrying"]))
-        carry_ratio = (carry_ms / (1000 * float(np.mean(base["carrying"]))) if base
-                       else float("nan"))
         lat = total["latencies"]
         row = {"mode": mode, "jitter": jitter, "visible": total["visible"],
                "lost_pct": 100 * total["lost"] / max(total["visible"], 1),
@@ -185,13 +235,17 @@ def main() -> None:
                "switches": total["switches"], "returns": total["returns"],
                "latency_mean": float(np.mean(lat)) if lat else None,
                "latency_max": max(lat) if lat else None, "never": total["never"],
-               "ms_per_frame": ms, "ratio": ratio, "carrying_ms_per_frame": carry_ms,
-               "carrying_ratio": carry_ratio}
+               **timing(totals, mode, jitter)}
         out.append(row)
+        nan = float("nan")
         print(f"{mode} | {jitter} | {row['visible']} | {row['lost_pct']:.2f} | "
               f"{row['mean_iou']:.4f} | {row['switches']} | {row['returns']} | "
               f"{row['latency_mean'] if lat else '-'} | {row['latency_max'] if lat else '-'} | "
-              f"{row['never']} | {ms:.0f} | {ratio:.2f} | {carry_ms:.0f} | {carry_ratio:.2f}")
+              f"{row['never']} | {row['ms_per_frame']:.0f} | {row.get('ratio', nan):.2f} | "
+              f"{row['carrying_ms_per_frame']:.0f} | {row.get('carrying_ratio', nan):.2f} | "
+              f"{100 * row.get('search_extra_share', nan):.1f} | "
+              f"{row.get('same_objects_frames', '-')}/{row.get('frames', '-')} | "
+              f"{row.get('same_objects_ratio', nan):.2f}")
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1), encoding="utf-8")
 

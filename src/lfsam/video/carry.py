@@ -79,7 +79,7 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
     # the region of the image the template can land on, zero-padded outside the frame
     region_r0, region_c0 = r0 - top, c0 - left
     rh, rw = h + top + bottom, w + left + right
-    region = np.zeros((rh, rw, 3), np.float32)
+    region = np.zeros((rh, rw, image.shape[-1]), np.float32)
     valid = np.zeros((rh, rw), np.float32)
     sr0, sc0 = max(region_r0, 0), max(region_c0, 0)
     sr1, sc1 = min(region_r0 + rh, height), min(region_c0 + rw, width)
@@ -94,7 +94,7 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
         return signal.correlate(x, k, mode="valid", method="fft")
 
     count = corr(valid, m)
-    cross = sum(corr(region[..., c], a[..., c]) for c in range(3))
+    cross = sum(corr(region[..., c], a[..., c]) for c in range(region.shape[-1]))
     energy = corr((region**2).sum(-1), m)
     own = corr(valid, (a**2).sum(-1))
     with np.errstate(invalid="ignore", divide="ignore"):

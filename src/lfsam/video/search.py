@@ -48,14 +48,12 @@ from scipy import ndimage
 from lfsam.pipeline.references import reference_views
 from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
 from lfsam.video.carry import (
-    MAX_PIXEL_DIFFERENCE,
     MIN_PIXELS,
     Template,
     box_around,
-    cost_map,
     deepest,
-    shifted,
 )
+from lfsam.video.match import cost_map, placed_at, robust_costs, with_depth
 from lfsam.video.prompts import negatives_since, prompts_at, start_frame
 
 __all__ = [
@@ -91,6 +89,11 @@ NEAR_REACH = 4
 KEEP_TEMPLATE = 0.6
 #: Colour histogram intersection an answer away from the prediction needs.
 MIN_ALIKE = 0.35
+#: Disparity difference (pixels) from the object's last disparity, per frame since it was
+#: seen, beyond which a pixel is not the object whatever its colour: the light field tells an
+#: object from a background of the same colours by its depth (objects change depth by up to
+#: about a pixel of disparity per frame).
+DISPARITY_TOLERANCE = 1.2
 
 
 @dataclass
@@ -138,6 +141,14 @@ def predicted(track: Track, view: tuple[int, int], center: tuple[int, int]) -> T
     return replace(track.template, origin=(round(place[0]), round(place[1])))
 
 
+def predicted_disparity(track: Track) -> tuple[float, float]:
+    """The disparity the object's pixels are expected at this frame and the tolerance
+    around it: its last disparity (moving it at its last rate lost more objects on the
+    development videos, whose depth swings back and forth), :data:`DISPARITY_TOLERANCE` for
+    each frame since it was seen."""
+    return track.disparity, DISPARITY_TOLERANCE * (track.unseen + 1)
+
+
 def looks_alike(a: np.ndarray, b: np.ndarray, bins: int = 6) -> float:
     """Intersection of the joint RGB histograms of two pixel sets ``(N, 3)`` (1: equal)."""
     if len(a) == 0 or len(b) == 0:
@@ -153,59 +164,30 @@ def looks_alike(a: np.ndarray, b: np.ndarray, bins: int = 6) -> float:
 
 def near_support(template: Template, image: np.ndarray, reach: int
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The robust cost of every shift within ``reach`` pixels of the template's place: the sum
-    over the template of each pixel's RGB distance (summed over channels), truncated at
+    """The robust cost (:func:`lfsam.video.match.robust_costs`: the sum over the template of
+    each pixel's distance, summed over channels, truncated at
     :data:`lfsam.video.carry.MAX_PIXEL_DIFFERENCE`, so that pixels covered by something in
-    front cost the same wherever the template is (an object mostly behind another is found by
-    its visible part, where the SSD is led astray by the cover).
+    front cost the same wherever the template is: an object mostly behind another is found by
+    its visible part, where the SSD is led astray by the cover) of every shift within
+    ``reach`` pixels of the template's place.
 
     Returns
     -------
     cost : (2 reach + 1, 2 reach + 1) float array
     du, dv : int arrays of the same shape
     """
-    h, w = template.mask.shape
-    r0, c0 = template.origin
-    height, width = image.shape[:2]
-    region = np.full((h + 2 * reach, w + 2 * reach, 3), -1e4, np.float32)
-    top, left = r0 - reach, c0 - reach
-    sr0, sc0 = max(top, 0), max(left, 0)
-    sr1, sc1 = min(top + region.shape[0], height), min(left + region.shape[1], width)
-    if sr1 > sr0 and sc1 > sc0:
-        region[sr0 - top:sr1 - top, sc0 - left:sc1 - left] = image[sr0:sr1, sc0:sc1]
-    windows = np.lib.stride_tricks.sliding_window_view(region, (h, w), axis=(0, 1))
-    # windows: (2 reach + 1, 2 reach + 1, 3, h, w)
-    diff = np.abs(windows - np.moveaxis(template.image, -1, 0)[None, None]).sum(2)
-    cost = (np.minimum(diff, MAX_PIXEL_DIFFERENCE) * template.mask).sum((2, 3))
     du, dv = np.mgrid[-reach:reach + 1, -reach:reach + 1]
-    return cost, du, dv
-
-
-def _robust(template: Template, image: np.ndarray, du: int, dv: int) -> tuple[float, int]:
-    """The truncated cost (:func:`near_support`) of one shift and its support count; pixels
-    outside the frame cost the truncation."""
-    height, width = image.shape[:2]
-    h, w = template.mask.shape
-    r0, c0 = template.origin[0] + du, template.origin[1] + dv
-    tr0, tc0 = max(-r0, 0), max(-c0, 0)
-    ir0, ic0, ir1, ic1 = max(r0, 0), max(c0, 0), min(r0 + h, height), min(c0 + w, width)
-    total = int(template.mask.sum())
-    if ir1 <= ir0 or ic1 <= ic0:
-        return float(total * MAX_PIXEL_DIFFERENCE), 0
-    sub = template.mask[tr0:tr0 + ir1 - ir0, tc0:tc0 + ic1 - ic0]
-    look = template.image[tr0:tr0 + ir1 - ir0, tc0:tc0 + ic1 - ic0]
-    diff = np.minimum(np.abs(image[ir0:ir1, ic0:ic1] - look).sum(-1), MAX_PIXEL_DIFFERENCE)
-    inside = int(sub.sum())
-    cost = float((diff * sub).sum()) + (total - inside) * MAX_PIXEL_DIFFERENCE
-    return cost, int((sub & (diff < MAX_PIXEL_DIFFERENCE)).sum())
+    cost, _ = robust_costs(template, image, du, dv)
+    return cost.reshape(du.shape), du, dv
 
 
 def _best_shift(template: Template, image: np.ndarray, radius: int | None, reach: int = 0
                 ) -> tuple[np.ndarray, np.ndarray, tuple[int, int]] | None:
     """The shifted mask and support of the shift with the least robust cost
-    (:func:`near_support`) among the :data:`CANDIDATES` cheapest by masked SSD and, with
-    ``reach`` and where none of those shows most of the template, every shift that close to
-    the predicted place (ties: the nearer shift)."""
+    (:func:`near_support`) among the :data:`CANDIDATES` cheapest by masked SSD
+    (:func:`lfsam.video.match.cost_map`) and, with ``reach`` and where none of those shows
+    most of the template, every shift that close to the predicted place (ties: the nearer
+    shift)."""
     cost, du, dv = cost_map(template, image, radius)
     flat = cost.ravel()
     finite = np.flatnonzero(np.isfinite(flat))
@@ -214,11 +196,12 @@ def _best_shift(template: Template, image: np.ndarray, radius: int | None, reach
     if values.size > CANDIDATES:  # the CANDIDATES cheapest, in the order a stable sort gives
         keep = values <= np.partition(values, CANDIDATES - 1)[CANDIDATES - 1]
         finite, values = finite[keep], values[keep]
-    for i in finite[np.argsort(values, kind="stable")[:CANDIDATES]]:
-        shift = (int(du.ravel()[i]), int(dv.ravel()[i]))
-        robust, count = _robust(template, image, *shift)
-        if best is None or robust < best[0]:
-            best = (robust, count, shift)
+    chosen = finite[np.argsort(values, kind="stable")[:CANDIDATES]]
+    if chosen.size:
+        costs, counts = robust_costs(template, image, du.ravel()[chosen], dv.ravel()[chosen])
+        k = int(np.argmin(costs))  # the first of equal costs, as the cheaper SSD
+        best = (float(costs[k]), int(counts[k]),
+                (int(du.ravel()[chosen[k]]), int(dv.ravel()[chosen[k]])))
     if reach > 0 and (best is None or best[1] < SURE * template.mask.sum()):
         costs, ru, rv = near_support(template, image, reach)
         index = np.lexsort(((ru**2 + rv**2).ravel(), costs.ravel()))[0]
@@ -227,7 +210,7 @@ def _best_shift(template: Template, image: np.ndarray, radius: int | None, reach
             best = (float(costs.ravel()[index]), 0, shift)
     if best is None:
         return None
-    placed = shifted(template, image, *best[2])
+    placed = placed_at(template, image, *best[2])
     if placed is None:
         return None
     return placed[0], placed[1], best[2]
@@ -283,6 +266,7 @@ def search_object(
     use_box: bool,
     first: tuple | None = None,
     fresh: Sequence[PointPrompt] = (),
+    disparities: Callable[[tuple[int, int]], np.ndarray | None] | None = None,
 ) -> tuple[tuple[int, int], np.ndarray, tuple[int, int], Template] | None:
     """Find a carried object in this frame (see the module docstring).
 
@@ -314,64 +298,106 @@ def search_object(
     fresh : sequence of PointPrompt
         Those of ``negatives`` given in this frame: always kept, and the positive point (one
         then) is the supported pixel farthest from them and from the support's border.
+    disparities : callable, optional
+        ``disparities(view)``: that view's ``(U, V)`` disparity map (None: unknown); a
+        template pixel is then supported only where the view's disparity is near the object's
+        predicted disparity (:func:`with_depth`).
 
     Returns
     -------
     (view, mask, shift, template) or None
         The accepted reference view and mask, and the located template; None: not found.
     """
-    order = [track.view, *([center] if track.view != center else []),
-             *(v for v in views if v not in (track.view, center))]
-    stages = [(view, search_radius(track)) for view in order] + [(view, None)
-                                                                  for view in order[:2]]
-    for number, (view, radius) in enumerate(stages):
+    expected, tolerance = predicted_disparity(track)
+    radius = search_radius(track)
+
+    def match(view: tuple[int, int], radius: int | None, given: tuple | None = None) -> tuple:
+        """The view's image, the predicted template there, its match and its support less
+        the pixels of objects placed already (they are not this one)."""
         image = images(view).astype(np.float32)
         template = predicted(track, view, center)
-        found = first if number == 0 and first is not None else _best_shift(
-            template, image, radius, near_reach(track) if radius is not None else 0)
-        if found is None:
-            continue
-        carried, support, shift = found
-        known = placed(view)
-        if known is not None:  # pixels of objects placed already are not this one
-            support = support & ~known
-        needed = NEAR_SUPPORT if radius is not None else FAR_SUPPORT
-        if support.sum() < max(MIN_PIXELS, needed * template.mask.sum()):
-            continue
-        seeds = support.copy()
-        for p in fresh:  # the positive point keeps away from a correction in this frame
-            if (p.view or center) == view:
-                seeds[min(max(round(p.y), 0), seeds.shape[0] - 1),
-                      min(max(round(p.x), 0), seeds.shape[1] - 1)] = False
-        positives = _positive_points(seeds, 1 if fresh else 3)
-        negative_xy = _neighbour_points(carried, support, placed_ids if view == center
-                                        else None)
-        user = [p for p in negatives if (p.view or center) == view
-                and (p in fresh or not carried[round(p.y), round(p.x)])]
-        negative = (*(PointPrompt(x, y, False, view) for x, y in negative_xy),
-                    *(PointPrompt(p.x, p.y, False, view) for p in user))
-        box = BoxPrompt(*box_around(carried, 0.15), view=view) if use_box else None
-        # all positive points together; where that answer is refused, each alone (a point on
-        # a look-alike pixel of the background must not sink the others)
-        tries = [positives] + ([[p] for p in positives] if len(positives) > 1 else [])
-        for chosen in tries:
-            points = (*(PointPrompt(x, y, True, view) for x, y in chosen), *negative)
-            ref_view, mask = answer(ObjectPrompts(obj_id, points, box))
-            if _accept(mask, support, carried, track,
-                       known if ref_view == view else placed(ref_view), image, template):
-                located = replace(template, origin=(template.origin[0] + shift[0],
-                                                    template.origin[1] + shift[1]))
-                return ref_view, mask, shift, located
+        found = given if given is not None else _best_shift(
+            *with_depth(template, image, None if disparities is None else disparities(view),
+                        expected, tolerance),
+            radius, near_reach(track) if radius is not None else 0)
+        support = None
+        if found is not None:
+            known = placed(view)
+            support = found[1] if known is None else found[1] & ~known
+        return view, radius, image, template, found, support
+
+    def share(stage: tuple) -> float:
+        return 0.0 if stage[4] is None else float(stage[5].sum()) / stage[3].mask.sum()
+
+    # 1. the predicted place in its own view; 2. in the center and the outer views, where
+    # it is seen most first (an object hidden in one view is often visible in others: it is
+    # carried from there and prompted there); 3. the whole of its own view and the center's
+    others = [v for v in dict.fromkeys([center, *views]) if v != track.view]
+    first_stage = match(track.view, radius, first)
+    found = _prompt_stage(obj_id, track, first_stage, center, answer, placed, placed_ids,
+                          negatives, use_box, fresh)
+    if found is not None:
+        return found
+    near = sorted((match(v, radius) for v in others), key=lambda st: -share(st))
+    whole = (match(v, None) for v in [track.view, *others[:1]])
+    for stage in [*near, *whole]:
+        found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
+                              negatives, use_box, fresh)
+        if found is not None:
+            return found
     return None
 
 
-def first_look(track: Track, image: np.ndarray, center: tuple[int, int]
-               ) -> tuple[float, tuple | None]:
-    """The match at the predicted place in the object's own view: the fraction of its
-    template supported there, and the match (for :func:`search_object`'s ``first``)."""
+def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, int],
+                  answer: Callable, placed: Callable, placed_ids: np.ndarray | None,
+                  negatives: Sequence[PointPrompt], use_box: bool,
+                  fresh: Sequence[PointPrompt]
+                  ) -> tuple[tuple[int, int], np.ndarray, tuple[int, int], Template] | None:
+    """Prompt one stage's match (:func:`search_object`, steps 4 and 5): the accepted view,
+    mask, shift and located template, or None."""
+    view, radius, image, template, found, support = stage
+    if found is None:
+        return None
+    carried, _, shift = found
+    needed = NEAR_SUPPORT if radius is not None else FAR_SUPPORT
+    if support.sum() < max(MIN_PIXELS, needed * template.mask.sum()):
+        return None
+    known = placed(view)
+    seeds = support.copy()
+    for p in fresh:  # the positive point keeps away from a correction in this frame
+        if (p.view or center) == view:
+            seeds[min(max(round(p.y), 0), seeds.shape[0] - 1),
+                  min(max(round(p.x), 0), seeds.shape[1] - 1)] = False
+    positives = _positive_points(seeds, 1 if fresh else 3)
+    negative_xy = _neighbour_points(carried, support, placed_ids if view == center else None)
+    user = [p for p in negatives if (p.view or center) == view
+            and (p in fresh or not carried[round(p.y), round(p.x)])]
+    negative = (*(PointPrompt(x, y, False, view) for x, y in negative_xy),
+                *(PointPrompt(p.x, p.y, False, view) for p in user))
+    box = BoxPrompt(*box_around(carried, 0.15), view=view) if use_box else None
+    # all positive points together; where that answer is refused, each alone (a point on a
+    # look-alike pixel of the background must not sink the others)
+    tries = [positives] + ([[p] for p in positives] if len(positives) > 1 else [])
+    for chosen in tries:
+        points = (*(PointPrompt(x, y, True, view) for x, y in chosen), *negative)
+        ref_view, mask = answer(ObjectPrompts(obj_id, points, box))
+        if _accept(mask, support, carried, track,
+                   known if ref_view == view else placed(ref_view), image, template):
+            located = replace(template, origin=(template.origin[0] + shift[0],
+                                                template.origin[1] + shift[1]))
+            return ref_view, mask, shift, located
+    return None
+
+
+def first_look(track: Track, image: np.ndarray, center: tuple[int, int],
+               disparity: np.ndarray | None = None) -> tuple[float, tuple | None]:
+    """The match at the predicted place in the object's own view (``disparity``: that
+    view's map, :func:`with_depth`): the fraction of its template supported there, and the
+    match (for :func:`search_object`'s ``first``)."""
     template = predicted(track, track.view, center)
-    found = _best_shift(template, image.astype(np.float32), search_radius(track),
-                        near_reach(track))
+    found = _best_shift(*with_depth(template, image.astype(np.float32), disparity,
+                                    *predicted_disparity(track)),
+                        search_radius(track), near_reach(track))
     if found is None:
         return 0.0, None
     return float(found[1].sum()) / max(int(template.mask.sum()), 1), found
@@ -467,10 +493,19 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
     automatically); ``tracks`` is updated in place.
     """
     center = lf.center
-    corners = [v for v in reference_views(lf.grid_shape, "corners")[1:] if lf.present[v]]
+    ring = [v for v in reference_views(lf.grid_shape, "ring")[1:] if lf.present[v]]
     placed_ids = np.zeros(lf.view_shape, np.int64)
     done: list[tuple[int, tuple[int, int], np.ndarray]] = []
     cache: dict[tuple[tuple[int, int], int], np.ndarray] = {}
+    maps: dict[tuple[int, int], np.ndarray] = {}
+
+    def disparity_of(view: tuple[int, int]) -> np.ndarray:
+        """A view's disparity map as an array (once per frame)."""
+        if view not in maps:
+            values = predictor.disparity(view)
+            maps[view] = np.asarray(values.cpu().numpy() if hasattr(values, "cpu")
+                                    else values, np.float32)
+        return maps[view]
 
     def placed_in(view: tuple[int, int]) -> np.ndarray:
         """Where the objects placed so far in this frame are in ``view``."""
@@ -504,7 +539,8 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
                and tracks[i].template is not None]
     # the surest first (most of the template still seen at its predicted place), so that an
     # object that went behind another cannot take that one's place
-    first = {i: first_look(tracks[i], lf.views[tracks[i].view], center) for i in carried}
+    first = {i: first_look(tracks[i], lf.views[tracks[i].view], center,
+                           disparity_of(tracks[i].view)) for i in carried}
     carried.sort(key=lambda i: (tracks[i].unseen > 0, -first[i][0], i))
     for obj_id in prompted:
         negatives = negatives_since(prompts[obj_id], index)
@@ -531,9 +567,9 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         negatives = () if prompts.get(obj_id) is None else negatives_since(prompts[obj_id], index)
         own = own_prompts[obj_id]
         fresh = () if own is None else tuple(p for p in own.points if not p.positive)
-        found = search_object(obj_id, track, lambda v: lf.views[v], center, corners, answer,
+        found = search_object(obj_id, track, lambda v: lf.views[v], center, ring, answer,
                               placed_in, placed_ids, negatives, use_box, first[obj_id][1],
-                              fresh)
+                              fresh, disparity_of)
         if found is None:
             if obj_id in predictor.object_ids:
                 predictor.remove_object(obj_id)

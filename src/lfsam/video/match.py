@@ -1,0 +1,162 @@
+"""Template matching for the search of carried objects (issue 47; docs/design.md section 10,
+"Tracking"), vectorised: one batch of FFTs for the masked SSD of every shift, one gather for
+the robust cost of many shifts.
+
+A template (:class:`lfsam.video.carry.Template`) may carry more channels than RGB: the search
+adds the disparity as a fourth (:func:`with_depth`), so that an object is told from a
+background of the same colours by its depth, the light field's own cue.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from scipy import fft
+
+from lfsam.video.carry import MAX_PIXEL_DIFFERENCE, MIN_PIXELS, Template
+
+__all__ = ["cost_map", "pixel_costs", "placed_at", "robust_costs", "with_depth"]
+
+
+def with_depth(template: Template, image: np.ndarray, disparity: np.ndarray | None,
+               expected: float, tolerance: float) -> tuple[Template, np.ndarray]:
+    """The template and the view with the disparity as a fourth channel, scaled so that
+    ``tolerance`` disparity pixels weigh :data:`lfsam.video.carry.MAX_PIXEL_DIFFERENCE` (in
+    the masked SSD a weight; in the robust cost a gate, :func:`pixel_costs`): the
+    template's pixels all at ``expected``, the view's at its disparity map (unknown pixels at
+    ``expected``: no evidence either way). Without a disparity map both are returned as they
+    are."""
+    if disparity is None:
+        return template, image
+    scale = MAX_PIXEL_DIFFERENCE / tolerance
+    depth = np.where(np.isfinite(disparity), disparity, expected).astype(np.float32) * scale
+    h, w = template.mask.shape
+    own = np.full((h, w, 1), expected * scale, np.float32)
+    return (replace(template, image=np.concatenate([template.image, own], -1)),
+            np.concatenate([image, depth[..., None]], -1))
+
+
+def cost_map(template: Template, image: np.ndarray, radius: int | None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The masked mean squared difference of ``template`` at every integer shift within
+    ``radius`` pixels of its place (None: every shift where it overlaps the frame); inf where
+    it overlaps the frame by less than :data:`lfsam.video.carry.MIN_PIXELS` and a fifth of its
+    mask. The same numbers as :func:`lfsam.video.carry.cost_map` (up to rounding), from one
+    batch of real FFTs: the channels' cross terms are summed before the one inverse transform,
+    and the overlap counts are constants where the searched region lies inside the frame.
+
+    Returns
+    -------
+    cost : (H, W) float array
+    du, dv : (H, W) int arrays
+        The shift of each entry.
+    """
+    height, width = image.shape[:2]
+    h, w = template.mask.shape
+    r0, c0 = template.origin
+    if radius is None:
+        top, left, bottom, right = r0 + h, c0 + w, height - r0, width - c0
+    else:
+        top = left = bottom = right = int(radius)
+    region_r0, region_c0 = r0 - top, c0 - left
+    rh, rw = h + top + bottom, w + left + right
+    channels = image.shape[-1]
+    region = np.zeros((channels, rh, rw), np.float32)
+    sr0, sc0 = max(region_r0, 0), max(region_c0, 0)
+    sr1, sc1 = min(region_r0 + rh, height), min(region_c0 + rw, width)
+    inside = (sr0 == region_r0 and sc0 == region_c0 and sr1 == region_r0 + rh
+              and sc1 == region_c0 + rw)
+    if sr1 > sr0 and sc1 > sc0:
+        region[:, sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = (
+            np.moveaxis(image[sr0:sr1, sc0:sc1], -1, 0))
+    m = template.mask.astype(np.float32)
+    a = np.moveaxis(template.image, -1, 0) * m  # (C, h, w)
+    shape = (fft.next_fast_len(rh, True), fft.next_fast_len(rw, True))
+    # correlation = convolution with the flipped kernel; the valid part is not wrapped
+    kernels = np.concatenate([a, m[None], (a**2).sum(0)[None]])[:, ::-1, ::-1]
+    k_hat = fft.rfft2(kernels, s=shape)
+    signals = [region, (region**2).sum(0)[None]]
+    if not inside:
+        valid = np.zeros((1, rh, rw), np.float32)
+        valid[0, sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = 1.0
+        signals.append(valid)
+    x_hat = fft.rfft2(np.concatenate(signals), s=shape)
+    products = [(x_hat[:channels] * k_hat[:channels]).sum(0),
+                x_hat[channels] * k_hat[channels]]
+    if not inside:
+        products += [x_hat[channels + 1] * k_hat[channels], x_hat[channels + 1]
+                     * k_hat[channels + 1]]
+    out = fft.irfft2(np.stack(products), s=shape)[:, h - 1:rh, w - 1:rw]
+    cross, energy = out[0], out[1]
+    if inside:
+        count = np.full(cross.shape, m.sum())
+        own = np.full(cross.shape, (a**2).sum())
+    else:
+        count, own = out[2], out[3]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cost = (own - 2 * cross + energy) / count
+    needed = max(MIN_PIXELS, 0.2 * m.sum())
+    cost[count < needed - 0.5] = np.inf
+    du, dv = np.mgrid[-top:bottom + 1, -left:right + 1]
+    return cost, du, dv
+
+
+def robust_costs(template: Template, image: np.ndarray, du: np.ndarray, dv: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The *robust* cost of the template at each shift ``(du[k], dv[k])``: the sum over its
+    pixels of the distance (summed over channels) truncated at
+    :data:`lfsam.video.carry.MAX_PIXEL_DIFFERENCE`, a pixel outside the frame costing the
+    truncation, so that pixels covered by something in front cost the same everywhere; and
+    the support count (pixels under the truncation). One gather for all shifts.
+
+    Returns
+    -------
+    cost : (K,) float array
+    count : (K,) int array
+    """
+    height, width = image.shape[:2]
+    rows, cols = np.nonzero(template.mask)
+    look = template.image[rows, cols]  # (N, C)
+    r = template.origin[0] + rows[None, :] + np.asarray(du).reshape(-1, 1)
+    c = template.origin[1] + cols[None, :] + np.asarray(dv).reshape(-1, 1)
+    inside = (r >= 0) & (r < height) & (c >= 0) & (c < width)
+    values = image[np.clip(r, 0, height - 1), np.clip(c, 0, width - 1)]  # (K, N, C)
+    diff = pixel_costs(values, look[None])
+    diff[~inside] = MAX_PIXEL_DIFFERENCE
+    return diff.sum(1), (diff < MAX_PIXEL_DIFFERENCE).sum(1)
+
+
+def pixel_costs(values: np.ndarray, look: np.ndarray) -> np.ndarray:
+    """Each pixel's truncated distance to the template's (``(..., C)`` arrays): the RGB
+    distance summed over channels, at most :data:`lfsam.video.carry.MAX_PIXEL_DIFFERENCE`;
+    with a disparity channel (:func:`with_depth`) a pixel farther in depth than the tolerance
+    costs the truncation whatever its colour (a gate, not a sum: an object whose depth
+    changed within the tolerance keeps its support)."""
+    colour = np.abs(values[..., :3] - look[..., :3]).sum(-1)
+    if values.shape[-1] > 3:
+        far = np.abs(values[..., 3] - look[..., 3]) > MAX_PIXEL_DIFFERENCE
+        colour = np.where(far, MAX_PIXEL_DIFFERENCE, colour)
+    return np.minimum(colour, MAX_PIXEL_DIFFERENCE)
+
+
+def placed_at(template: Template, image: np.ndarray, du: int, dv: int
+              ) -> tuple[np.ndarray, np.ndarray] | None:
+    """``template``'s mask shifted by ``(du, dv)`` into the frame (clipped) and its support:
+    the pixels whose cost (:func:`pixel_costs`) is under the truncation, as
+    :func:`lfsam.video.carry.shifted` with the disparity gate. None outside the frame."""
+    height, width = image.shape[:2]
+    h, w = template.mask.shape
+    r0, c0 = template.origin[0] + du, template.origin[1] + dv
+    tr0, tc0 = max(-r0, 0), max(-c0, 0)
+    ir0, ic0, ir1, ic1 = max(r0, 0), max(c0, 0), min(r0 + h, height), min(c0 + w, width)
+    if ir1 <= ir0 or ic1 <= ic0:
+        return None
+    mask = np.zeros((height, width), bool)
+    support = np.zeros((height, width), bool)
+    sub = template.mask[tr0:tr0 + ir1 - ir0, tc0:tc0 + ic1 - ic0]
+    look = template.image[tr0:tr0 + ir1 - ir0, tc0:tc0 + ic1 - ic0]
+    mask[ir0:ir1, ic0:ic1] = sub
+    same = pixel_costs(image[ir0:ir1, ic0:ic1], look) < MAX_PIXEL_DIFFERENCE
+    support[ir0:ir1, ic0:ic1] = sub & same
+    return mask, support
