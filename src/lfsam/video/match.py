@@ -16,7 +16,12 @@ from scipy import fft
 
 from lfsam.video.carry import MAX_PIXEL_DIFFERENCE, MIN_PIXELS, Template
 
-__all__ = ["cost_map", "pixel_costs", "placed_at", "robust_costs", "with_depth"]
+__all__ = ["MAX_GATHER", "cost_map", "pixel_costs", "placed_at", "robust_costs", "with_depth"]
+
+#: At most this many (shift, pixel) pairs are gathered by :func:`robust_costs`: beyond it,
+#: every k-th template pixel is scored and the sums are scaled (many shifts of a large
+#: template near a prediction).
+MAX_GATHER = 60_000
 
 
 def with_depth(template: Template, image: np.ndarray, disparity: np.ndarray | None,
@@ -108,7 +113,8 @@ def robust_costs(template: Template, image: np.ndarray, du: np.ndarray, dv: np.n
     pixels of the distance (summed over channels) truncated at
     :data:`lfsam.video.carry.MAX_PIXEL_DIFFERENCE`, a pixel outside the frame costing the
     truncation, so that pixels covered by something in front cost the same everywhere; and
-    the support count (pixels under the truncation). One gather for all shifts.
+    the support count (pixels under the truncation). One gather for all shifts (of at most
+    :data:`MAX_GATHER` shift-pixel pairs: beyond it, of every k-th template pixel, scaled).
 
     Returns
     -------
@@ -117,6 +123,10 @@ def robust_costs(template: Template, image: np.ndarray, du: np.ndarray, dv: np.n
     """
     height, width = image.shape[:2]
     rows, cols = np.nonzero(template.mask)
+    total = rows.size
+    step = max(1, -(-np.size(du) * total // MAX_GATHER))
+    if step > 1:  # many shifts of a large template: every step-th pixel, the sums scaled
+        rows, cols = rows[::step], cols[::step]
     look = template.image[rows, cols]  # (N, C)
     r = template.origin[0] + rows[None, :] + np.asarray(du).reshape(-1, 1)
     c = template.origin[1] + cols[None, :] + np.asarray(dv).reshape(-1, 1)
@@ -124,7 +134,10 @@ def robust_costs(template: Template, image: np.ndarray, du: np.ndarray, dv: np.n
     values = image[np.clip(r, 0, height - 1), np.clip(c, 0, width - 1)]  # (K, N, C)
     diff = pixel_costs(values, look[None])
     diff[~inside] = MAX_PIXEL_DIFFERENCE
-    return diff.sum(1), (diff < MAX_PIXEL_DIFFERENCE).sum(1)
+    scale = total / max(rows.size, 1)
+    if step == 1:
+        return diff.sum(1), (diff < MAX_PIXEL_DIFFERENCE).sum(1)
+    return diff.sum(1) * scale, np.rint((diff < MAX_PIXEL_DIFFERENCE).sum(1) * scale).astype(int)
 
 
 def pixel_costs(values: np.ndarray, look: np.ndarray) -> np.ndarray:

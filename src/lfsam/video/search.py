@@ -13,15 +13,20 @@ later frame and comes back under its own id (*found*). The search of one object 
    in a view, parallax included (a pixel of the center view at disparity ``d`` is at
    ``p - d (s - s_c, t - t_c)`` in view ``(s, t)``, section 1).
 2. **Stages**, first accepted wins: the predicted place in the object's last reference view,
-   then the center view, then the four corner views (an object hidden in the center view is
-   often visible there: the light field, as ``--references corners`` finds hidden objects),
-   each within :func:`search_radius` pixels (growing with every frame unseen); then the
+   then in the center view and the outer ring's views (an object hidden in the center view is
+   often visible there: the light field, as ``--references ring`` finds hidden objects),
+   ranked by how much of the template their match supports, the view where it is seen most
+   first, each within :func:`search_radius` pixels (growing with every frame unseen); then the
    whole of its own view and of the center view.
-3. **Matching.** The masked SSD of the template at every shift (:func:`lfsam.video.carry.
-   cost_map`); of its :data:`CANDIDATES` cheapest shifts the one whose *support* (pixels that
-   still look like the template) is largest wins, so an object half behind another is still
-   that object. It needs at least :data:`NEAR_SUPPORT` of its template supported near the
-   prediction, :data:`FAR_SUPPORT` elsewhere.
+3. **Matching.** The masked SSD of the template at every shift (:func:`lfsam.video.match.
+   cost_map`, one batch of FFTs); of its :data:`CANDIDATES` cheapest shifts the one whose
+   *support* (pixels that still look like the template, :func:`lfsam.video.match.
+   robust_costs`) is largest wins, so an object half behind another is still that object.
+   The view's disparity is a fourth channel: a pixel farther in depth from the object's last
+   disparity than :func:`predicted_disparity`'s tolerance is not the object whatever its
+   colour (a background of the object's colours is told apart by its depth). It needs at least
+   :data:`NEAR_SUPPORT` of its template supported near the prediction, :data:`FAR_SUPPORT`
+   elsewhere.
 4. **Prompts**: up to three positive points at the deepest supported pixels (where their
    answer is refused, each alone), negative points on neighbouring objects placed earlier in
    the frame (center view), the user's negative clicks of that view, and for SAM 2 a box
@@ -83,6 +88,9 @@ BASE_RADIUS = 8
 GROWTH = 8
 #: A match showing this fraction of the template is not searched further near the prediction.
 SURE = 0.6
+#: Views of the ring (ranked by their SSD match) where every shift near the prediction is
+#: scored too before prompting.
+RESCORED = 2
 #: Every shift this close to the prediction (plus 2 pixels per frame unseen) is scored.
 NEAR_REACH = 4
 #: A template is replaced by an answer at least this fraction of the object's largest area.
@@ -94,6 +102,8 @@ MIN_ALIKE = 0.35
 #: object from a background of the same colours by its depth (objects change depth by up to
 #: about a pixel of disparity per frame).
 DISPARITY_TOLERANCE = 1.2
+#: The disparity tolerance grows with the frames unseen up to this many frames' worth.
+DISPARITY_FRAMES = 2
 
 
 @dataclass
@@ -145,8 +155,10 @@ def predicted_disparity(track: Track) -> tuple[float, float]:
     """The disparity the object's pixels are expected at this frame and the tolerance
     around it: its last disparity (moving it at its last rate lost more objects on the
     development videos, whose depth swings back and forth), :data:`DISPARITY_TOLERANCE` for
-    each frame since it was seen."""
-    return track.disparity, DISPARITY_TOLERANCE * (track.unseen + 1)
+    each frame since it was seen, at most :data:`DISPARITY_FRAMES` frames' worth (depth
+    swings are bounded: a gate that opened without end would let a hidden object be found on
+    a background of its colours)."""
+    return track.disparity, DISPARITY_TOLERANCE * min(track.unseen + 1, DISPARITY_FRAMES)
 
 
 def looks_alike(a: np.ndarray, b: np.ndarray, bins: int = 6) -> float:
@@ -279,7 +291,7 @@ def search_object(
         ``images(view)``: that view's ``(U, V, 3)`` image.
     center : (s, t)
     views : sequence of (s, t)
-        The views to search besides the track's and the center (the corners).
+        The views to search besides the track's and the center (the outer ring's).
     answer : callable
         ``answer(prompts)`` sets the object's prompts in the frame's predictor and returns
         its reference view and mask.
@@ -311,15 +323,17 @@ def search_object(
     expected, tolerance = predicted_disparity(track)
     radius = search_radius(track)
 
-    def match(view: tuple[int, int], radius: int | None, given: tuple | None = None) -> tuple:
+    def match(view: tuple[int, int], radius: int | None, given: tuple | None = None,
+              reach: int | None = None) -> tuple:
         """The view's image, the predicted template there, its match and its support less
         the pixels of objects placed already (they are not this one)."""
         image = images(view).astype(np.float32)
         template = predicted(track, view, center)
+        if reach is None:
+            reach = near_reach(track) if radius is not None else 0
         found = given if given is not None else _best_shift(
             *with_depth(template, image, None if disparities is None else disparities(view),
-                        expected, tolerance),
-            radius, near_reach(track) if radius is not None else 0)
+                        expected, tolerance), radius, reach)
         support = None
         if found is not None:
             known = placed(view)
@@ -338,7 +352,11 @@ def search_object(
                           negatives, use_box, fresh)
     if found is not None:
         return found
-    near = sorted((match(v, radius) for v in others), key=lambda st: -share(st))
+    # the views are ranked by their SSD candidates alone; every shift near the prediction
+    # is scored (near_support) only in the RESCORED best-ranked views, about to be prompted
+    near = sorted((match(v, radius, reach=0) for v in others), key=lambda st: -share(st))
+    near = (st if share(st) >= SURE or rank >= RESCORED else match(st[0], radius)
+            for rank, st in enumerate(near))
     whole = (match(v, None) for v in [track.view, *others[:1]])
     for stage in [*near, *whole]:
         found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
