@@ -28,7 +28,7 @@ at frame f + 1 comes from frame f:
   carried from the frame where it was last found and searched for in every frame
   (:mod:`lfsam.video.search`, issue 47: predicted place in its own view, the center view and
   the outer ring's views, ranked by how much of it they show, with a radius growing while it
-  is unseen, its depth gating the match, then the whole view; several
+  is unseen, then the whole view; several
   positive points, negative points on neighbours; the user's negative clicks of earlier frames
   stay unless they land on the carried mask, those given in the frame itself always stay). An
   object not found is *hidden* there (empty masks) and keeps its id, template and motion; it
