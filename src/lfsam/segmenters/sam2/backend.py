@@ -19,6 +19,7 @@ import inspect
 import json
 import os
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -46,7 +47,13 @@ from lfsam.segmenters.sam2.build import (
     make_image_predictor,
     precision_dtype,
 )
-from lfsam.segmenters.sam2.decoder import default_chunk_size
+from lfsam.segmenters.sam2.decoder import (
+    LOGIT_CLAMP,
+    default_chunk_size,
+    embed_prompts,
+    prepare_image,
+)
+from lfsam.segmenters.sam2.multiview import decode_views, stack_states
 
 __all__ = ["PAPER_AMG_OPTIONS", "CachedFeaturePredictor", "Sam2Features", "Sam2Segmenter"]
 
@@ -125,6 +132,12 @@ class Sam2Segmenter(Segmenter):
         The arithmetic (:data:`lfsam.segmenters.sam2.build.PRECISIONS`): ``auto`` is bfloat16
         autocast on CUDA and float32 elsewhere; ``bfloat16`` autocasts on any device (about
         twice as fast on CPUs with native bfloat16; the masks differ slightly from float32's).
+    cross_view_decode : bool, optional
+        :meth:`predict_many` puts prompts of different views through one decoder pass
+        (:func:`lfsam.segmenters.sam2.multiview.decode_views`). Default: on CUDA, where a
+        decoder call per view is launch-bound; off elsewhere, where the decoder is
+        compute-bound and view-by-view decoding keeps the masks bit for bit those of
+        :meth:`predict` (the cross-view pass rounds differently, about 1e-7 in the logits).
 
     Examples
     --------
@@ -143,6 +156,7 @@ class Sam2Segmenter(Segmenter):
         mask_threshold: float = 0.0,
         keep_decoder_state: bool = True,
         precision: str = "auto",
+        cross_view_decode: bool | None = None,
     ) -> None:
         super().__init__()
         self.precision = str(precision)
@@ -164,6 +178,12 @@ class Sam2Segmenter(Segmenter):
         self.amg_options = self._check_amg_options(amg_options or {})
         self.points_per_side = int(self.amg_options.get("points_per_side") or 32)
         self.keep_decoder_state = bool(keep_decoder_state)
+        if cross_view_decode is None:
+            cross_view_decode = model.device.type == "cuda"
+        self.cross_view_decode = bool(cross_view_decode)
+        self.decoder_calls = 0
+        """Calls of the decoder by :meth:`predict` and :meth:`predict_many` (each one batch of
+        prompts of one view, or of several views with :attr:`cross_view_decode`)."""
         self._predictor = make_image_predictor(
             model, CachedFeaturePredictor, mask_threshold=self.mask_threshold
         )
@@ -405,6 +425,7 @@ class Sam2Segmenter(Segmenter):
         try:
             with inference_context(self.device, inference_mode=False, precision=self.precision):
                 for start in range(0, n, self.max_prompts_per_batch):
+                    self.decoder_calls += 1
                     sub = prompts.subset(slice(start, start + self.max_prompts_per_batch))
                     coords, labels, boxes = self._prompt_tensors(sub, (u_size, v_size))
                     m, iou, lr = predictor.predict_prompts(
@@ -422,6 +443,69 @@ class Sam2Segmenter(Segmenter):
             iou_predictions=torch.cat(ious),
             low_res_logits=torch.cat(logits),
         )
+
+    def predict_many(
+        self,
+        embeddings: Sequence[ViewEmbedding],
+        prompts: Sequence[Prompts],
+        multimask_output: bool = True,
+    ) -> list[MaskPrediction]:
+        """Decode the prompts of several views, with :attr:`cross_view_decode` in one decoder
+        call per :attr:`max_prompts_per_batch` prompts whatever their views (docs/design.md
+        section 3.5, "batched decoder"); else, or for views of different sizes or prompts of
+        different shapes, view by view (:meth:`predict`).
+
+        The prompts may be device tensors (:class:`Prompts`): they are moved and transformed
+        once for all views, the masks post-processed once, and no value is read back to the
+        host.
+        """
+        sizes = {tuple(e.image_size) for e in embeddings}
+        shapes = {_prompt_shape(p) for p in prompts}
+        if (not self.cross_view_decode or len(embeddings) < 2 or len(sizes) != 1
+                or len(shapes) != 1 or len(embeddings) != len(prompts)):
+            return super().predict_many(embeddings, prompts, multimask_output)
+        hw = sizes.pop()
+        counts = [len(p) for p in prompts]
+        with inference_context(self.device, inference_mode=False, precision=self.precision):
+            states = []
+            for embedding in embeddings:
+                feats = self._view_features(embedding)
+                state = feats.decoder_state
+                if state is None:
+                    state = prepare_image(self.model, feats.image_embed, feats.high_res_feats)
+                    if self.keep_decoder_state:
+                        feats.decoder_state = state
+                states.append(state)
+            stacked = stack_states(states)
+            parts = [self._prompt_tensors(p, hw) for p in prompts]
+            coords, labels, boxes = (
+                None if parts[0][j] is None else torch.cat([p[j] for p in parts])
+                for j in range(3)
+            )
+            views = torch.repeat_interleave(
+                torch.arange(len(counts), device=self.device),
+                torch.as_tensor(counts, device=self.device), output_size=sum(counts),
+            )
+            low_res, ious, masks = [], [], []
+            for start in range(0, len(views), self.max_prompts_per_batch):
+                self.decoder_calls += 1
+                rows = slice(start, start + self.max_prompts_per_batch)
+                sparse = embed_prompts(
+                    self.model, None if coords is None else coords[rows],
+                    None if labels is None else labels[rows],
+                    None if boxes is None else boxes[rows],
+                )
+                lr, iou = decode_views(
+                    self.model, stacked, sparse, views[rows], multimask_output,
+                    min(self.max_prompts_per_batch, default_chunk_size(self.device)),
+                    clamp=False,
+                )
+                post = image_transforms(self._predictor).postprocess_masks(lr, hw)
+                masks.append(post > self.mask_threshold)
+                low_res.append(torch.clamp(lr, -LOGIT_CLAMP, LOGIT_CLAMP).float())
+                ious.append(iou.float())
+        split = [torch.cat(x).split(counts) for x in (masks, ious, low_res)]
+        return [MaskPrediction(m, i, lr) for m, i, lr in zip(*split, strict=True)]
 
     def _prompt_tensors(
         self, prompts: Prompts, hw: tuple[int, int]
@@ -578,6 +662,13 @@ class Sam2Segmenter(Segmenter):
                 tuple(embedding.image_size), norms=feats.pixel_norms,
             )
         return sims.to(sources.device)
+
+
+def _prompt_shape(prompts: Prompts) -> tuple[int, bool]:
+    """Points per prompt and whether there is a box: prompts of one shape share a decoder
+    pass (their token counts agree)."""
+    points = 0 if prompts.points is None else int(prompts.points.shape[1])
+    return points, prompts.boxes is not None
 
 
 def _check_images(images: np.ndarray) -> np.ndarray:
