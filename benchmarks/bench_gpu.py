@@ -135,7 +135,11 @@ def profile_run(fn, device: torch.device, label: str = "one LFSAM run") -> dict[
     """Run ``fn`` once under ``torch.profiler`` and print what the host and the GPU did:
     kernel launches, stream and device synchronisations, host-device copies (calls), the
     run's wall time under the profiler, the GPU's busy time (self device time of all events)
-    and the share of it in ``aten::copy_`` (dtype casts and moves)."""
+    and the share of it in ``aten::copy_`` (dtype casts and moves). ``sync_points`` counts, on
+    any device, the operators that make the host wait for a GPU (a value read back by
+    ``.item()``/``bool()``, ``nonzero`` and boolean indexing, ``unique``, ``masked_select``):
+    a CPU run shows how many the code would make (copies to the host by ``.cpu()`` are not
+    operators on a CPU and are not in it)."""
     from torch.autograd import DeviceType
     from torch.profiler import ProfilerActivity, profile
 
@@ -157,11 +161,14 @@ def profile_run(fn, device: torch.device, label: str = "one LFSAM run") -> dict[
         "kernel_launches": calls("cudaLaunchKernel", "cuLaunchKernelEx", "cuLaunchKernel"),
         "synchronisations": calls("cudaStreamSynchronize", "cudaDeviceSynchronize"),
         "copies": calls("cudaMemcpyAsync", "cudaMemcpy"),
+        "sync_points": calls("aten::_local_scalar_dense", "aten::nonzero", "aten::_unique2",
+                             "aten::unique_consecutive", "aten::masked_select"),
         "gpu_busy_s": busy,
     }
     print(f"\nprofile of {label}: {wall:.2f} s under the profiler; "
           f"{numbers['kernel_launches']} kernel launches, {numbers['synchronisations']} "
-          f"synchronisations, {numbers['copies']} host-device copies; GPU busy {busy:.2f} s "
+          f"synchronisations, {numbers['copies']} host-device copies, "
+          f"{numbers['sync_points']} operators that wait for the device; GPU busy {busy:.2f} s "
           f"({100 * copies / busy if busy else 0:.0f} % of it in aten::copy_)", flush=True)
     return numbers
 

@@ -149,3 +149,16 @@ def test_oracle_labels_do_not_depend_on_how_views_are_batched():
     many, _ = _run(lf, "oracle", "all", 6)
     np.testing.assert_array_equal(many.labels, one.labels)
     np.testing.assert_array_equal(many.refine_iou, one.refine_iou)
+
+
+def test_dense_mask_iou_counts_as_the_sparse_one():
+    gen = torch.Generator().manual_seed(4)
+    cand = torch.rand(6, 3, 9, 13, generator=gen) > 0.5
+    ref = torch.rand(6, 9, 13, generator=gen) > 0.6
+    ref[2] = False  # an empty reference
+    region = torch.rand(9, 13, generator=gen) > 0.2
+    from lfsam.pipeline.refinement import mask_iou
+
+    for reg in (None, region):
+        assert torch.equal(mask_iou(cand, ref, reg, dense=True), mask_iou(cand, ref, reg,
+                                                                          dense=False))

@@ -542,7 +542,7 @@ class StreamingEngine:
                     frame_runs=warp.frame_runs((height, width), seen),
                     extra_points=agreeing_clicks(carried, coarse),
                 )
-            finish = self._refined_writer(view, members, weights, out, final)
+            finish = self._refined_writer(view, members, out, final)
             if deferred is None:
                 self._refine_deferred([(request, finish)])
             else:
@@ -562,17 +562,18 @@ class StreamingEngine:
         for (_, finish), outcome in zip(deferred, outcomes, strict=True):
             finish(outcome)
 
-    def _refined_writer(self, view: View, members: list[int], weights: Any,
-                        out: dict[int, ObjectViews], final: dict[int, torch.Tensor]) -> Any:
+    def _refined_writer(self, view: View, members: list[int], out: dict[int, ObjectViews],
+                        final: dict[int, torch.Tensor]) -> Any:
         """What :meth:`view_step` does with a view's refinement outcome: count the decoded
-        prompts, write the packed masks, fallback flags and IoUs into ``out`` and the masks into
-        ``final``."""
+        prompts (those with an IoU), write the packed masks, fallback flags and IoUs into
+        ``out`` and the masks into ``final``; two reads from the device."""
         def finish(outcome: RefinementOutcome) -> None:
-            prompted = torch.unique(weights.mask_index[weights.weight > 0]).tolist()
-            self.decode_counts.update(members[k] for k in prompted)
             with self.timer("fuse"):
                 bits = pack_masks(outcome.masks)
-                fallback, iou = outcome.fallback.cpu().numpy(), outcome.iou.cpu().numpy()
+                flags = torch.stack([outcome.fallback.to(outcome.iou.dtype), outcome.iou])
+                fallback, iou = flags.cpu().numpy()
+                fallback = fallback.astype(bool)
+            self.decode_counts.update(members[k] for k in np.flatnonzero(~np.isnan(iou)))
             for k, i in enumerate(members):
                 out[i].bits[view] = bits[k]
                 out[i].fallback[view] = fallback[k]

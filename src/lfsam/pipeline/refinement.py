@@ -80,10 +80,19 @@ def refinement_prompts(
     prompted : (N,) bool tensor
         Which masks got a prompt (rows of ``prompts`` are these masks, in order).
     """
+    prompts, prompted, _ = _prompts_of(weights, frame_runs)
+    return prompts, prompted
+
+
+def _prompts_of(
+    weights: OcclusionWeights, frame_runs: FrameRuns | None
+) -> tuple[Prompts | None, torch.Tensor, torch.Tensor]:
+    """:func:`refinement_prompts` and the prompted masks' numbers, ``(M,)`` int64: the host
+    waits for the device twice (the sizes of the surviving pairs and of the prompted masks)."""
     n = weights.num_masks
     width = weights.view_size[1]
     device = weights.weight.device
-    keep = weights.weight > 0
+    keep = torch.nonzero(weights.weight > 0, as_tuple=True)[0]
     mask_index = weights.mask_index[keep]
     pixel_index = weights.pixel_index[keep]
     wide = wide_float(device)
@@ -98,8 +107,9 @@ def refinement_prompts(
 
     total = _reduce(w, "sum")
     prompted = total > 0
-    if not bool(prompted.any()):
-        return None, prompted
+    index = torch.nonzero(prompted, as_tuple=True)[0]
+    if index.numel() == 0:
+        return None, prompted, index
     safe_total = total.clamp(min=1e-12)
     centroid_r = _reduce(w * rows, "sum") / safe_total
     centroid_c = _reduce(w * cols, "sum") / safe_total
@@ -112,7 +122,7 @@ def refinement_prompts(
     position = torch.arange(mask_index.numel(), device=device, dtype=wide)
     unreached = torch.full_like(position, float(mask_index.numel()))
     first = _reduce(torch.where(is_best, position, unreached), "min")
-    chosen = first[prompted].long()
+    chosen = first[index].long()
     point_rc = torch.stack([rows[chosen], cols[chosen]], dim=1)
 
     boxes = torch.stack(
@@ -123,7 +133,7 @@ def refinement_prompts(
             _reduce(rows, "max"),
         ],
         dim=1,
-    )[prompted]
+    )[index]
     if frame_runs is not None:
         boxes = _extend_to_unseen_edges(boxes, frame_runs, weights.view_size)
     points_xy = point_rc.flip(1)[:, None, :].to(torch.float32)
@@ -134,6 +144,7 @@ def refinement_prompts(
             boxes=boxes.to(torch.float32),
         ),
         prompted,
+        index,
     )
 
 
@@ -166,7 +177,10 @@ def _extend_to_unseen_edges(
 
 
 def mask_iou(
-    candidates: torch.Tensor, reference: torch.Tensor, region: torch.Tensor | None = None
+    candidates: torch.Tensor,
+    reference: torch.Tensor,
+    region: torch.Tensor | None = None,
+    dense: bool | None = None,
 ) -> torch.Tensor:
     """IoU of each candidate mask with its reference mask, optionally within a region.
 
@@ -176,6 +190,10 @@ def mask_iou(
     reference : (N, U, V) bool tensor
     region : (U, V) bool tensor, optional
         Count only these pixels.
+    dense : bool, optional
+        Count by dense ANDs of whole masks (no pixel lists, so the host never waits for the
+        device) instead of gathering at the reference pixels; default on CUDA, where memory
+        bandwidth is plentiful. The counts, hence the IoUs, are the same either way.
 
     Returns
     -------
@@ -189,8 +207,15 @@ def mask_iou(
         # Summing bytes into int32 is about twice as fast as counting bools on CPU.
         return bits.view(torch.uint8).sum(dim=-1, dtype=torch.int32)
 
-    cand_area = count(flat)
     ref = reference.to(device).reshape(n, -1)
+    if device.type == "cuda" if dense is None else dense:
+        if region is not None:
+            inside = region.to(device).reshape(1, -1)
+            flat, ref = flat & inside[:, None], ref & inside
+        inter = count(flat & ref[:, None])
+        union = count(flat) + count(ref)[:, None] - inter
+        return inter.to(torch.float32) / union.clamp(min=1).to(torch.float32)
+    cand_area = count(flat)
     if region is not None:
         # Only pixels inside the region count; outside it is usually a thin strip, so remove
         # its pixels from the candidate areas by a gather instead of masking everything.
@@ -341,10 +366,9 @@ def refine_many(
             torch.ones(n, dtype=torch.bool, device=device),
             torch.full((n,), float("nan"), device=device),
         ))
-        prompts, prompted = refinement_prompts(request.weights, request.frame_runs)
+        prompts, _, index = _prompts_of(request.weights, request.frame_runs)
         if prompts is None:
             continue
-        index = torch.nonzero(prompted, as_tuple=True)[0].to(device)
         for positions, group in _prompt_groups(index, prompts, request.extra_points):
             shape = (int(group.points.shape[1]), group.boxes is not None)
             for start in range(0, len(positions), chunk_size):

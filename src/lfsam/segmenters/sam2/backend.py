@@ -27,7 +27,11 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from lfsam.devices import default_encode_batch_size, default_prompt_batch_size
+from lfsam.devices import (
+    CUDA_CROSS_VIEW_ROWS,
+    default_encode_batch_size,
+    default_prompt_batch_size,
+)
 from lfsam.errors import LfsamError
 from lfsam.segmenters.base import AutoMasks, MaskPrediction, Prompts, Segmenter, ViewEmbedding
 from lfsam.segmenters.feature_grid import (
@@ -138,6 +142,10 @@ class Sam2Segmenter(Segmenter):
         decoder call per view is launch-bound; off elsewhere, where the decoder is
         compute-bound and view-by-view decoding keeps the masks bit for bit those of
         :meth:`predict` (the cross-view pass rounds differently, about 1e-7 in the logits).
+    cross_view_rows : int, optional
+        Prompts per cross-view decoder call; on CUDA also per decoder pass (default
+        :data:`lfsam.devices.CUDA_CROSS_VIEW_ROWS` there, else :attr:`max_prompts_per_batch`
+        with passes of :func:`~lfsam.segmenters.sam2.decoder.default_chunk_size`).
 
     Examples
     --------
@@ -157,6 +165,7 @@ class Sam2Segmenter(Segmenter):
         keep_decoder_state: bool = True,
         precision: str = "auto",
         cross_view_decode: bool | None = None,
+        cross_view_rows: int | None = None,
     ) -> None:
         super().__init__()
         self.precision = str(precision)
@@ -165,8 +174,10 @@ class Sam2Segmenter(Segmenter):
             encode_batch_size = default_encode_batch_size(model.device)
         if max_prompts_per_batch is None:
             max_prompts_per_batch = default_prompt_batch_size(model.device)
-        if max_prompts_per_batch < 1 or encode_batch_size < 1:
-            raise LfsamError("max_prompts_per_batch and encode_batch_size must be at least 1")
+        if max_prompts_per_batch < 1 or encode_batch_size < 1 or (cross_view_rows or 1) < 1:
+            raise LfsamError(
+                "max_prompts_per_batch, encode_batch_size and cross_view_rows must be at least 1"
+            )
         self.model = model.eval()
         info = dict(getattr(model, "lfsam_info", {}) or {})
         self.name = str(info.get("name", type(model).__name__))
@@ -181,6 +192,10 @@ class Sam2Segmenter(Segmenter):
         if cross_view_decode is None:
             cross_view_decode = model.device.type == "cuda"
         self.cross_view_decode = bool(cross_view_decode)
+        cuda = model.device.type == "cuda"
+        self.cross_view_rows = int(
+            cross_view_rows or (CUDA_CROSS_VIEW_ROWS if cuda else max_prompts_per_batch)
+        )
         self.decoder_calls = 0
         """Calls of the decoder by :meth:`predict` and :meth:`predict_many` (each one batch of
         prompts of one view, or of several views with :attr:`cross_view_decode`)."""
@@ -487,19 +502,18 @@ class Sam2Segmenter(Segmenter):
                 torch.as_tensor(counts, device=self.device), output_size=sum(counts),
             )
             low_res, ious, masks = [], [], []
-            for start in range(0, len(views), self.max_prompts_per_batch):
+            step = self.cross_view_rows
+            passes = step if self.device.type == "cuda" else default_chunk_size(self.device)
+            for start in range(0, len(views), step):
                 self.decoder_calls += 1
-                rows = slice(start, start + self.max_prompts_per_batch)
+                rows = slice(start, start + step)
                 sparse = embed_prompts(
                     self.model, None if coords is None else coords[rows],
                     None if labels is None else labels[rows],
                     None if boxes is None else boxes[rows],
                 )
-                lr, iou = decode_views(
-                    self.model, stacked, sparse, views[rows], multimask_output,
-                    min(self.max_prompts_per_batch, default_chunk_size(self.device)),
-                    clamp=False,
-                )
+                lr, iou = decode_views(self.model, stacked, sparse, views[rows],
+                                       multimask_output, passes, clamp=False)
                 post = image_transforms(self._predictor).postprocess_masks(lr, hw)
                 masks.append(post > self.mask_threshold)
                 low_res.append(torch.clamp(lr, -LOGIT_CLAMP, LOGIT_CLAMP).float())
