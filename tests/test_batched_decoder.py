@@ -90,9 +90,9 @@ def _device_prompts(n: int, seed: int) -> Prompts:
                    boxes=corners.values.reshape(n, 4))
 
 
-def test_predict_many_across_views_gives_the_masks_of_predict():
-    segmenter = load_segmenter("sam2-tiny-test", device="cpu", random_weights=True,
-                               cross_view_decode=True)
+@pytest.mark.parametrize("model", ["sam2-tiny-test", "edgetam-tiny-test"])
+def test_predict_many_across_views_gives_the_masks_of_predict(model):
+    segmenter = load_segmenter(model, device="cpu", random_weights=True, cross_view_decode=True)
     _, embeddings = _embeddings(segmenter, 3)
     prompts = [_device_prompts(n, seed) for seed, n in enumerate((3, 1, 4))]
     assert isinstance(prompts[0].points, torch.Tensor)  # tensors stay tensors
@@ -162,3 +162,35 @@ def test_dense_mask_iou_counts_as_the_sparse_one():
     for reg in (None, region):
         assert torch.equal(mask_iou(cand, ref, reg, dense=True), mask_iou(cand, ref, reg,
                                                                           dense=False))
+
+
+def test_compiled_decoder_pass_with_static_shapes_gives_the_same_masks():
+    """``compile_decoder``: TorchDynamo traces the pass (the ``eager`` backend: no C++ compiler
+    needed, seconds on a CPU); passes padded to one shape, the padding dropped."""
+    plain = load_segmenter("sam2-tiny-test", device="cpu", random_weights=True,
+                           cross_view_decode=True, cross_view_rows=3)
+    compiled = load_segmenter("sam2-tiny-test", device="cpu", random_weights=True,
+                              cross_view_decode=True, cross_view_rows=3, compile_decoder="eager")
+    _, embeddings = _embeddings(plain, 2)
+    prompts = [_device_prompts(n, seed) for seed, n in enumerate((2, 3))]  # passes of 3 and 2
+    want = plain.predict_many(embeddings, prompts)
+    got = compiled.predict_many(embeddings, prompts)
+    for a, b in zip(got, want, strict=True):
+        assert a.masks.shape == b.masks.shape
+        assert torch.equal(a.masks, b.masks)
+        torch.testing.assert_close(a.low_res_logits, b.low_res_logits, atol=1e-5, rtol=0)
+
+
+@pytest.mark.cuda
+def test_cuda_views_decoded_together_match_view_by_view_and_the_cpu():
+    """On CUDA (``make gpu-check``), float32: the cross-view decoder's labels against view by
+    view on the GPU and against the CPU (float rounding differs between the three, so a few
+    pixels on a mask's edge may flip: at most 0.1 %)."""
+    lf = generate_scene(grid=(5, 5), size=(40, 56), seed=2, num_objects=3)
+    gpu = {"random_weights": True, "device": "cuda", "precision": "float32"}
+    together, batched = _run(lf, "sam2-tiny-test", "all", 6, cross_view_decode=True, **gpu)
+    apart, per_view = _run(lf, "sam2-tiny-test", "all", 6, cross_view_decode=False, **gpu)
+    cpu, _ = _run(lf, "sam2-tiny-test", "all", 1, random_weights=True, device="cpu")
+    assert batched.decoder_calls < per_view.decoder_calls
+    assert (together.labels == apart.labels).mean() >= 0.999
+    assert (together.labels == cpu.labels).mean() >= 0.999

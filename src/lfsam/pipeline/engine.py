@@ -13,7 +13,7 @@ their stages are up to date, is the caller's (:class:`lfsam.predictor.LightField
 from __future__ import annotations
 
 from collections import Counter, OrderedDict, defaultdict
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -39,7 +39,7 @@ from lfsam.pipeline.objects import (
 )
 from lfsam.pipeline.occlusion import semantic_occlusion, source_features, uniform_weights
 from lfsam.pipeline.propagation import ForwardWarp, forward_warp, propagate_masks
-from lfsam.pipeline.refinement import RefinementOutcome, RefineRequest, refine_many
+from lfsam.pipeline.refinement import RefinementOutcome, RefineRequest, read_back, refine_many
 from lfsam.pipeline.sparse import nearest_sources, refined_views
 from lfsam.pipeline.voting import ViewVoter
 from lfsam.result import pack_masks
@@ -47,6 +47,9 @@ from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
 from lfsam.timing import StageTimer
 
 __all__ = ["WARP_CACHE_BYTES", "StreamingEngine"]
+
+#: What becomes of a view's refinement outcome (:meth:`StreamingEngine._refined_writer`).
+Writer = Callable[[RefinementOutcome, np.ndarray, np.ndarray], None]
 
 #: Forward warps (reference view, target view) kept for reuse across edits, in bytes.
 WARP_CACHE_BYTES = 512 * 2**20
@@ -418,7 +421,7 @@ class StreamingEngine:
                     embeddings = dict(zip(others, self.store.get_many(others), strict=True))
             # Steps 2-3 in every view of the batch, then step 4 of all of them at once: their
             # prompts go through the decoder together (docs/design.md section 3.5).
-            deferred: list[tuple[RefineRequest, Any]] = []
+            deferred: list[tuple[RefineRequest, Writer]] = []
             finals = [
                 (view, self.view_step(objects, view, ids, embeddings.get(view), refine, out,
                                       coarse_out, stage="refine", deferred=deferred))
@@ -460,7 +463,7 @@ class StreamingEngine:
         out: dict[int, ObjectViews],
         coarse_out: dict[int, ObjectViews],
         stage: str = "refine",
-        deferred: list[tuple[RefineRequest, Any]] | None = None,
+        deferred: list[tuple[RefineRequest, Writer]] | None = None,
     ) -> dict[int, torch.Tensor]:
         """Steps 2-4 of the objects ``ids`` in one view; writes their packed masks into
         ``out`` (final) and ``coarse_out`` and returns each object's final mask there (refined,
@@ -470,9 +473,8 @@ class StreamingEngine:
         object with ``refine_views="all"``) and ``"fill"`` the others, whose sources
         (:meth:`fill_sources`) must be in ``out`` already.
 
-        With ``deferred``, step 4 is not run here: its request and what to do with its outcome
-        are appended there for :meth:`_refine_deferred`, which writes ``out`` and the returned
-        masks (refined with the other views of a batch).
+        With ``deferred``, step 4 waits there for :meth:`_refine_deferred` (with the other views
+        of a batch), which then writes ``out`` and the returned masks.
         """
         final: dict[int, torch.Tensor] = {}
         config = self.config
@@ -549,9 +551,10 @@ class StreamingEngine:
                 deferred.append((request, finish))
         return final
 
-    def _refine_deferred(self, deferred: list[tuple[RefineRequest, Any]]) -> None:
-        """Step 4 of the views in ``deferred`` together (:func:`lfsam.pipeline.refinement.
-        refine_many`), each outcome handed to its writer (:meth:`_refined_writer`)."""
+    def _refine_deferred(self, deferred: list[tuple[RefineRequest, Writer]]) -> None:
+        """Step 4 of the views in ``deferred`` together (:func:`~lfsam.pipeline.refinement.
+        refine_many`); their outcomes read back at once (:func:`~lfsam.pipeline.refinement.
+        read_back`) and handed to their writers (:meth:`_refined_writer`)."""
         if not deferred:
             return
         with self.timer("refine"):
@@ -559,20 +562,19 @@ class StreamingEngine:
                 self.segmenter, [request for request, _ in deferred], self.config.t_iou,
                 chunk_size=self.config.refine_chunk_for(self.device),
             )
-        for (_, finish), outcome in zip(deferred, outcomes, strict=True):
-            finish(outcome)
+        with self.timer("fuse"):
+            bits, flags = read_back(outcomes)
+        sizes = [len(o.masks) for o in outcomes]
+        for (_, finish), o, end, n in zip(deferred, outcomes, np.cumsum(sizes), sizes, strict=True):
+            finish(o, bits[end - n : end], flags[:, end - n : end])
 
     def _refined_writer(self, view: View, members: list[int], out: dict[int, ObjectViews],
-                        final: dict[int, torch.Tensor]) -> Any:
+                        final: dict[int, torch.Tensor]) -> Writer:
         """What :meth:`view_step` does with a view's refinement outcome: count the decoded
         prompts (those with an IoU), write the packed masks, fallback flags and IoUs into
-        ``out`` and the masks into ``final``; two reads from the device."""
-        def finish(outcome: RefinementOutcome) -> None:
-            with self.timer("fuse"):
-                bits = pack_masks(outcome.masks)
-                flags = torch.stack([outcome.fallback.to(outcome.iou.dtype), outcome.iou])
-                fallback, iou = flags.cpu().numpy()
-                fallback = fallback.astype(bool)
+        ``out`` and the masks into ``final``."""
+        def finish(outcome: RefinementOutcome, bits: np.ndarray, flags: np.ndarray) -> None:
+            fallback, iou = flags[0].astype(bool), flags[1]
             self.decode_counts.update(members[k] for k in np.flatnonzero(~np.isnan(iou)))
             for k, i in enumerate(members):
                 out[i].bits[view] = bits[k]

@@ -23,6 +23,7 @@ import torch
 
 from lfsam.pipeline.occlusion import OcclusionWeights
 from lfsam.precision import wide_float
+from lfsam.result import pack_masks
 from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
 from lfsam.segments import segment_lengths, segment_reduce
 from lfsam.warp import FrameRuns
@@ -31,6 +32,7 @@ __all__ = [
     "RefineRequest",
     "RefinementOutcome",
     "mask_iou",
+    "read_back",
     "refine_many",
     "refine_masks",
     "refinement_prompts",
@@ -385,6 +387,16 @@ def refine_many(
             for k, (rows, _), prediction in zip(views, batch, predictions, strict=True):
                 _choose(outcomes[k], requests[k], rows, prediction.masks, t_iou)
     return outcomes
+
+
+def read_back(outcomes: Sequence[RefinementOutcome]) -> tuple[np.ndarray, np.ndarray]:
+    """What the host keeps of several views' outcomes, in one read from the device each: the
+    masks bit-packed (:func:`lfsam.result.pack_masks`), rows of all outcomes in order, and a
+    ``(2, rows)`` float32 array of the fallback flags (0/1) and the IoUs."""
+    masks = [o.masks for o in outcomes]
+    bits = pack_masks(torch.cat(masks) if len(masks) > 1 else masks[0])
+    flags = [torch.stack([o.fallback.to(o.iou.dtype), o.iou]) for o in outcomes]
+    return bits, torch.cat(flags, dim=1).cpu().numpy()
 
 
 def _choose(

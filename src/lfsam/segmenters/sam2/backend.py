@@ -51,13 +51,13 @@ from lfsam.segmenters.sam2.build import (
     make_image_predictor,
     precision_dtype,
 )
-from lfsam.segmenters.sam2.decoder import (
-    LOGIT_CLAMP,
-    default_chunk_size,
-    embed_prompts,
-    prepare_image,
+from lfsam.segmenters.sam2.decoder import default_chunk_size, prepare_image
+from lfsam.segmenters.sam2.multiview import (
+    compile_pass,
+    decode_prompt_batches,
+    prompt_shape,
+    stack_states,
 )
-from lfsam.segmenters.sam2.multiview import decode_views, stack_states
 
 __all__ = ["PAPER_AMG_OPTIONS", "CachedFeaturePredictor", "Sam2Features", "Sam2Segmenter"]
 
@@ -146,6 +146,12 @@ class Sam2Segmenter(Segmenter):
         Prompts per cross-view decoder call; on CUDA also per decoder pass (default
         :data:`lfsam.devices.CUDA_CROSS_VIEW_ROWS` there, else :attr:`max_prompts_per_batch`
         with passes of :func:`~lfsam.segmenters.sam2.decoder.default_chunk_size`).
+    compile_decoder : str, optional
+        Compile the cross-view decoder pass with ``torch.compile`` and static shapes (every
+        pass padded to the same number of prompts): a ``torch.compile`` mode,
+        ``"reduce-overhead"`` (CUDA graphs: one launch per pass), ``"default"`` or
+        ``"max-autotune"``, or ``"eager"`` (traced only; for tests). Off by default, on every
+        device (compiling takes minutes on a CPU and its GPU gain is not measured yet).
 
     Examples
     --------
@@ -166,6 +172,7 @@ class Sam2Segmenter(Segmenter):
         precision: str = "auto",
         cross_view_decode: bool | None = None,
         cross_view_rows: int | None = None,
+        compile_decoder: str | None = None,
     ) -> None:
         super().__init__()
         self.precision = str(precision)
@@ -196,6 +203,8 @@ class Sam2Segmenter(Segmenter):
         self.cross_view_rows = int(
             cross_view_rows or (CUDA_CROSS_VIEW_ROWS if cuda else max_prompts_per_batch)
         )
+        self.compile_decoder = compile_decoder
+        self._compiled: Any = None
         self.decoder_calls = 0
         """Calls of the decoder by :meth:`predict` and :meth:`predict_many` (each one batch of
         prompts of one view, or of several views with :attr:`cross_view_decode`)."""
@@ -475,12 +484,11 @@ class Sam2Segmenter(Segmenter):
         host.
         """
         sizes = {tuple(e.image_size) for e in embeddings}
-        shapes = {_prompt_shape(p) for p in prompts}
+        shapes = {prompt_shape(p) for p in prompts}
         if (not self.cross_view_decode or len(embeddings) < 2 or len(sizes) != 1
                 or len(shapes) != 1 or len(embeddings) != len(prompts)):
             return super().predict_many(embeddings, prompts, multimask_output)
         hw = sizes.pop()
-        counts = [len(p) for p in prompts]
         with inference_context(self.device, inference_mode=False, precision=self.precision):
             states = []
             for embedding in embeddings:
@@ -491,35 +499,22 @@ class Sam2Segmenter(Segmenter):
                     if self.keep_decoder_state:
                         feats.decoder_state = state
                 states.append(state)
-            stacked = stack_states(states)
-            parts = [self._prompt_tensors(p, hw) for p in prompts]
-            coords, labels, boxes = (
-                None if parts[0][j] is None else torch.cat([p[j] for p in parts])
-                for j in range(3)
+            cuda = self.device.type == "cuda"
+            out, calls = decode_prompt_batches(
+                self.model, stack_states(states), [self._prompt_tensors(p, hw) for p in prompts],
+                multimask_output, self.cross_view_rows,
+                self.cross_view_rows if cuda else default_chunk_size(self.device),
+                image_transforms(self._predictor), hw, self.mask_threshold,
+                compiled=self._compiled_pass(),
             )
-            views = torch.repeat_interleave(
-                torch.arange(len(counts), device=self.device),
-                torch.as_tensor(counts, device=self.device), output_size=sum(counts),
-            )
-            low_res, ious, masks = [], [], []
-            step = self.cross_view_rows
-            passes = step if self.device.type == "cuda" else default_chunk_size(self.device)
-            for start in range(0, len(views), step):
-                self.decoder_calls += 1
-                rows = slice(start, start + step)
-                sparse = embed_prompts(
-                    self.model, None if coords is None else coords[rows],
-                    None if labels is None else labels[rows],
-                    None if boxes is None else boxes[rows],
-                )
-                lr, iou = decode_views(self.model, stacked, sparse, views[rows],
-                                       multimask_output, passes, clamp=False)
-                post = image_transforms(self._predictor).postprocess_masks(lr, hw)
-                masks.append(post > self.mask_threshold)
-                low_res.append(torch.clamp(lr, -LOGIT_CLAMP, LOGIT_CLAMP).float())
-                ious.append(iou.float())
-        split = [torch.cat(x).split(counts) for x in (masks, ious, low_res)]
-        return [MaskPrediction(m, i, lr) for m, i, lr in zip(*split, strict=True)]
+        self.decoder_calls += calls
+        return [MaskPrediction(*x) for x in out]
+
+    def _compiled_pass(self) -> Any:
+        """The compiled decoder pass of :attr:`compile_decoder` (made once), or None."""
+        if self.compile_decoder is not None and self._compiled is None:
+            self._compiled = compile_pass(self.compile_decoder)
+        return self._compiled
 
     def _prompt_tensors(
         self, prompts: Prompts, hw: tuple[int, int]
@@ -676,13 +671,6 @@ class Sam2Segmenter(Segmenter):
                 tuple(embedding.image_size), norms=feats.pixel_norms,
             )
         return sims.to(sources.device)
-
-
-def _prompt_shape(prompts: Prompts) -> tuple[int, bool]:
-    """Points per prompt and whether there is a box: prompts of one shape share a decoder
-    pass (their token counts agree)."""
-    points = 0 if prompts.points is None else int(prompts.points.shape[1])
-    return points, prompts.boxes is not None
 
 
 def _check_images(images: np.ndarray) -> np.ndarray:

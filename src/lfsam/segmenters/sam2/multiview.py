@@ -15,21 +15,45 @@ up to floating-point rounding (tests/test_batched_decoder.py).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
+from typing import Any
 
 import torch
 from torch import nn
 
 from lfsam.errors import LfsamError
+from lfsam.segmenters.base import Prompts
 from lfsam.segmenters.sam2.decoder import (
     DEFAULT_TILE_ROWS,
     LOGIT_CLAMP,
     ImageState,
     _decode_chunk,
+    embed_prompts,
 )
 
-__all__ = ["decode_views", "stack_states"]
+__all__ = [
+    "compile_pass",
+    "decode_prompt_batches",
+    "decode_views",
+    "prompt_shape",
+    "stack_states",
+]
+
+
+def prompt_shape(prompts: Prompts) -> tuple[int, bool]:
+    """Points per prompt and whether there is a box: prompts of one shape have the same
+    number of tokens, so they can share a decoder pass."""
+    points = 0 if prompts.points is None else int(prompts.points.shape[1])
+    return points, prompts.boxes is not None
+
+
+def compile_pass(mode: str) -> Callable[..., tuple[torch.Tensor, torch.Tensor]]:
+    """The decoder pass compiled by ``torch.compile`` with static shapes: ``mode`` one of its
+    modes (``"reduce-overhead"``: CUDA graphs), or ``"eager"`` (traced by TorchDynamo and run
+    eagerly: checks the pass compiles, in seconds, on any device)."""
+    options: dict[str, str] = {"backend": "eager"} if mode == "eager" else {"mode": mode}
+    return torch.compile(_decode_chunk, dynamic=False, **options)
 
 
 def _per_image(term: torch.Tensor) -> bool:
@@ -99,6 +123,7 @@ def decode_views(
     *,
     clamp: bool = True,
     tile_rows: int = DEFAULT_TILE_ROWS,
+    compiled: Callable[..., tuple[torch.Tensor, torch.Tensor]] | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Decode N prompts of several views, ``chunk_size`` prompts per decoder pass, whatever
     their views: what :func:`~lfsam.segmenters.sam2.decoder.decode_prompts` computes for each
@@ -124,6 +149,12 @@ def decode_views(
         Clamp the logits to [-32, 32].
     tile_rows : int
         Embedding rows upscaled together.
+    compiled : callable, optional
+        A compiled form of the decoder pass (``torch.compile`` of
+        :func:`~lfsam.segmenters.sam2.decoder._decode_chunk` with static shapes, e.g. CUDA
+        graphs): every pass is then padded to ``chunk_size`` prompts (the last prompt
+        repeated; prompts do not see each other, the padding is dropped), so one shape serves
+        all passes, and each pass's output is copied out of the graph's memory.
 
     Returns
     -------
@@ -138,10 +169,19 @@ def decode_views(
     masks, ious = [], []
     with torch.no_grad():
         for start in range(0, sparse.shape[0], chunk_size):
-            chunk = _chunk_state(stacked, views[start : start + chunk_size])
-            m, iou = _decode_chunk(
-                model, chunk, sparse[start : start + chunk_size], multimask_output, tile_rows
-            )
+            rows, tokens = views[start : start + chunk_size], sparse[start : start + chunk_size]
+            if compiled is None:
+                m, iou = _decode_chunk(
+                    model, _chunk_state(stacked, rows), tokens, multimask_output, tile_rows
+                )
+            else:
+                count, pad = len(rows), chunk_size - len(rows)
+                rows = torch.cat([rows, rows[-1:].expand(pad)])
+                tokens = torch.cat([tokens, tokens[-1:].expand(pad, -1, -1)])
+                m, iou = compiled(
+                    model, _chunk_state(stacked, rows), tokens, multimask_output, tile_rows
+                )
+                m, iou = m[:count].clone(), iou[:count].clone()
             masks.append(m)
             ious.append(iou)
     if not masks:
@@ -152,3 +192,70 @@ def decode_views(
     if clamp:
         low_res = torch.clamp(low_res, -LOGIT_CLAMP, LOGIT_CLAMP)
     return low_res, torch.cat(ious)
+
+
+PromptTensors = tuple[torch.Tensor | None, torch.Tensor | None, torch.Tensor | None]
+
+
+def decode_prompt_batches(
+    model: nn.Module,
+    stacked: ImageState,
+    prompts: Sequence[PromptTensors],
+    multimask_output: bool,
+    rows_per_call: int,
+    chunk_size: int,
+    transforms: Any,
+    image_size: tuple[int, int],
+    mask_threshold: float,
+    *,
+    compiled: Callable[..., tuple[torch.Tensor, torch.Tensor]] | None = None,
+) -> tuple[list[tuple[torch.Tensor, torch.Tensor, torch.Tensor]], int]:
+    """Masks of each view's prompts, every ``rows_per_call`` prompts of all views decoded
+    together (:meth:`lfsam.segmenters.sam2.backend.Sam2Segmenter.predict_many`).
+
+    Parameters
+    ----------
+    model : SAM2Base
+    stacked : ImageState
+        :func:`stack_states` of the views.
+    prompts : sequence of (coords, labels, boxes)
+        Each view's prompts in model-input pixels (``_prep_prompts``), all of one shape.
+    multimask_output : bool
+    rows_per_call, chunk_size : int
+        Prompts per call (post-processed together) and per decoder pass.
+    transforms : SAM2Transforms
+        Post-processing of the logits (upsampling to ``image_size``).
+    image_size : (U, V)
+    mask_threshold : float
+
+    Returns
+    -------
+    per_view : list of (masks, iou_predictions, low_res_logits)
+        As :class:`~lfsam.segmenters.base.MaskPrediction` holds them (float32 IoUs and logits
+        clamped to [-32, 32]).
+    calls : int
+        Decoder calls made.
+    """
+    device = stacked.src.device
+    counts = [len(c if c is not None else b) for c, _, b in prompts]
+    coords, labels, boxes = (
+        None if prompts[0][j] is None else torch.cat([p[j] for p in prompts]) for j in range(3)
+    )
+    views = torch.repeat_interleave(
+        torch.arange(len(counts), device=device), torch.as_tensor(counts, device=device),
+        output_size=sum(counts),
+    )
+    masks, ious, low_res = [], [], []
+    for start in range(0, len(views), rows_per_call):
+        rows = slice(start, start + rows_per_call)
+        sparse = embed_prompts(
+            model, None if coords is None else coords[rows],
+            None if labels is None else labels[rows], None if boxes is None else boxes[rows],
+        )
+        lr, iou = decode_views(model, stacked, sparse, views[rows], multimask_output,
+                               chunk_size, clamp=False, compiled=compiled)
+        masks.append(transforms.postprocess_masks(lr, image_size) > mask_threshold)
+        low_res.append(torch.clamp(lr, -LOGIT_CLAMP, LOGIT_CLAMP).float())
+        ious.append(iou.float())
+    split = [torch.cat(x).split(counts) for x in (masks, ious, low_res)]
+    return list(zip(*split, strict=True)), len(masks)
