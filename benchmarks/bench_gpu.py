@@ -42,6 +42,11 @@ writes every number (and the targets) as JSON (docs/gpu_results.json beside the 
 docs/performance.md). ``--smoke`` runs every case at a tiny size with the tiny test models, on
 any device, in seconds: the check that the script works before it reaches a GPU.
 
+The batched decoder (issue 44; docs/design.md section 3.5): ``--cross-view off`` decodes view by
+view (the default on CUDA decodes the prompts of each batch of views together), and
+``--compile-decoder reduce-overhead`` compiles the cross-view decoder pass into CUDA graphs;
+compare runs on the same machine.
+
 Run on a GPU (``make gpu-check`` runs this)::
 
     python benchmarks/bench_gpu.py
@@ -135,7 +140,11 @@ def profile_run(fn, device: torch.device, label: str = "one LFSAM run") -> dict[
     """Run ``fn`` once under ``torch.profiler`` and print what the host and the GPU did:
     kernel launches, stream and device synchronisations, host-device copies (calls), the
     run's wall time under the profiler, the GPU's busy time (self device time of all events)
-    and the share of it in ``aten::copy_`` (dtype casts and moves)."""
+    and the share of it in ``aten::copy_`` (dtype casts and moves). ``sync_points`` counts, on
+    any device, the operators that make the host wait for a GPU (a value read back by
+    ``.item()``/``bool()``, ``nonzero`` and boolean indexing, ``unique``, ``masked_select``):
+    a CPU run shows how many the code would make (copies to the host by ``.cpu()`` are not
+    operators on a CPU and are not in it)."""
     from torch.autograd import DeviceType
     from torch.profiler import ProfilerActivity, profile
 
@@ -157,11 +166,14 @@ def profile_run(fn, device: torch.device, label: str = "one LFSAM run") -> dict[
         "kernel_launches": calls("cudaLaunchKernel", "cuLaunchKernelEx", "cuLaunchKernel"),
         "synchronisations": calls("cudaStreamSynchronize", "cudaDeviceSynchronize"),
         "copies": calls("cudaMemcpyAsync", "cudaMemcpy"),
+        "sync_points": calls("aten::_local_scalar_dense", "aten::nonzero", "aten::_unique2",
+                             "aten::unique_consecutive", "aten::masked_select"),
         "gpu_busy_s": busy,
     }
     print(f"\nprofile of {label}: {wall:.2f} s under the profiler; "
           f"{numbers['kernel_launches']} kernel launches, {numbers['synchronisations']} "
-          f"synchronisations, {numbers['copies']} host-device copies; GPU busy {busy:.2f} s "
+          f"synchronisations, {numbers['copies']} host-device copies, "
+          f"{numbers['sync_points']} operators that wait for the device; GPU busy {busy:.2f} s "
           f"({100 * copies / busy if busy else 0:.0f} % of it in aten::copy_)", flush=True)
     return numbers
 
@@ -195,6 +207,12 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     parser.add_argument("--no-estimate", action="store_true",
                         help="skip timing the disparity estimate (always skipped with --quick)")
     parser.add_argument("--seed", type=int, default=0, help="scene seed")
+    parser.add_argument("--cross-view", choices=("auto", "on", "off"), default="auto",
+                        help="decode the prompts of a batch of views together (issue 44; auto: "
+                        "on CUDA only)")
+    parser.add_argument("--compile-decoder", default=None, metavar="MODE",
+                        help="torch.compile the cross-view decoder pass: reduce-overhead (CUDA "
+                        "graphs), default, max-autotune or eager")
     parser.add_argument("--profile", action="store_true",
                         help="one more LFSAM run under torch.profiler: kernel launches, host "
                         "synchronisations, copies and the GPU's busy time")
@@ -242,8 +260,10 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     prompts = [Prompts(points=points[:, None, :], point_labels=np.ones((n, 1)))]
     num_views = grid[0] * grid[1]
     # batch runs: no decoder state kept with the embeddings (each view is decoded once)
+    cross_view = {"auto": None, "on": True, "off": False}[args.cross_view]
     segmenter = load_segmenter(args.model, random_weights=True, device=device,
-                               keep_decoder_state=False)
+                               keep_decoder_state=False, cross_view_decode=cross_view,
+                               compile_decoder=args.compile_decoder)
     segmenter.encode_batch_size = batch
     config = PipelineConfig(encode_batch_size=batch)
     ours_options = SegmentOptions(pipeline=config, run=RunOptions(method="lfsam", progress=False))
@@ -252,7 +272,8 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     print(f"bench_gpu: {args.model} (random weights) on {device} ({gpu}), "
           f"{'bf16 autocast' if dtype is not None else 'float32'}, torch {torch.__version__}, "
           f"{torch.get_num_threads()} threads; {grid[0]}x{grid[1]} views of {size[0]}x{size[1]}, "
-          f"N={n} point prompts, encoder batch {batch}", flush=True)
+          f"N={n} point prompts, encoder batch {batch}; views decoded together: "
+          f"{segmenter.cross_view_decode}, compiled decoder: {args.compile_decoder}", flush=True)
 
     # Warm-up, untimed: kernels, allocator, cudnn choices; the video predictor built.
     views = lf.views.reshape(-1, *lf.views.shape[2:])
@@ -342,7 +363,9 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
             "precision": "bf16 autocast" if dtype is not None else "float32",
             "model": args.model, "random_weights": True,
             "setting": {"grid": list(grid), "size": list(size), "prompts": n,
-                        "encode_batch": batch, "repeats": repeats},
+                        "encode_batch": batch, "repeats": repeats,
+                        "cross_view_decode": segmenter.cross_view_decode,
+                        "compile_decoder": args.compile_decoder},
             "paper": numbers, **realtime, "targets": TARGETS,
         })
     return {**numbers, **realtime}

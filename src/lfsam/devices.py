@@ -19,6 +19,7 @@ import torch
 from lfsam.errors import LfsamError
 
 __all__ = [
+    "CUDA_CROSS_VIEW_ROWS",
     "CUDA_ENCODE_BATCH_SIZE",
     "CUDA_PROMPT_BATCH_SIZE",
     "DEVICE_HELP",
@@ -40,6 +41,11 @@ CUDA_PROMPT_BATCH_SIZE = 128
 
 CPU_PROMPT_BATCH_SIZE = 64
 """Prompts per mask-decoder call elsewhere (bounds the N x 3 x U x V logits in memory)."""
+
+CUDA_CROSS_VIEW_ROWS = 512
+"""Prompts of several views per mask-decoder pass on CUDA when views share decoder calls
+(:meth:`lfsam.segmenters.sam2.backend.Sam2Segmenter.predict_many`): about 13 MB each in bfloat16
+at 480 x 640 with the upsampled logits, some 7 GB a pass (not yet timed on a GPU: issue 44)."""
 
 _SPEC = re.compile(r"auto|cpu|mps|cuda(:\d+)?")
 

@@ -13,7 +13,7 @@ their stages are up to date, is the caller's (:class:`lfsam.predictor.LightField
 from __future__ import annotations
 
 from collections import Counter, OrderedDict, defaultdict
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -39,7 +39,7 @@ from lfsam.pipeline.objects import (
 )
 from lfsam.pipeline.occlusion import semantic_occlusion, source_features, uniform_weights
 from lfsam.pipeline.propagation import ForwardWarp, forward_warp, propagate_masks
-from lfsam.pipeline.refinement import refine_masks
+from lfsam.pipeline.refinement import RefinementOutcome, RefineRequest, read_back, refine_many
 from lfsam.pipeline.sparse import nearest_sources, refined_views
 from lfsam.pipeline.voting import ViewVoter
 from lfsam.result import pack_masks
@@ -47,6 +47,9 @@ from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
 from lfsam.timing import StageTimer
 
 __all__ = ["WARP_CACHE_BYTES", "StreamingEngine"]
+
+#: What becomes of a view's refinement outcome (:meth:`StreamingEngine._refined_writer`).
+Writer = Callable[[RefinementOutcome, np.ndarray, np.ndarray], None]
 
 #: Forward warps (reference view, target view) kept for reuse across edits, in bytes.
 WARP_CACHE_BYTES = 512 * 2**20
@@ -416,13 +419,17 @@ class StreamingEngine:
             if (refine or config.semantic) and others:
                 with self.timer("encode"):
                     embeddings = dict(zip(others, self.store.get_many(others), strict=True))
-            for view in batch:
-                final = self.view_step(
-                    objects, view, ids, embeddings.get(view), refine, out, coarse_out,
-                    stage="refine",
-                )
-                if not consensus:
-                    done(view, final)
+            # Steps 2-3 in every view of the batch, then step 4 of all of them at once: their
+            # prompts go through the decoder together (docs/design.md section 3.5).
+            deferred: list[tuple[RefineRequest, Writer]] = []
+            finals = [
+                (view, self.view_step(objects, view, ids, embeddings.get(view), refine, out,
+                                      coarse_out, stage="refine", deferred=deferred))
+                for view in batch
+            ]
+            self._refine_deferred(deferred)
+            for view, final in finals if not consensus else ():
+                done(view, final)
         self._clear_sources()
         if consensus:  # every refined view is in: each is voted with its neighbours
             refined = {i: out[i].copy() for i in ids}
@@ -456,6 +463,7 @@ class StreamingEngine:
         out: dict[int, ObjectViews],
         coarse_out: dict[int, ObjectViews],
         stage: str = "refine",
+        deferred: list[tuple[RefineRequest, Writer]] | None = None,
     ) -> dict[int, torch.Tensor]:
         """Steps 2-4 of the objects ``ids`` in one view; writes their packed masks into
         ``out`` (final) and ``coarse_out`` and returns each object's final mask there (refined,
@@ -464,6 +472,9 @@ class StreamingEngine:
         ``stage`` ``"refine"`` handles the objects refined in this view (:meth:`refines`; every
         object with ``refine_views="all"``) and ``"fill"`` the others, whose sources
         (:meth:`fill_sources`) must be in ``out`` already.
+
+        With ``deferred``, step 4 waits there for :meth:`_refine_deferred` (with the other views
+        of a batch), which then writes ``out`` and the returned masks.
         """
         final: dict[int, torch.Tensor] = {}
         config = self.config
@@ -528,26 +539,49 @@ class StreamingEngine:
                 seen = warp.seen((height, width))
                 carried = [self.clicks_in_view(objects[i], view, zbuffer_test=False)
                            for i in members]
-                outcome = refine_masks(
-                    self.segmenter, embedding, coarse, weights, config.t_iou,
-                    seen=seen, frame_runs=warp.frame_runs((height, width), seen),
+                request = RefineRequest(
+                    embedding, coarse, weights, seen=seen,
+                    frame_runs=warp.frame_runs((height, width), seen),
                     extra_points=agreeing_clicks(carried, coarse),
-                    chunk_size=config.refine_chunk_for(self.device),
                 )
-                prompted = (weights.weight > 0).new_zeros(len(members))
-                prompted[weights.mask_index[weights.weight > 0]] = True
-            for k in torch.nonzero(prompted, as_tuple=True)[0].tolist():
-                self.decode_counts[members[k]] += 1
-            with self.timer("fuse"):
-                bits = pack_masks(outcome.masks)
-                fallback = outcome.fallback.cpu().numpy()
-                iou = outcome.iou.cpu().numpy()
+            finish = self._refined_writer(view, members, out, final)
+            if deferred is None:
+                self._refine_deferred([(request, finish)])
+            else:
+                deferred.append((request, finish))
+        return final
+
+    def _refine_deferred(self, deferred: list[tuple[RefineRequest, Writer]]) -> None:
+        """Step 4 of the views in ``deferred`` together (:func:`~lfsam.pipeline.refinement.
+        refine_many`); their outcomes read back at once (:func:`~lfsam.pipeline.refinement.
+        read_back`) and handed to their writers (:meth:`_refined_writer`)."""
+        if not deferred:
+            return
+        with self.timer("refine"):
+            outcomes = refine_many(
+                self.segmenter, [request for request, _ in deferred], self.config.t_iou,
+                chunk_size=self.config.refine_chunk_for(self.device),
+            )
+        with self.timer("fuse"):
+            bits, flags = read_back(outcomes)
+        sizes = [len(o.masks) for o in outcomes]
+        for (_, finish), o, end, n in zip(deferred, outcomes, np.cumsum(sizes), sizes, strict=True):
+            finish(o, bits[end - n : end], flags[:, end - n : end])
+
+    def _refined_writer(self, view: View, members: list[int], out: dict[int, ObjectViews],
+                        final: dict[int, torch.Tensor]) -> Writer:
+        """What :meth:`view_step` does with a view's refinement outcome: count the decoded
+        prompts (those with an IoU), write the packed masks, fallback flags and IoUs into
+        ``out`` and the masks into ``final``."""
+        def finish(outcome: RefinementOutcome, bits: np.ndarray, flags: np.ndarray) -> None:
+            fallback, iou = flags[0].astype(bool), flags[1]
+            self.decode_counts.update(members[k] for k in np.flatnonzero(~np.isnan(iou)))
             for k, i in enumerate(members):
                 out[i].bits[view] = bits[k]
                 out[i].fallback[view] = fallback[k]
                 out[i].iou[view] = iou[k]
                 final[i] = outcome.masks[k]
-        return final
+        return finish
 
     def consensus_step(self, objects: Mapping[int, TrackedObject], view: View, ids: list[int],
                        refined: dict[int, ObjectViews], out: dict[int, ObjectViews]) -> None:

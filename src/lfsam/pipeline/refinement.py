@@ -5,11 +5,17 @@ prompted with the box around its surviving coarse pixels and one positive point,
 pixel nearest to their similarity-weighted centroid (a plain centroid can fall outside a
 non-convex mask). Of the three multimask outputs the one with the highest IoU against the coarse
 mask is kept, and only if that IoU exceeds ``t_iou`` (0.1 in the paper); otherwise the view falls
-back to the coarse mask. All N prompts of a view go through the decoder in one batch.
+back to the coarse mask. All N prompts of a view go through the decoder in one batch, and with
+:func:`refine_many` the prompts of several views through one call of the segmenter
+(:meth:`lfsam.segmenters.base.Segmenter.predict_many`; docs/design.md section 3.5, "batched
+decoder"). Prompts are built on the device and stay there: no mask or prompt goes through
+NumPy on its way from the coarse masks to the refined ones.
 """
 
 from __future__ import annotations
 
+from collections import defaultdict
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,11 +23,20 @@ import torch
 
 from lfsam.pipeline.occlusion import OcclusionWeights
 from lfsam.precision import wide_float
+from lfsam.result import pack_masks
 from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
 from lfsam.segments import segment_lengths, segment_reduce
 from lfsam.warp import FrameRuns
 
-__all__ = ["RefinementOutcome", "mask_iou", "refine_masks", "refinement_prompts"]
+__all__ = [
+    "RefineRequest",
+    "RefinementOutcome",
+    "mask_iou",
+    "read_back",
+    "refine_many",
+    "refine_masks",
+    "refinement_prompts",
+]
 
 
 @dataclass
@@ -62,14 +77,24 @@ def refinement_prompts(
     Returns
     -------
     prompts : Prompts or None
-        One prompt per mask that has surviving pixels (None if no mask has any).
+        One prompt per mask that has surviving pixels (None if no mask has any), as tensors on
+        the device of ``weights`` (float32 points and boxes, int64 labels).
     prompted : (N,) bool tensor
         Which masks got a prompt (rows of ``prompts`` are these masks, in order).
     """
+    prompts, prompted, _ = _prompts_of(weights, frame_runs)
+    return prompts, prompted
+
+
+def _prompts_of(
+    weights: OcclusionWeights, frame_runs: FrameRuns | None
+) -> tuple[Prompts | None, torch.Tensor, torch.Tensor]:
+    """:func:`refinement_prompts` and the prompted masks' numbers, ``(M,)`` int64: the host
+    waits for the device twice (the sizes of the surviving pairs and of the prompted masks)."""
     n = weights.num_masks
     width = weights.view_size[1]
     device = weights.weight.device
-    keep = weights.weight > 0
+    keep = torch.nonzero(weights.weight > 0, as_tuple=True)[0]
     mask_index = weights.mask_index[keep]
     pixel_index = weights.pixel_index[keep]
     wide = wide_float(device)
@@ -84,8 +109,9 @@ def refinement_prompts(
 
     total = _reduce(w, "sum")
     prompted = total > 0
-    if not bool(prompted.any()):
-        return None, prompted
+    index = torch.nonzero(prompted, as_tuple=True)[0]
+    if index.numel() == 0:
+        return None, prompted, index
     safe_total = total.clamp(min=1e-12)
     centroid_r = _reduce(w * rows, "sum") / safe_total
     centroid_c = _reduce(w * cols, "sum") / safe_total
@@ -98,7 +124,7 @@ def refinement_prompts(
     position = torch.arange(mask_index.numel(), device=device, dtype=wide)
     unreached = torch.full_like(position, float(mask_index.numel()))
     first = _reduce(torch.where(is_best, position, unreached), "min")
-    chosen = first[prompted].long()
+    chosen = first[index].long()
     point_rc = torch.stack([rows[chosen], cols[chosen]], dim=1)
 
     boxes = torch.stack(
@@ -109,17 +135,18 @@ def refinement_prompts(
             _reduce(rows, "max"),
         ],
         dim=1,
-    )[prompted]
+    )[index]
     if frame_runs is not None:
         boxes = _extend_to_unseen_edges(boxes, frame_runs, weights.view_size)
-    points_xy = point_rc.flip(1)[:, None, :].cpu().numpy()
+    points_xy = point_rc.flip(1)[:, None, :].to(torch.float32)
     return (
         Prompts(
             points=points_xy,
-            point_labels=np.ones(points_xy.shape[:2], dtype=np.int64),
-            boxes=boxes.cpu().numpy(),
+            point_labels=torch.ones(points_xy.shape[:2], dtype=torch.int64, device=device),
+            boxes=boxes.to(torch.float32),
         ),
         prompted,
+        index,
     )
 
 
@@ -152,7 +179,10 @@ def _extend_to_unseen_edges(
 
 
 def mask_iou(
-    candidates: torch.Tensor, reference: torch.Tensor, region: torch.Tensor | None = None
+    candidates: torch.Tensor,
+    reference: torch.Tensor,
+    region: torch.Tensor | None = None,
+    dense: bool | None = None,
 ) -> torch.Tensor:
     """IoU of each candidate mask with its reference mask, optionally within a region.
 
@@ -162,6 +192,10 @@ def mask_iou(
     reference : (N, U, V) bool tensor
     region : (U, V) bool tensor, optional
         Count only these pixels.
+    dense : bool, optional
+        Count by dense ANDs of whole masks (no pixel lists, so the host never waits for the
+        device) instead of gathering at the reference pixels; default on CUDA, where memory
+        bandwidth is plentiful. The counts, hence the IoUs, are the same either way.
 
     Returns
     -------
@@ -175,8 +209,15 @@ def mask_iou(
         # Summing bytes into int32 is about twice as fast as counting bools on CPU.
         return bits.view(torch.uint8).sum(dim=-1, dtype=torch.int32)
 
-    cand_area = count(flat)
     ref = reference.to(device).reshape(n, -1)
+    if device.type == "cuda" if dense is None else dense:
+        if region is not None:
+            inside = region.to(device).reshape(1, -1)
+            flat, ref = flat & inside[:, None], ref & inside
+        inter = count(flat & ref[:, None])
+        union = count(flat) + count(ref)[:, None] - inter
+        return inter.to(torch.float32) / union.clamp(min=1).to(torch.float32)
+    cand_area = count(flat)
     if region is not None:
         # Only pixels inside the region count; outside it is usually a thin strip, so remove
         # its pixels from the candidate areas by a gather instead of masking everything.
@@ -200,6 +241,18 @@ def mask_iou(
         ref_area = torch.bincount(mask_index, minlength=n).to(torch.int32)
     union = cand_area + ref_area[:, None] - inter
     return inter.to(torch.float32) / union.clamp(min=1).to(torch.float32)
+
+
+@dataclass
+class RefineRequest:
+    """What refinement needs of one view (the parameters of :func:`refine_masks`)."""
+
+    embedding: ViewEmbedding
+    coarse: torch.Tensor
+    weights: OcclusionWeights
+    seen: torch.Tensor | None = None
+    frame_runs: FrameRuns | None = None
+    extra_points: tuple[np.ndarray, np.ndarray] | None = None
 
 
 def refine_masks(
@@ -241,55 +294,122 @@ def refine_masks(
     -------
     RefinementOutcome
     """
-    n = coarse.shape[0]
-    device = coarse.device
-    masks = coarse.clone()
-    fallback = torch.ones(n, dtype=torch.bool, device=device)
-    iou = torch.full((n,), float("nan"), device=device)
-    prompts, prompted = refinement_prompts(weights, frame_runs)
-    if prompts is None:
-        return RefinementOutcome(masks, fallback, iou)
-    index = torch.nonzero(prompted, as_tuple=True)[0].to(device)
-    # Prompts with the same number of carried clicks are decoded together, each group without
-    # padding: SAM 2 attends to a padding point (label -1) like to any token, so padding one
-    # mask's prompt to another's length would change its answer, and a mask's refinement would
-    # depend on which other objects share the view (an incremental edit would differ from a
-    # full run).
-    groups = [(torch.arange(len(index), device=device), prompts)]
-    if extra_points is not None and extra_points[0].shape[1] > 0:
-        rows_np = index.cpu().numpy()
-        carried = (extra_points[1][rows_np] != -1).sum(axis=1)
-        groups = []
-        for count in np.unique(carried):
-            members = np.flatnonzero(carried == count)
-            groups.append((
-                torch.as_tensor(members, device=device),
-                Prompts(
-                    points=np.concatenate(
-                        [prompts.points[members], extra_points[0][rows_np[members], :count]],
-                        axis=1,
-                    ),
-                    point_labels=np.concatenate(
-                        [prompts.point_labels[members],
-                         extra_points[1][rows_np[members], :count]],
-                        axis=1,
-                    ),
-                    boxes=None if prompts.boxes is None else prompts.boxes[members],
+    request = RefineRequest(embedding, coarse, weights, seen, frame_runs, extra_points)
+    return refine_many(segmenter, [request], t_iou, chunk_size)[0]
+
+
+def _prompt_groups(
+    index: torch.Tensor, prompts: Prompts, extra_points: tuple[np.ndarray, np.ndarray] | None
+) -> list[tuple[torch.Tensor, Prompts]]:
+    """The prompts of one view split by the number of carried clicks: ``(positions in index,
+    prompts)`` per group.
+
+    Prompts with the same number of carried clicks are decoded together, each group without
+    padding: SAM 2 attends to a padding point (label -1) like to any token, so padding one
+    mask's prompt to another's length would change its answer, and a mask's refinement would
+    depend on which other objects share the view (an incremental edit would differ from a full
+    run). The clicks are the user's (host arrays); only with them are the prompted masks'
+    numbers read back to group them.
+    """
+    device = index.device
+    if extra_points is None or extra_points[0].shape[1] == 0:
+        return [(torch.arange(len(index), device=device), prompts)]
+    rows_np = index.cpu().numpy()
+    carried = (extra_points[1][rows_np] != -1).sum(axis=1)
+    points = torch.as_tensor(extra_points[0], dtype=torch.float32).to(device)
+    labels = torch.as_tensor(extra_points[1], dtype=torch.int64).to(device)
+    groups = []
+    for count in np.unique(carried):
+        members = torch.as_tensor(np.flatnonzero(carried == count), device=device)
+        rows = index[members]
+        groups.append((
+            members,
+            Prompts(
+                points=torch.cat([prompts.points[members], points[rows, :count]], dim=1),
+                point_labels=torch.cat(
+                    [prompts.point_labels[members], labels[rows, :count]], dim=1
                 ),
-            ))
-    # One batched decode per chunk of prompts, each chunk reduced to its chosen masks at once,
-    # so the N x 3 x U x V candidates never exist together.
-    for positions, group in groups:
-        for start in range(0, len(positions), chunk_size):
-            rows = index[positions[start : start + chunk_size]]
-            prediction = segmenter.predict(
-                embedding, group.subset(slice(start, start + chunk_size)), multimask_output=True
+                boxes=None if prompts.boxes is None else prompts.boxes[members],
+            ),
+        ))
+    return groups
+
+
+def refine_many(
+    segmenter: Segmenter,
+    requests: Sequence[RefineRequest],
+    t_iou: float = 0.1,
+    chunk_size: int = 64,
+) -> list[RefinementOutcome]:
+    """:func:`refine_masks` in several views, their prompts decoded together.
+
+    Each view's prompts are cut into the chunks :func:`refine_masks` decodes (at most
+    ``chunk_size`` prompts, one group of carried clicks each); one call of
+    :meth:`~lfsam.segmenters.base.Segmenter.predict_many` takes one chunk of every view whose
+    prompts have the same shape, so memory stays bounded by ``chunk_size`` candidates per view.
+    A view's outcome does not depend on which views share its calls (on a CPU, bit for bit:
+    tests/test_batched_decoder.py).
+
+    Returns
+    -------
+    list of RefinementOutcome
+        One per request, in order.
+    """
+    outcomes = []
+    # shape of the prompts -> view -> its chunks (rows in the view's masks, prompts)
+    jobs: dict[tuple[int, bool], dict[int, list[tuple[torch.Tensor, Prompts]]]] = defaultdict(
+        lambda: defaultdict(list)
+    )
+    for k, request in enumerate(requests):
+        n = request.coarse.shape[0]
+        device = request.coarse.device
+        outcomes.append(RefinementOutcome(
+            request.coarse.clone(),
+            torch.ones(n, dtype=torch.bool, device=device),
+            torch.full((n,), float("nan"), device=device),
+        ))
+        prompts, _, index = _prompts_of(request.weights, request.frame_runs)
+        if prompts is None:
+            continue
+        for positions, group in _prompt_groups(index, prompts, request.extra_points):
+            shape = (int(group.points.shape[1]), group.boxes is not None)
+            for start in range(0, len(positions), chunk_size):
+                chunk = slice(start, start + chunk_size)
+                jobs[shape][k].append((index[positions[chunk]], group.subset(chunk)))
+    for per_view in jobs.values():
+        while any(per_view.values()):
+            views = [k for k, queue in per_view.items() if queue]
+            batch = [per_view[k].pop(0) for k in views]
+            predictions = segmenter.predict_many(
+                [requests[k].embedding for k in views], [p for _, p in batch],
+                multimask_output=True,
             )
-            candidates = prediction.masks.to(device)
-            best_iou, best_k = mask_iou(candidates, coarse[rows], seen).max(dim=1)
-            chosen = candidates[torch.arange(len(rows), device=device), best_k]
-            accept = best_iou > t_iou
-            masks[rows[accept]] = chosen[accept]
-            fallback[rows] = ~accept
-            iou[rows] = best_iou
-    return RefinementOutcome(masks, fallback, iou)
+            for k, (rows, _), prediction in zip(views, batch, predictions, strict=True):
+                _choose(outcomes[k], requests[k], rows, prediction.masks, t_iou)
+    return outcomes
+
+
+def read_back(outcomes: Sequence[RefinementOutcome]) -> tuple[np.ndarray, np.ndarray]:
+    """What the host keeps of several views' outcomes, in one read from the device each: the
+    masks bit-packed (:func:`lfsam.result.pack_masks`), rows of all outcomes in order, and a
+    ``(2, rows)`` float32 array of the fallback flags (0/1) and the IoUs."""
+    masks = [o.masks for o in outcomes]
+    bits = pack_masks(torch.cat(masks) if len(masks) > 1 else masks[0])
+    flags = [torch.stack([o.fallback.to(o.iou.dtype), o.iou]) for o in outcomes]
+    return bits, torch.cat(flags, dim=1).cpu().numpy()
+
+
+def _choose(
+    outcome: RefinementOutcome, request: RefineRequest, rows: torch.Tensor,
+    candidates: torch.Tensor, t_iou: float,
+) -> None:
+    """Keep, for the masks ``rows``, the candidate of highest IoU with the coarse mask where
+    that IoU exceeds ``t_iou`` (written into ``outcome``, without reading anything back)."""
+    device = request.coarse.device
+    candidates = candidates.to(device)
+    best_iou, best_k = mask_iou(candidates, request.coarse[rows], request.seen).max(dim=1)
+    chosen = candidates[torch.arange(len(rows), device=device), best_k]
+    accept = best_iou > t_iou
+    outcome.masks[rows] = torch.where(accept[:, None, None], chosen, outcome.masks[rows])
+    outcome.fallback[rows] = ~accept
+    outcome.iou[rows] = best_iou

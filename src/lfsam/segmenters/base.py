@@ -14,6 +14,7 @@ pixels, as in ``sam2``; boxes are ``(x0, y0, x1, y1)``. Masks are ``(..., U, V)`
 from __future__ import annotations
 
 import abc
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -38,12 +39,16 @@ class Prompts:
 
     Parameters
     ----------
-    points : (N, P, 2) float array, optional
+    points : (N, P, 2) float array or tensor, optional
         Point coordinates ``(x, y)`` in view pixels.
-    point_labels : (N, P) int array, optional
+    point_labels : (N, P) int array or tensor, optional
         1 = positive (object), 0 = negative (background); required with ``points``.
-    boxes : (N, 4) float array, optional
+    boxes : (N, 4) float array or tensor, optional
         Boxes ``(x0, y0, x1, y1)`` in view pixels.
+
+    Arrays are kept as NumPy arrays (float32 / int64); torch tensors stay tensors on their
+    device, cast once to the same dtypes, so prompts made on the device (refinement,
+    docs/design.md section 3.5) reach the decoder without a trip through the host.
 
     Raises
     ------
@@ -52,26 +57,24 @@ class Prompts:
         prompts.
     """
 
-    points: np.ndarray | None = None
-    point_labels: np.ndarray | None = None
-    boxes: np.ndarray | None = None
+    points: np.ndarray | torch.Tensor | None = None
+    point_labels: np.ndarray | torch.Tensor | None = None
+    boxes: np.ndarray | torch.Tensor | None = None
 
     def __post_init__(self) -> None:
         if self.points is None and self.boxes is None:
             raise LfsamError("a prompt needs points, a box, or both; give at least one")
         if self.points is not None:
-            self.points = np.asarray(self.points, dtype=np.float32).reshape(
-                len(self.points), -1, 2
-            )
+            self.points = _as(self.points, torch.float32).reshape(len(self.points), -1, 2)
             if self.point_labels is None:
                 raise LfsamError(
                     "points need point_labels (1 = positive, 0 = negative); give one per point"
                 )
-            self.point_labels = np.asarray(self.point_labels, dtype=np.int64).reshape(
-                self.points.shape[:2]
+            self.point_labels = _as(self.point_labels, torch.int64).reshape(
+                tuple(self.points.shape[:2])
             )
         if self.boxes is not None:
-            self.boxes = np.asarray(self.boxes, dtype=np.float32).reshape(-1, 4)
+            self.boxes = _as(self.boxes, torch.float32).reshape(-1, 4)
         if self.points is not None and self.boxes is not None:
             if len(self.points) != len(self.boxes):
                 raise LfsamError(
@@ -89,6 +92,16 @@ class Prompts:
             point_labels=None if self.point_labels is None else self.point_labels[index],
             boxes=None if self.boxes is None else self.boxes[index],
         )
+
+
+def _as(values: Any, dtype: torch.dtype) -> np.ndarray | torch.Tensor:
+    """A tensor cast to ``dtype`` on its own device, anything else a NumPy array of it."""
+    if isinstance(values, torch.Tensor):
+        return values.to(dtype)
+    return np.asarray(values, dtype=_NUMPY_DTYPES[dtype])
+
+
+_NUMPY_DTYPES = {torch.float32: np.float32, torch.int64: np.int64}
 
 
 @dataclass
@@ -205,6 +218,35 @@ class Segmenter(abc.ABC):
         -------
         MaskPrediction
         """
+
+    def predict_many(
+        self,
+        embeddings: Sequence[ViewEmbedding],
+        prompts: Sequence[Prompts],
+        multimask_output: bool = True,
+    ) -> list[MaskPrediction]:
+        """Decode the prompts of several views: ``prompts[i]`` on ``embeddings[i]``.
+
+        The batched form of :meth:`predict` (docs/design.md section 3.5, "batched decoder"):
+        a backend that can put prompts of different views through one decoder call overrides it
+        (:meth:`lfsam.segmenters.sam2.backend.Sam2Segmenter.predict_many`); this default
+        decodes view by view, so every backend answers it, with the same masks as
+        :meth:`predict`.
+
+        Returns
+        -------
+        list of MaskPrediction
+            One per view, as :meth:`predict` returns it.
+        """
+        if len(embeddings) != len(prompts):
+            raise LfsamError(
+                f"got {len(embeddings)} views but {len(prompts)} prompt batches; give one "
+                "Prompts per view"
+            )
+        return [
+            self.predict(embedding, batch, multimask_output=multimask_output)
+            for embedding, batch in zip(embeddings, prompts, strict=True)
+        ]
 
     @abc.abstractmethod
     def generate(

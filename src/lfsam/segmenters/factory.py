@@ -82,7 +82,8 @@ def load_segmenter(
         once, turn it off. The oracle has no such state.
     **sam2_options
         Further keywords of :class:`~lfsam.segmenters.sam2.backend.Sam2Segmenter`
-        (``max_prompts_per_batch``, ``encode_batch_size``, ``mask_threshold``).
+        (``max_prompts_per_batch``, ``encode_batch_size``, ``mask_threshold``,
+        ``cross_view_decode``, ``cross_view_rows``, ``compile_decoder``).
 
     Raises
     ------

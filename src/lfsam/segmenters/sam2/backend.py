@@ -19,6 +19,7 @@ import inspect
 import json
 import os
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,7 +27,11 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from lfsam.devices import default_encode_batch_size, default_prompt_batch_size
+from lfsam.devices import (
+    CUDA_CROSS_VIEW_ROWS,
+    default_encode_batch_size,
+    default_prompt_batch_size,
+)
 from lfsam.errors import LfsamError
 from lfsam.segmenters.base import AutoMasks, MaskPrediction, Prompts, Segmenter, ViewEmbedding
 from lfsam.segmenters.feature_grid import (
@@ -46,7 +51,13 @@ from lfsam.segmenters.sam2.build import (
     make_image_predictor,
     precision_dtype,
 )
-from lfsam.segmenters.sam2.decoder import default_chunk_size
+from lfsam.segmenters.sam2.decoder import default_chunk_size, prepare_image
+from lfsam.segmenters.sam2.multiview import (
+    compile_pass,
+    decode_prompt_batches,
+    prompt_shape,
+    stack_states,
+)
 
 __all__ = ["PAPER_AMG_OPTIONS", "CachedFeaturePredictor", "Sam2Features", "Sam2Segmenter"]
 
@@ -125,6 +136,22 @@ class Sam2Segmenter(Segmenter):
         The arithmetic (:data:`lfsam.segmenters.sam2.build.PRECISIONS`): ``auto`` is bfloat16
         autocast on CUDA and float32 elsewhere; ``bfloat16`` autocasts on any device (about
         twice as fast on CPUs with native bfloat16; the masks differ slightly from float32's).
+    cross_view_decode : bool, optional
+        :meth:`predict_many` puts prompts of different views through one decoder pass
+        (:func:`lfsam.segmenters.sam2.multiview.decode_views`). Default: on CUDA, where a
+        decoder call per view is launch-bound; off elsewhere, where the decoder is
+        compute-bound and view-by-view decoding keeps the masks bit for bit those of
+        :meth:`predict` (the cross-view pass rounds differently, about 1e-7 in the logits).
+    cross_view_rows : int, optional
+        Prompts per cross-view decoder call; on CUDA also per decoder pass (default
+        :data:`lfsam.devices.CUDA_CROSS_VIEW_ROWS` there, else :attr:`max_prompts_per_batch`
+        with passes of :func:`~lfsam.segmenters.sam2.decoder.default_chunk_size`).
+    compile_decoder : str, optional
+        Compile the cross-view decoder pass with ``torch.compile`` and static shapes (every
+        pass padded to the same number of prompts): a ``torch.compile`` mode,
+        ``"reduce-overhead"`` (CUDA graphs: one launch per pass), ``"default"`` or
+        ``"max-autotune"``, or ``"eager"`` (traced only; for tests). Off by default, on every
+        device (compiling takes minutes on a CPU and its GPU gain is not measured yet).
 
     Examples
     --------
@@ -143,6 +170,9 @@ class Sam2Segmenter(Segmenter):
         mask_threshold: float = 0.0,
         keep_decoder_state: bool = True,
         precision: str = "auto",
+        cross_view_decode: bool | None = None,
+        cross_view_rows: int | None = None,
+        compile_decoder: str | None = None,
     ) -> None:
         super().__init__()
         self.precision = str(precision)
@@ -151,8 +181,10 @@ class Sam2Segmenter(Segmenter):
             encode_batch_size = default_encode_batch_size(model.device)
         if max_prompts_per_batch is None:
             max_prompts_per_batch = default_prompt_batch_size(model.device)
-        if max_prompts_per_batch < 1 or encode_batch_size < 1:
-            raise LfsamError("max_prompts_per_batch and encode_batch_size must be at least 1")
+        if max_prompts_per_batch < 1 or encode_batch_size < 1 or (cross_view_rows or 1) < 1:
+            raise LfsamError(
+                "max_prompts_per_batch, encode_batch_size and cross_view_rows must be at least 1"
+            )
         self.model = model.eval()
         info = dict(getattr(model, "lfsam_info", {}) or {})
         self.name = str(info.get("name", type(model).__name__))
@@ -164,6 +196,18 @@ class Sam2Segmenter(Segmenter):
         self.amg_options = self._check_amg_options(amg_options or {})
         self.points_per_side = int(self.amg_options.get("points_per_side") or 32)
         self.keep_decoder_state = bool(keep_decoder_state)
+        if cross_view_decode is None:
+            cross_view_decode = model.device.type == "cuda"
+        self.cross_view_decode = bool(cross_view_decode)
+        cuda = model.device.type == "cuda"
+        self.cross_view_rows = int(
+            cross_view_rows or (CUDA_CROSS_VIEW_ROWS if cuda else max_prompts_per_batch)
+        )
+        self.compile_decoder = compile_decoder
+        self._compiled: Any = None
+        self.decoder_calls = 0
+        """Calls of the decoder by :meth:`predict` and :meth:`predict_many` (each one batch of
+        prompts of one view, or of several views with :attr:`cross_view_decode`)."""
         self._predictor = make_image_predictor(
             model, CachedFeaturePredictor, mask_threshold=self.mask_threshold
         )
@@ -405,6 +449,7 @@ class Sam2Segmenter(Segmenter):
         try:
             with inference_context(self.device, inference_mode=False, precision=self.precision):
                 for start in range(0, n, self.max_prompts_per_batch):
+                    self.decoder_calls += 1
                     sub = prompts.subset(slice(start, start + self.max_prompts_per_batch))
                     coords, labels, boxes = self._prompt_tensors(sub, (u_size, v_size))
                     m, iou, lr = predictor.predict_prompts(
@@ -422,6 +467,54 @@ class Sam2Segmenter(Segmenter):
             iou_predictions=torch.cat(ious),
             low_res_logits=torch.cat(logits),
         )
+
+    def predict_many(
+        self,
+        embeddings: Sequence[ViewEmbedding],
+        prompts: Sequence[Prompts],
+        multimask_output: bool = True,
+    ) -> list[MaskPrediction]:
+        """Decode the prompts of several views, with :attr:`cross_view_decode` in one decoder
+        call per :attr:`max_prompts_per_batch` prompts whatever their views (docs/design.md
+        section 3.5, "batched decoder"); else, or for views of different sizes or prompts of
+        different shapes, view by view (:meth:`predict`).
+
+        The prompts may be device tensors (:class:`Prompts`): they are moved and transformed
+        once for all views, the masks post-processed once, and no value is read back to the
+        host.
+        """
+        sizes = {tuple(e.image_size) for e in embeddings}
+        shapes = {prompt_shape(p) for p in prompts}
+        if (not self.cross_view_decode or len(embeddings) < 2 or len(sizes) != 1
+                or len(shapes) != 1 or len(embeddings) != len(prompts)):
+            return super().predict_many(embeddings, prompts, multimask_output)
+        hw = sizes.pop()
+        with inference_context(self.device, inference_mode=False, precision=self.precision):
+            states = []
+            for embedding in embeddings:
+                feats = self._view_features(embedding)
+                state = feats.decoder_state
+                if state is None:
+                    state = prepare_image(self.model, feats.image_embed, feats.high_res_feats)
+                    if self.keep_decoder_state:
+                        feats.decoder_state = state
+                states.append(state)
+            cuda = self.device.type == "cuda"
+            out, calls = decode_prompt_batches(
+                self.model, stack_states(states), [self._prompt_tensors(p, hw) for p in prompts],
+                multimask_output, self.cross_view_rows,
+                self.cross_view_rows if cuda else default_chunk_size(self.device),
+                image_transforms(self._predictor), hw, self.mask_threshold,
+                compiled=self._compiled_pass(),
+            )
+        self.decoder_calls += calls
+        return [MaskPrediction(*x) for x in out]
+
+    def _compiled_pass(self) -> Any:
+        """The compiled decoder pass of :attr:`compile_decoder` (made once), or None."""
+        if self.compile_decoder is not None and self._compiled is None:
+            self._compiled = compile_pass(self.compile_decoder)
+        return self._compiled
 
     def _prompt_tensors(
         self, prompts: Prompts, hw: tuple[int, int]

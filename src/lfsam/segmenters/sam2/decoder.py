@@ -128,6 +128,11 @@ class ImageState:
         Same for the second step, rows ``(pixel, di, dj)``, columns ``(di2, dj2, channel)``.
     w1, w2 : (C, 4 C/4), (C/4, 4 C/8)
         The two transposed convolutions as matrices with the same column order.
+    rows : (B,) int64 tensor, optional
+        Set on the state of a chunk of prompts from several images
+        (:func:`lfsam.segmenters.sam2.multiview.decode_views`): the image of each prompt. Then
+        ``src``, ``first_k``, ``first_v`` and ``first_q`` have a leading prompt axis (that
+        prompt's image), and ``up1``, ``up2`` a leading image axis that ``rows`` indexes.
     """
 
     grid: tuple[int, int]
@@ -141,6 +146,7 @@ class ImageState:
     up2: torch.Tensor
     w1: torch.Tensor
     w2: torch.Tensor
+    rows: torch.Tensor | None = None
 
 
 # --- small helpers ---------------------------------------------------------------------------
@@ -352,11 +358,15 @@ def _image_to_token_first(
     """
     h, d = _heads(attn)
     b, t, _ = k_tokens.shape
-    hw = st.src.shape[0]
+    hw = st.src.shape[-2]
     kh = attn.k_proj(k_tokens) * d**-0.5  # softmax scale of scaled_dot_product_attention
-    kh = kh.view(b * t, h, d).transpose(0, 1)  # (h, B T, d)
-    scores = torch.bmm(kh, st.first_q).view(h, b, t, hw)
-    weights = torch.softmax(scores, dim=2).transpose(0, 1).reshape(b, h * t, hw)
+    if st.rows is not None:  # each prompt its own image's queries (B, h, d, HW)
+        scores = torch.matmul(kh.view(b, t, h, d).transpose(1, 2), st.first_q)
+        weights = torch.softmax(scores, dim=2).reshape(b, h * t, hw)
+    else:
+        kh = kh.view(b * t, h, d).transpose(0, 1)  # (h, B T, d)
+        scores = torch.bmm(kh, st.first_q).view(h, b, t, hw)
+        weights = torch.softmax(scores, dim=2).transpose(0, 1).reshape(b, h * t, hw)
     return torch.baddbmm(st.src, weights.transpose(1, 2), _value_rows(attn, v_tokens))
 
 
@@ -389,7 +399,12 @@ def _token_to_image_first(attn: nn.Module, st: ImageState, q_tokens: torch.Tenso
     """First block: every prompt's tokens attend to the shared keys/values (batched queries)."""
     h, d = _heads(attn)
     b, t, _ = q_tokens.shape
-    q = attn.q_proj(q_tokens).view(b * t, h, d).transpose(0, 1)  # (h, B T, d)
+    q = attn.q_proj(q_tokens)
+    if st.rows is not None:  # each prompt its own image's keys and values (B, h, HW, d)
+        q = q.view(b, t, h, d).transpose(1, 2)
+        out = F.scaled_dot_product_attention(q, st.first_k, st.first_v).transpose(1, 2)
+        return attn.out_proj(out.reshape(b, t, h * d))
+    q = q.view(b * t, h, d).transpose(0, 1)  # (h, B T, d)
     out = F.scaled_dot_product_attention(q, st.first_k, st.first_v)  # (h, B T, d)
     out = out.transpose(0, 1).reshape(b, t, h * d)
     return attn.out_proj(out)
@@ -484,8 +499,7 @@ def _mask_logits(
     for y0 in range(0, hh, tile_rows):
         y1 = min(hh, y0 + tile_rows)
         p0, p1 = y0 * ww, y1 * ww
-        up1 = st.up1 if st.up1.shape[0] == 1 else st.up1[p0:p1]
-        up2 = st.up2 if st.up2.shape[0] == 1 else st.up2[4 * p0 : 4 * p1]
+        up1, up2 = _band(st.up1, st.rows, p0, p1), _band(st.up2, st.rows, 4 * p0, 4 * p1)
         y = torch.baddbmm(up1, keys[:, p0:p1], w1).view(b, (p1 - p0) * 4, c4)
         y = act1(F.layer_norm(y, (c4,), ln1.weight, ln1.bias, ln1.eps))
         y = act2(torch.baddbmm(up2, y, w2).view(b, (p1 - p0) * 16, c8))
@@ -496,6 +510,14 @@ def _mask_logits(
         out[:, :, 4 * y0 : 4 * y1] = band.reshape(b, k, 4 * (y1 - y0), 4 * ww)
     assert out is not None
     return out
+
+
+def _band(up: torch.Tensor, rows: torch.Tensor | None, start: int, stop: int) -> torch.Tensor:
+    """Rows ``start:stop`` of an upscaling term (one image, or each prompt's image of a stack
+    indexed by ``rows``); a bias-only term (one row) applies to every pixel as it is."""
+    if up.dim() == 2 and up.shape[0] == 1:
+        return up
+    return up[start:stop] if rows is None else up[rows, start:stop]
 
 
 def stability_scores(decoder: nn.Module, mask_logits: torch.Tensor) -> torch.Tensor:
