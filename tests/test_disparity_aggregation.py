@@ -33,6 +33,32 @@ def test_rectangular_box_is_the_square_box_when_square():
     assert torch.allclose(line[:, 10, 10], image[:, 10, 7:14].mean(-1), atol=1e-6)
 
 
+def test_shrinking_box_averages_only_inside_the_frame():
+    image = _random((2, 30, 40), 7)
+    shrink = box_blur_rect(image, 2, 3, "shrink")
+    assert torch.allclose(shrink[:, 0, 0], image[:, :3, :4].mean((-2, -1)), atol=1e-6)
+    assert torch.allclose(shrink[:, 29, 20], image[:, 27:, 17:24].mean((-2, -1)), atol=1e-6)
+    replicate = box_blur_rect(image, 2, 3)
+    assert torch.allclose(shrink[:, 2:-2, 3:-3], replicate[:, 2:-2, 3:-3], atol=1e-6)
+    assert not torch.allclose(shrink[:, 0, 0], replicate[:, 0, 0], atol=1e-3)
+    with pytest.raises(ValueError, match="unknown border"):
+        box_blur_rect(image, 1, 1, "wrap")
+
+
+def test_border_windows_do_not_overweight_the_outermost_column():
+    # hypothesis 0 is right everywhere but costs 1 in the outermost column (fewer views see it);
+    # hypothesis 1 costs 0.3 everywhere. Replicated, that column fills a third of the window of
+    # the pixel two columns in and hypothesis 1 wins there; shrunk, hypothesis 0 wins
+    cost = torch.zeros((2, 24, 24))
+    cost[0, :, 0] = 1.0
+    cost[1] = 0.3
+    guide = torch.full((3, 24, 24), 0.5)
+    for border, winner in (("shrink", 0), ("replicate", 1)):
+        out = aggregate_costs(cost, guide, line_radius=0, border=border)
+        assert int(out[:, 12, 2].argmin()) == winner
+    assert bool((aggregate_costs(cost, guide)[:, :, 1:].argmin(0) == 0).all())
+
+
 def test_colour_guide_with_equal_channels_is_the_gray_guided_filter():
     # with the three channels equal, Sigma = var * 1 1^T + eps I, so the colour filter is the
     # gray one with eps / 3 (He et al.'s formulas, solved by hand)
@@ -57,9 +83,9 @@ def test_aggregation_picks_a_window_per_pixel():
     cost = _random((5, 36, 36), 3)
     guide = _random((3, 36, 36), 4)
     out = aggregate_costs(cost, guide)
-    square = colour_guided_filter(guide, cost, (4, 4), 1e-4)
-    horizontal = colour_guided_filter(guide, cost, (1, 8), 1e-4)
-    vertical = colour_guided_filter(guide, cost, (8, 1), 1e-4)
+    square = colour_guided_filter(guide, cost, (4, 4), 1e-4, "shrink")
+    horizontal = colour_guided_filter(guide, cost, (1, 8), 1e-4, "shrink")
+    vertical = colour_guided_filter(guide, cost, (8, 1), 1e-4, "shrink")
     one_of = [(out - v).abs().amax(0) < 1e-6 for v in (square, horizontal, vertical)]
     assert bool((one_of[0] | one_of[1] | one_of[2]).all())
     assert torch.equal(aggregate_costs(cost, guide, line_radius=0), square)

@@ -20,6 +20,13 @@ the choice is locally coherent, is the smallest; a line window has to be better 
 adaptive-window idea (Kanade & Okutomi, "A stereo matching algorithm with an adaptive window",
 TPAMI 1994; Veksler, "Fast variable window for stereo correspondence using integral images",
 CVPR 2003) reduced to three windows that filtering makes cheap.
+
+At the frame's border a window averages only the pixels inside the frame (``border="shrink"``,
+the normalised box filter of He et al.). Replicating the border instead (before issue 45's
+second round) gave the outermost row or column up to ``(r + 1) / (2 r + 1)`` of a border pixel's
+window, although its costs are the least reliable (fewer views see it): BadPix(0.07) over all
+pixels went from 6.81 to 6.78 % on HCI antinous and from 2.49 to 2.35 % on cotton with the
+shrinking windows (docs/performance.md, "Disparity", second round).
 """
 
 from __future__ import annotations
@@ -40,6 +47,7 @@ def aggregate_costs(
     eps: float = 1e-4,
     line_bias: float = 0.01,
     choice_radius: int = 2,
+    border: str = "shrink",
 ) -> torch.Tensor:
     """The aggregated cost volume (module docstring).
 
@@ -59,6 +67,11 @@ def aggregate_costs(
         How much lower a line window's best cost must be to be chosen (cost units).
     choice_radius : int
         Radius of the box over which the windows' best costs are compared.
+    border : {"shrink", "replicate"}
+        Windows at the frame's border: ``"shrink"`` (default since issue 45's second round)
+        averages over the window's pixels inside the frame; ``"replicate"`` repeats the outermost
+        row or column, which then weighs up to ``(r + 1) / (2 r + 1)`` of the window along that
+        axis (:func:`lfsam.disparity.filters.box_blur_rect`; module docstring).
 
     Returns
     -------
@@ -66,13 +79,13 @@ def aggregate_costs(
     """
     if guide.dim() == 2:
         guide = guide[None].expand(3, -1, -1)
-    square = colour_guided_filter(guide, cost, (square_radius, square_radius), eps)
+    square = colour_guided_filter(guide, cost, (square_radius, square_radius), eps, border)
     if line_radius <= 0:
         return square
     best = square
     best_score = box_blur(square.amin(0), choice_radius)
     for window in ((1, line_radius), (line_radius, 1)):
-        line = colour_guided_filter(guide, cost, window, eps)
+        line = colour_guided_filter(guide, cost, window, eps, border)
         score = box_blur(line.amin(0), choice_radius) + line_bias
         better = score < best_score
         best = torch.where(better[None], line, best)

@@ -154,22 +154,42 @@ def guided_filter(
     return box_blur(a, radius) * guide + box_blur(b, radius)
 
 
-def box_blur_rect(image: torch.Tensor, radius_rows: int, radius_cols: int) -> torch.Tensor:
+def _in_frame_share(length: int, radius: int, device: torch.device, dtype: torch.dtype):
+    """Per position along an axis of ``length``, the share of a ``2 radius + 1`` window that
+    lies inside ``[0, length)``."""
+    position = torch.arange(length, device=device)
+    inside = (position + radius).clamp(max=length - 1) - (position - radius).clamp(min=0) + 1
+    return inside.to(dtype) / (2 * radius + 1)
+
+
+def box_blur_rect(
+    image: torch.Tensor, radius_rows: int, radius_cols: int, border: str = "replicate"
+) -> torch.Tensor:
     """Mean over a ``(2 radius_rows + 1) x (2 radius_cols + 1)`` window of the last two axes.
 
-    Separable running means (``avg_pool1d`` along each axis, borders replicated); a radius of 0
-    leaves that axis alone, so ``(0, r)`` is a horizontal line window and ``(r, 0)`` a vertical one
-    (the oriented windows of :mod:`lfsam.disparity.aggregation`).
+    Separable running means (``avg_pool1d`` along each axis); a radius of 0 leaves that axis
+    alone, so ``(0, r)`` is a horizontal line window and ``(r, 0)`` a vertical one (the oriented
+    windows of :mod:`lfsam.disparity.aggregation`). At the frame's border, ``border="replicate"``
+    repeats the outermost pixels (the outermost pixel then weighs ``(r + 1) / (2 r + 1)`` of a
+    border pixel's window), ``border="shrink"`` takes the mean over the window's pixels inside
+    the frame (the normalised box filter of He et al.'s guided filter, ``box(p) / box(1)``).
     """
+    if border not in ("replicate", "shrink"):
+        raise ValueError(f"unknown border {border!r}: use 'replicate' or 'shrink'")
     shape = image.shape
     x = image.reshape(-1, shape[-2], shape[-1])
+    mode = "replicate" if border == "replicate" else "constant"
     if radius_cols > 0:
-        x = F.pad(x, (radius_cols, radius_cols), mode="replicate")
+        x = F.pad(x, (radius_cols, radius_cols), mode=mode)
         x = F.avg_pool1d(x, 2 * radius_cols + 1, stride=1)
+        if border == "shrink":
+            x = x / _in_frame_share(shape[-1], radius_cols, x.device, x.dtype)
     if radius_rows > 0:
         x = x.transpose(1, 2)
-        x = F.pad(x, (radius_rows, radius_rows), mode="replicate")
+        x = F.pad(x, (radius_rows, radius_rows), mode=mode)
         x = F.avg_pool1d(x, 2 * radius_rows + 1, stride=1).transpose(1, 2)
+        if border == "shrink":
+            x = x / _in_frame_share(shape[-2], radius_rows, x.device, x.dtype)[:, None]
     return x.reshape(shape)
 
 
@@ -186,7 +206,11 @@ def _inverse_3x3(m: torch.Tensor) -> torch.Tensor:
 
 
 def colour_guided_filter(
-    guide: torch.Tensor, image: torch.Tensor, radius: tuple[int, int], eps: float
+    guide: torch.Tensor,
+    image: torch.Tensor,
+    radius: tuple[int, int],
+    eps: float,
+    border: str = "replicate",
 ) -> torch.Tensor:
     """Edge-preserving smoothing of ``image`` steered by a colour ``guide`` (guided filter).
 
@@ -207,6 +231,8 @@ def colour_guided_filter(
         Window radius along rows and along columns (pixels).
     eps : float
         Regulariser: guide variances well below it count as flat.
+    border : {"replicate", "shrink"}
+        How windows meet the frame's border (:func:`box_blur_rect`).
 
     Returns
     -------
@@ -214,7 +240,7 @@ def colour_guided_filter(
     """
 
     def box(x: torch.Tensor) -> torch.Tensor:
-        return box_blur_rect(x, radius[0], radius[1])
+        return box_blur_rect(x, radius[0], radius[1], border)
 
     mean_i = box(guide)
     mean_p = box(image)
