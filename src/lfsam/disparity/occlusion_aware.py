@@ -27,7 +27,7 @@ Steps, all whole-image torch operations (any device, CUDA when present):
    along depth edges), the mean of the two where they agree within a quarter step.
 
 Measured (``benchmarks/bench_disparity.py``; docs/performance.md, "Disparity"): BadPix(0.07) on
-HCI antinous 6.1 % and cotton 2.3 % (8-pixel border excluded; 7.3 % and 2.6 % before issue 45's
+HCI antinous 6.1 % and cotton 2.2 % (8-pixel border excluded; 7.3 % and 2.6 % before issue 45's
 view-set choice and aggregation), lower BadPix and MSE than the sheared structure tensor on the
 synthetic scenes.
 """
