@@ -113,3 +113,9 @@ def test_the_aggregation_option_is_checked():
     old = estimate_disparity(lf, (-1.0, 1.0), device="cpu", aggregation="guided",
                              aggregation_radius=3, full_set_ratio=None, fusion=False)
     assert old.meta["aggregation"] == "guided" and old.meta["full_set_ratio"] is None
+
+
+def test_shrinking_box_on_frames_narrower_than_its_window():
+    image = _random((1, 5, 3), 8)
+    shrink = box_blur_rect(image, 4, 4, "shrink")
+    assert torch.allclose(shrink, image.mean((-2, -1), keepdim=True).expand_as(image), atol=1e-6)

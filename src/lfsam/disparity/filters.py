@@ -154,12 +154,19 @@ def guided_filter(
     return box_blur(a, radius) * guide + box_blur(b, radius)
 
 
-def _in_frame_share(length: int, radius: int, device: torch.device, dtype: torch.dtype):
-    """Per position along an axis of ``length``, the share of a ``2 radius + 1`` window that
-    lies inside ``[0, length)``."""
-    position = torch.arange(length, device=device)
-    inside = (position + radius).clamp(max=length - 1) - (position - radius).clamp(min=0) + 1
-    return inside.to(dtype) / (2 * radius + 1)
+def _shrink_border(x: torch.Tensor, radius: int) -> torch.Tensor:
+    """Divide the outermost ``radius`` positions of the last axis of ``x``, box means of a
+    zero-padded ``2 radius + 1`` window, by the share of their window inside the frame (the
+    positions further in have the whole window inside)."""
+    length = x.shape[-1]
+    position = torch.arange(length, device=x.device)
+    share = ((position + radius).clamp(max=length - 1) - (position - radius).clamp(min=0) + 1)
+    share = share.to(x.dtype) / (2 * radius + 1)
+    if length <= 2 * radius:
+        return x / share
+    x[..., :radius] /= share[:radius]
+    x[..., length - radius :] /= share[length - radius :]
+    return x
 
 
 def box_blur_rect(
@@ -183,13 +190,14 @@ def box_blur_rect(
         x = F.pad(x, (radius_cols, radius_cols), mode=mode)
         x = F.avg_pool1d(x, 2 * radius_cols + 1, stride=1)
         if border == "shrink":
-            x = x / _in_frame_share(shape[-1], radius_cols, x.device, x.dtype)
+            x = _shrink_border(x, radius_cols)
     if radius_rows > 0:
         x = x.transpose(1, 2)
         x = F.pad(x, (radius_rows, radius_rows), mode=mode)
-        x = F.avg_pool1d(x, 2 * radius_rows + 1, stride=1).transpose(1, 2)
+        x = F.avg_pool1d(x, 2 * radius_rows + 1, stride=1)
         if border == "shrink":
-            x = x / _in_frame_share(shape[-2], radius_rows, x.device, x.dtype)[:, None]
+            x = _shrink_border(x, radius_rows)
+        x = x.transpose(1, 2)
     return x.reshape(shape)
 
 
