@@ -220,7 +220,7 @@ def test_ply_export_of_a_video_and_without_light_field(tmp_path, capsys):
 def test_views_all_with_an_estimate_estimates_each_view_once(monkeypatch):
     """``views="all"`` with an estimated disparity (issue 46): the range is found once, each
     view estimated once, and a second call on the same light field estimates nothing; each
-    view's disparity is the estimator's own with that range; the hidden object gets points."""
+    view's disparity is the estimator's own with that range."""
     import lfsam.objects3d as O
     from lfsam.disparity import estimate_disparity
     from lfsam.disparity.range import estimate_disparity_range
@@ -248,7 +248,11 @@ def test_views_all_with_an_estimate_estimates_each_view_once(monkeypatch):
     assert calls["range"] == 1 and len(calls["views"]) == 25
     for obj_id, cloud in first.clouds.items():
         np.testing.assert_array_equal(cloud.xyz, again.clouds[obj_id].xyz)
-    assert len(first.clouds[hidden].xyz) > 0 and len(center.clouds[hidden].xyz) == 0
+    # the center view does not see the hidden object. Whether any other view's estimate is
+    # confident on it is not asserted: it is a sliver of 2-20 px per view at the frame's top
+    # border here, estimated 2.3-2.6 px off in every view; until issue 45's border windows one
+    # such pixel (1.73 against a true -0.56, confidence 0.15) passed the 0.1 threshold
+    assert len(center.clouds[hidden].xyz) == 0
     kept = O.estimates_for(lf, "cpu")
     span = estimate_disparity_range(lf, device="cpu", view=lf.center)
     direct = estimate_disparity(lf, span, device="cpu", view=(0, 2))
