@@ -138,7 +138,12 @@ def glass_part(grid: tuple[int, int] = (9, 9), size: tuple[int, int] = (160, 224
                 (iou, err), (matte_iou, matte_err) = (found[k][int(label)] for k in found)
                 print(f"| {seed} | {material} (label {label}) | {'on' if surface else 'off'} | "
                       f"{iou:.4f} | {matte_iou:.4f} | {iou - matte_iou:+.4f} | "
-                      f"{100 * err:.2f} % | {100 * matte_err:.2f} % |", flush=True)
+                      f"{_percent(err)} | {_percent(matte_err)} |", flush=True)
+
+
+def _percent(share: float | None) -> str:
+    """``share`` as a percentage, or ``-`` where the object got no depth (no points)."""
+    return "-" if share is None else f"{100 * share:.2f} %"
 
 
 def timed(function, *args, **kwargs):

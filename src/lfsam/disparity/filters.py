@@ -180,6 +180,11 @@ def box_blur_rect(
     repeats the outermost pixels (the outermost pixel then weighs ``(r + 1) / (2 r + 1)`` of a
     border pixel's window), ``border="shrink"`` takes the mean over the window's pixels inside
     the frame (the normalised box filter of He et al.'s guided filter, ``box(p) / box(1)``).
+
+    Raises
+    ------
+    ValueError
+        If ``border`` is neither ``"replicate"`` nor ``"shrink"`` (the caller's code is at fault).
     """
     if border not in ("replicate", "shrink"):
         raise ValueError(f"unknown border {border!r}: use 'replicate' or 'shrink'")
