@@ -18,7 +18,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, signal
 
-__all__ = ["Carried", "Template", "carry", "cost_map", "locate", "shifted"]
+__all__ = [
+    "Carried", "Template", "carry", "cost_map", "locate", "masked_cost", "search_window",
+    "shifted",
+]
 
 #: Fraction of the carried mask (inside the frame) that must still look like the template.
 MIN_SUPPORT = 0.5
@@ -69,24 +72,7 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
     du, dv : (H, W) int arrays
         The shift of each entry.
     """
-    height, width = image.shape[:2]
-    h, w = template.mask.shape
-    r0, c0 = template.origin
-    if radius is None:
-        top, left, bottom, right = r0 + h, c0 + w, height - r0, width - c0
-    else:
-        top = left = bottom = right = int(radius)
-    # the region of the image the template can land on, zero-padded outside the frame
-    region_r0, region_c0 = r0 - top, c0 - left
-    rh, rw = h + top + bottom, w + left + right
-    region = np.zeros((rh, rw, image.shape[-1]), np.float32)
-    valid = np.zeros((rh, rw), np.float32)
-    sr0, sc0 = max(region_r0, 0), max(region_c0, 0)
-    sr1, sc1 = min(region_r0 + rh, height), min(region_c0 + rw, width)
-    if sr1 > sr0 and sc1 > sc0:
-        region[sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = (
-            image[sr0:sr1, sc0:sc1])
-        valid[sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = 1.0
+    region, valid, margins = search_window(template, image, radius)
     m = template.mask.astype(np.float32)
     a = template.image * m[..., None]
 
@@ -97,9 +83,53 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
     cross = sum(corr(region[..., c], a[..., c]) for c in range(region.shape[-1]))
     energy = corr((region**2).sum(-1), m)
     own = corr(valid, (a**2).sum(-1))
+    return masked_cost(own, cross, energy, count, float(m.sum()), margins)
+
+
+def search_window(template: Template, image: np.ndarray, radius: int | None
+                  ) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]]:
+    """The region of ``image`` that ``template`` can land on within ``radius`` pixels of its
+    place (None: anywhere it overlaps the frame), zero-padded outside the frame.
+
+    Returns
+    -------
+    region : (rh, rw, C) float32 array
+    valid : (rh, rw) float32 array
+        1 inside the frame, 0 in the padding.
+    margins : (top, left, bottom, right)
+        The reach of the shifts upwards, leftwards, downwards and rightwards.
+    """
+    height, width = image.shape[:2]
+    h, w = template.mask.shape
+    r0, c0 = template.origin
+    if radius is None:
+        top, left, bottom, right = r0 + h, c0 + w, height - r0, width - c0
+    else:
+        top = left = bottom = right = int(radius)
+    region_r0, region_c0 = r0 - top, c0 - left
+    rh, rw = h + top + bottom, w + left + right
+    region = np.zeros((rh, rw, image.shape[-1]), np.float32)
+    valid = np.zeros((rh, rw), np.float32)
+    sr0, sc0 = max(region_r0, 0), max(region_c0, 0)
+    sr1, sc1 = min(region_r0 + rh, height), min(region_c0 + rw, width)
+    if sr1 > sr0 and sc1 > sc0:
+        region[sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = (
+            image[sr0:sr1, sc0:sc1])
+        valid[sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = 1.0
+    return region, valid, (top, left, bottom, right)
+
+
+def masked_cost(own: np.ndarray, cross: np.ndarray, energy: np.ndarray, count: np.ndarray,
+                mask_pixels: float, margins: tuple[int, int, int, int]
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The masked mean squared difference ``(own - 2 cross + energy) / count`` from its
+    correlation terms, inf where the overlap is under :data:`MIN_PIXELS` and a fifth of the
+    mask's ``mask_pixels``, with the shift ``(du, dv)`` of each entry (``margins`` from
+    :func:`search_window`)."""
+    top, left, bottom, right = margins
     with np.errstate(invalid="ignore", divide="ignore"):
         cost = (own - 2 * cross + energy) / count
-    needed = max(MIN_PIXELS, 0.2 * m.sum())
+    needed = max(MIN_PIXELS, 0.2 * mask_pixels)
     cost[count < needed - 0.5] = np.inf
     du, dv = np.mgrid[-top:bottom + 1, -left:right + 1]
     return cost, du, dv

@@ -14,7 +14,12 @@ from dataclasses import replace
 import numpy as np
 from scipy import fft
 
-from lfsam.video.carry import MAX_PIXEL_DIFFERENCE, MIN_PIXELS, Template
+from lfsam.video.carry import (
+    MAX_PIXEL_DIFFERENCE,
+    Template,
+    masked_cost,
+    search_window,
+)
 
 __all__ = ["MAX_GATHER", "cost_map", "pixel_costs", "placed_at", "robust_costs", "with_depth"]
 
@@ -57,24 +62,11 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
     du, dv : (H, W) int arrays
         The shift of each entry.
     """
-    height, width = image.shape[:2]
     h, w = template.mask.shape
-    r0, c0 = template.origin
-    if radius is None:
-        top, left, bottom, right = r0 + h, c0 + w, height - r0, width - c0
-    else:
-        top = left = bottom = right = int(radius)
-    region_r0, region_c0 = r0 - top, c0 - left
-    rh, rw = h + top + bottom, w + left + right
-    channels = image.shape[-1]
-    region = np.zeros((channels, rh, rw), np.float32)
-    sr0, sc0 = max(region_r0, 0), max(region_c0, 0)
-    sr1, sc1 = min(region_r0 + rh, height), min(region_c0 + rw, width)
-    inside = (sr0 == region_r0 and sc0 == region_c0 and sr1 == region_r0 + rh
-              and sc1 == region_c0 + rw)
-    if sr1 > sr0 and sc1 > sc0:
-        region[:, sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = (
-            np.moveaxis(image[sr0:sr1, sc0:sc1], -1, 0))
+    window, valid, margins = search_window(template, image, radius)
+    rh, rw, channels = window.shape
+    region = np.ascontiguousarray(np.moveaxis(window, -1, 0))  # (C, rh, rw)
+    inside = bool(valid.all())
     m = template.mask.astype(np.float32)
     a = np.moveaxis(template.image, -1, 0) * m  # (C, h, w)
     shape = (fft.next_fast_len(rh, True), fft.next_fast_len(rw, True))
@@ -83,9 +75,7 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
     k_hat = fft.rfft2(kernels, s=shape)
     signals = [region, (region**2).sum(0)[None]]
     if not inside:
-        valid = np.zeros((1, rh, rw), np.float32)
-        valid[0, sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = 1.0
-        signals.append(valid)
+        signals.append(valid[None])
     x_hat = fft.rfft2(np.concatenate(signals), s=shape)
     products = [(x_hat[:channels] * k_hat[:channels]).sum(0),
                 x_hat[channels] * k_hat[channels]]
@@ -99,12 +89,7 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
         own = np.full(cross.shape, (a**2).sum())
     else:
         count, own = out[2], out[3]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cost = (own - 2 * cross + energy) / count
-    needed = max(MIN_PIXELS, 0.2 * m.sum())
-    cost[count < needed - 0.5] = np.inf
-    du, dv = np.mgrid[-top:bottom + 1, -left:right + 1]
-    return cost, du, dv
+    return masked_cost(own, cross, energy, count, float(m.sum()), margins)
 
 
 def robust_costs(template: Template, image: np.ndarray, du: np.ndarray, dv: np.ndarray
