@@ -64,7 +64,9 @@ gpu-deps: $(STAMP)
 	$(PY) tools/gpu_deps.py --out gpu-deps --pythons $(GPU_PYTHONS)
 
 # There, with gpu-deps/ carried along: `make gpu-check` makes a venv that sees the machine's own
-# CUDA PyTorch (--system-site-packages of GPU_PYTHON; GPU_VENV= installs into GPU_PYTHON's own
+# CUDA PyTorch (--system-site-packages of GPU_PYTHON, plus a .pth naming GPU_PYTHON's own
+# site-packages, as a GPU image's python3 is often itself a venv, e.g. /opt/torch/.venv, whose
+# packages a venv made from it would not see; GPU_VENV= installs into GPU_PYTHON's own
 # environment instead), installs lfsam and exactly the wheels carried (no registry, and no
 # dependency resolution that could touch the machine's torch and its CUDA packages), checks
 # that torch sees the GPU, then runs the CUDA-marked tests and the GPU benchmark (with its
@@ -72,6 +74,8 @@ gpu-deps: $(STAMP)
 GPU_PYTHON ?= python3
 GPU_VENV ?= .venv-gpu
 GPU_PY := $(if $(GPU_VENV),$(GPU_VENV)/bin/python,$(GPU_PYTHON))
+SITE_DIR := import sysconfig; print(sysconfig.get_path('purelib'))
+SITE_DIRS := import sysconfig; print(*sorted({sysconfig.get_path(k) for k in ('purelib', 'platlib')}), sep=chr(10))
 CUDA_OK := import sys, torch; ok = torch.cuda.is_available(); \
 	print('torch', torch.__version__, '| CUDA build', torch.version.cuda, '| GPU:', \
 	torch.cuda.get_device_name(0) if ok else 'none visible'); sys.exit(0 if ok else 1)
@@ -79,7 +83,8 @@ gpu-check:
 	@test -f gpu-deps/constraints.txt || { echo "gpu-check: no gpu-deps/ here: run make gpu-deps" \
 	  "on a machine with a package registry and bring the folder along" >&2; exit 1; }
 	-nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv
-	$(if $(GPU_VENV),test -x $(GPU_PY) || $(GPU_PYTHON) -m venv --system-site-packages $(GPU_VENV))
+	$(if $(GPU_VENV),test -x $(GPU_PY) || { $(GPU_PYTHON) -m venv --system-site-packages $(GPU_VENV) \
+	  && $(GPU_PYTHON) -c "$(SITE_DIRS)" > "$$($(GPU_PY) -c "$(SITE_DIR)")/gpu_python_site.pth"; })
 	@$(GPU_PY) -c "$(CUDA_OK)" || { echo "gpu-check: $(GPU_PY) has no torch that sees a CUDA" \
 	  "GPU (no GPU, a CPU build, or a torch outside GPU_PYTHON's site-packages: set GPU_PYTHON)" >&2; exit 1; }
 	$(GPU_PY) -m pip install --quiet --no-index --find-links gpu-deps --no-deps \
