@@ -349,3 +349,57 @@ def test_cli_segment_sparse(tmp_path, capsys):
     assert not (tmp_path / "x.npz").exists()
     summary = json.loads(json.dumps(result.meta["config"]))
     assert summary["refine_views"] == "sparse"
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.integers(1, 4), st.integers(1, 4), st.booleans())
+def test_fill_without_host_checks_gives_the_same_masks(seed, sources, objects, guided):
+    """The GPU form of the fill (every source's vote computed, none asked first whether it
+    votes anywhere, holes filled densely: no host round trips, issue 44) gives the CPU form's
+    masks and voters."""
+    from lfsam.pipeline import fill as fill_module
+
+    rng = np.random.default_rng(seed)
+    size = (int(rng.integers(4, 16)), int(rng.integers(4, 16)))
+    offsets = [(int(rng.integers(-2, 3)), int(rng.integers(-2, 3))) for _ in range(sources)]
+    disparities = [torch.as_tensor(rng.uniform(-1.5, 1.5, size), dtype=torch.float32)
+                   for _ in offsets]
+    warps = [forward_warp(d, s, t) for d, (s, t) in zip(disparities, offsets, strict=True)]
+    masks = [torch.as_tensor(rng.random((objects, *size)) < 0.4) for _ in offsets]
+    fallback = torch.as_tensor(rng.random((objects, *size)) < 0.3)
+    guide = torch.as_tensor(rng.random(size), dtype=torch.float32) if guided else None
+    distances = [1.0 + float(rng.random()) for _ in offsets]
+    cpu = fill_from_sources(masks, disparities, warps, distances, fallback, 0.2, guide=guide,
+                            contested=0.2)
+    original = fill_module._skip_idle_sources
+    try:
+        fill_module._skip_idle_sources = lambda device: False
+        gpu = fill_from_sources(masks, disparities, warps, distances, fallback, 0.2,
+                                guide=guide, contested=0.2)
+    finally:
+        fill_module._skip_idle_sources = original
+    assert torch.equal(cpu.masks, gpu.masks)
+    assert torch.equal(cpu.voters, gpu.voters)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**31 - 1))
+def test_reach_boxes_in_one_copy_match_the_flagged_lines(seed):
+    """Each object's box (first to one past the last flagged row and column, widened by the
+    filter's reach, clipped to the view), read back in one copy, is the box its flags give."""
+    from lfsam.pipeline.fill import GUIDE_RADIUS, _reach_boxes
+
+    rng = np.random.default_rng(seed)
+    count, height, width = (int(v) for v in rng.integers(1, 12, 3))
+    flags = torch.as_tensor(rng.random((count, height, width)) < rng.random() * 0.2)
+    rows, cols = flags.any(dim=2), flags.any(dim=1)
+    found, *boxes = _reach_boxes(rows, cols)
+    reach = 2 * GUIDE_RADIUS
+    for k in range(count):
+        assert found[k] == bool(flags[k].any())
+        if not found[k]:
+            continue
+        r = np.flatnonzero(rows[k].numpy())
+        c = np.flatnonzero(cols[k].numpy())
+        assert boxes[k] == (max(r[0] - reach, 0), min(r[-1] + reach + 1, height),
+                            max(c[0] - reach, 0), min(c[-1] + reach + 1, width))

@@ -18,7 +18,13 @@ from lfsam.pipeline import PipelineConfig
 from lfsam.pipeline.propagation import propagate_masks
 from lfsam.segmenters import load_segmenter
 from lfsam.synth import PlanarObject, SceneSpec, render_scene
-from lfsam.warp import forward_warp, landing_pixels, shift_masks, shift_masks_with_disparity
+from lfsam.warp import (
+    fill_warp_holes,
+    forward_warp,
+    landing_pixels,
+    shift_masks,
+    shift_masks_with_disparity,
+)
 
 
 @settings(max_examples=40, deadline=None)
@@ -190,3 +196,55 @@ def test_geometric_occluding_removes_what_a_nearer_object_covers(slanted_behind_
     if propagation != "pixel":
         # A whole-mask shift loses exactly what the bar covers (the bar lands exactly).
         assert np.array_equal(geometric, plain & ~bar)
+
+
+def _reference_holes(warp, size):
+    """The hole list as the docstring of ``ForwardWarp.hole_sources`` defines it, with a
+    boolean selection (the form it had before the dense index)."""
+    height, width = size
+    filled = warp.hole_disparity(size)
+    landed = torch.isfinite(warp.zbuffer).reshape(size)
+    hole_u, hole_v = torch.nonzero(~landed & torch.isfinite(filled), as_tuple=True)
+    d = filled[hole_u, hole_v]
+    src_u = torch.round(hole_u + d * warp.ds).long()
+    src_v = torch.round(hole_v + d * warp.dt).long()
+    ok = (src_u >= 0) & (src_u < height) & (src_v >= 0) & (src_v < width)
+    return hole_u[ok], hole_v[ok], src_u[ok], src_v[ok]
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    ds=st.integers(-3, 3),
+    dt=st.integers(-3, 3),
+    objects=st.integers(0, 3),
+    keep=st.booleans(),
+)
+def test_dense_hole_filling_equals_the_hole_list(seed, ds, dt, objects, keep):
+    """The dense hole index (no host round trip, issue 44) gives the same holes, the same
+    seen pixels and the same filled masks as the hole list, with and without ``keep``."""
+    rng = np.random.default_rng(seed)
+    size = (int(rng.integers(3, 14)), int(rng.integers(3, 14)))
+    disparity = torch.as_tensor(rng.uniform(-2.5, 2.5, size), dtype=torch.float32)
+    disparity[torch.as_tensor(rng.random(size) < 0.1)] = float("nan")
+    warp = forward_warp(disparity, ds, dt)
+    expected = _reference_holes(warp, size)
+    for got, want in zip(warp.hole_sources(size), expected, strict=True):
+        assert torch.equal(got, want)
+    seen = torch.isfinite(warp.zbuffer).reshape(size).clone()
+    seen[expected[0], expected[1]] = True
+    assert torch.equal(warp.seen(size), seen)
+    masks = torch.as_tensor(rng.random((objects, *size)) < 0.5)
+    coarse = torch.as_tensor(rng.random((objects, *size)) < 0.5)
+    visible = torch.as_tensor(rng.random(size[0] * size[1]) < 0.7) if keep else None
+    sparse = fill_warp_holes(coarse, masks, warp, visible, dense=False)
+    dense = fill_warp_holes(coarse, masks, warp, visible, dense=True)
+    assert torch.equal(sparse, dense)
+    # the holes, and only they, changed to their sources' values
+    hole_u, hole_v, src_u, src_v = expected
+    want = coarse.clone()
+    values = masks[:, src_u, src_v]
+    if visible is not None:
+        values &= visible.reshape(size)[src_u, src_v]
+    want[:, hole_u, hole_v] = values
+    assert torch.equal(dense, want)

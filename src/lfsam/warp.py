@@ -162,6 +162,7 @@ class ForwardWarp:
     # every edit of the interactive predictor): view size -> holes, seen pixels.
     _holes: dict = field(default_factory=dict, init=False, repr=False, compare=False)
     _seen: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+    _index: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def hole_disparity(self, view_size: tuple[int, int]) -> torch.Tensor:
         """Disparity at each target pixel: the z-buffer, with holes filled from neighbours.
@@ -205,15 +206,39 @@ class ForwardWarp:
     def _hole_sources(
         self, view_size: tuple[int, int]
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-        height, width = view_size
-        filled = self.hole_disparity(view_size)
-        landed = torch.isfinite(self.zbuffer).reshape(view_size)
-        hole_u, hole_v = torch.nonzero(~landed & torch.isfinite(filled), as_tuple=True)
-        d = filled[hole_u, hole_v]
-        src_u = torch.round(hole_u + d * self.ds).long()
-        src_v = torch.round(hole_v + d * self.dt).long()
-        ok = (src_u >= 0) & (src_u < height) & (src_v >= 0) & (src_v < width)
-        return hole_u[ok], hole_v[ok], src_u[ok], src_v[ok]
+        width = view_size[1]
+        index = self.hole_index(view_size)
+        holes = torch.nonzero(index >= 0, as_tuple=True)[0]
+        sources = index[holes]
+        return holes // width, holes % width, sources // width, sources % width
+
+    def hole_index(self, view_size: tuple[int, int]) -> torch.Tensor:
+        """The dense form of :meth:`hole_sources`: per target pixel, the flat index of the
+        source pixel a fillable hole shows, ``-1`` elsewhere (landed pixels, holes without a
+        landed neighbour, holes whose source lies outside the source view).
+
+        Computed without reading anything back to the host (no ``nonzero``), so a GPU never
+        waits on it (docs/design.md section 3.5); computed once per view size and kept with
+        the warp (treat it as read-only).
+
+        Returns
+        -------
+        (U * V,) int64 tensor
+        """
+        key = (int(view_size[0]), int(view_size[1]))
+        if key not in self._index:
+            height, width = key
+            filled = self.hole_disparity(key)
+            landed = torch.isfinite(self.zbuffer).reshape(key)
+            hole = ~landed & torch.isfinite(filled)
+            d = torch.where(hole, filled, torch.zeros_like(filled))
+            rows = torch.arange(height, device=d.device)[:, None]
+            cols = torch.arange(width, device=d.device)[None, :]
+            src_u = torch.round(rows + d * self.ds).long()
+            src_v = torch.round(cols + d * self.dt).long()
+            hole &= (src_u >= 0) & (src_u < height) & (src_v >= 0) & (src_v < width)
+            self._index[key] = torch.where(hole, src_u * width + src_v, -1).reshape(-1)
+        return self._index[key]
 
     def seen(self, view_size: tuple[int, int]) -> torch.Tensor:
         """Target pixels the warp reaches: landed on or fillable holes, ``(U, V)`` bool.
@@ -224,10 +249,8 @@ class ForwardWarp:
         """
         key = (int(view_size[0]), int(view_size[1]))
         if key not in self._seen:
-            seen = torch.isfinite(self.zbuffer).reshape(key).clone()
-            hole_u, hole_v, _, _ = self.hole_sources(key)
-            seen[hole_u, hole_v] = True
-            self._seen[key] = seen
+            landed = torch.isfinite(self.zbuffer)
+            self._seen[key] = (landed | (self.hole_index(key) >= 0)).reshape(key)
         return self._seen[key].clone()
 
     def frame_runs(
@@ -342,13 +365,17 @@ def forward_warp(
     [False, True, True]
     """
     target, valid = landing_pixels(disparity, ds, dt, halves=halves)
-    zbuffer = torch.full(
-        (disparity.numel(),), float("-inf"), device=disparity.device, dtype=disparity.dtype
-    )
+    size = disparity.numel()
+    # every pixel is scattered (no boolean selection, which would make a GPU wait for the
+    # host): those that land nowhere go to a spare last slot, dropped after
+    zbuffer = torch.full((size + 1,), float("-inf"), device=disparity.device,
+                         dtype=disparity.dtype)
     zbuffer.scatter_reduce_(
-        0, target[valid], disparity.reshape(-1)[valid], reduce="amax", include_self=True
+        0, torch.where(valid, target, size), disparity.reshape(-1), reduce="amax",
+        include_self=True,
     )
-    return ForwardWarp(target=target, valid=valid, zbuffer=zbuffer, ds=float(ds), dt=float(dt))
+    return ForwardWarp(target=target, valid=valid, zbuffer=zbuffer[:size], ds=float(ds),
+                       dt=float(dt))
 
 
 def splat_masks(
@@ -385,13 +412,15 @@ def fill_warp_holes(
     masks: torch.Tensor,
     warp: ForwardWarp,
     keep: torch.Tensor | None = None,
+    *,
+    dense: bool | None = None,
 ) -> torch.Tensor:
     """Fill forward-warping holes by looking their source up in the source masks.
 
     A hole pixel ``q`` gets the disparity ``d`` of :meth:`ForwardWarp.hole_disparity`; under the
     convention of :mod:`lfsam.geometry` it shows source pixel ``q + d (ds, dt)``
     (:meth:`ForwardWarp.hole_sources`), and takes that pixel's mask memberships (forward-warp
-    the depth, backward-warp the masks). Cost is O(N x holes); no N x U x V filtering.
+    the depth, backward-warp the masks).
 
     Parameters
     ----------
@@ -402,12 +431,28 @@ def fill_warp_holes(
     warp : ForwardWarp
     keep : (U * V,) bool tensor, optional
         Source pixels allowed to contribute (e.g. visible ones).
+    dense : bool, optional
+        Look every pixel up through :meth:`ForwardWarp.hole_index` (O(N x U x V), nothing read
+        back to the host) instead of the hole list (O(N x holes), one ``nonzero``); both give
+        the same masks. Default: dense on CUDA, where a host round trip costs more than the
+        work (docs/design.md section 3.5).
 
     Returns
     -------
     (N, U, V) bool tensor
     """
     n, height, width = coarse.shape
+    if dense is None:
+        dense = coarse.device.type == "cuda"
+    if dense:
+        index = warp.hole_index((height, width))
+        hole = index >= 0
+        sources = index.clamp(min=0)
+        size = height * width
+        values = torch.index_select(masks.reshape(n, size), 1, sources)
+        if keep is not None:
+            values = values & keep[sources][None]
+        return torch.where(hole, values, coarse.reshape(n, size)).reshape(n, height, width)
     hole_u, hole_v, src_u, src_v = warp.hole_sources((height, width))
     if hole_u.numel() == 0 or n == 0:
         return coarse

@@ -173,14 +173,15 @@ def fill_from_sources(
     cast = voters.to(torch.float32) * weights[:, None, None]
     total = cast.sum(dim=0)
     votes = torch.zeros(fallback.shape, dtype=torch.float32, device=fallback.device)
+    ask = _skip_idle_sources(fallback.device)
     for j, (masks, disparity, warp) in enumerate(
         zip(source_masks, source_disparities, warps, strict=True)
     ):
-        if not bool(voters[j].any()):
+        if ask and not bool(voters[j].any()):
             continue
         keep = warp.visible(disparity, tolerance)
         carried = splat_masks(masks, warp, keep)
-        if bool((voters[j] & (status[j] == _HOLE)).any()):  # its holes vote somewhere
+        if not ask or bool((voters[j] & (status[j] == _HOLE)).any()):  # its holes vote
             carried = fill_warp_holes(carried, masks, warp, keep)
         votes += carried.to(torch.float32) * cast[j]
     seen = best > 0
@@ -190,6 +191,13 @@ def fill_from_sources(
         _guide_contested(decided, share, guide.to(share), contested)
     masks = torch.where(seen, decided, fallback)
     return FillOutcome(masks=masks, voters=voters)
+
+
+def _skip_idle_sources(device: torch.device) -> bool:
+    """Whether :func:`fill_from_sources` asks which sources vote anywhere and skips the others'
+    work: on a CPU; on a GPU asking costs a host round trip, more than the work, and a source
+    that votes nowhere adds zero votes, so both give the same masks."""
+    return device.type != "cuda"
 
 
 def _guide_contested(decided: torch.Tensor, share: torch.Tensor, guide: torch.Tensor,
@@ -202,11 +210,15 @@ def _guide_contested(decided: torch.Tensor, share: torch.Tensor, guide: torch.Te
     are filtered together in one box (one batched filter), else box by box."""
     contested = (share > margin) & (share < 1 - margin)  # where the sources disagree
     rows, cols = contested.any(dim=2), contested.any(dim=1)
-    objects = torch.nonzero(rows.any(dim=1), as_tuple=True)[0].tolist()
-    boxes = {k: _reach_box(rows[k], cols[k]) for k in objects}
-    if not boxes:
+    # every object's box and the union's, read back to the host in one copy
+    found, *box_rows = _reach_boxes(torch.cat([rows, rows.any(dim=0, keepdim=True)]),
+                                    torch.cat([cols, cols.any(dim=0, keepdim=True)]))
+    found = found[:-1]
+    objects = [k for k, hit in enumerate(found) if hit]
+    if not objects:
         return
-    union = _reach_box(rows.any(dim=0), cols.any(dim=0))
+    boxes = {k: box_rows[k] for k in objects}
+    union = box_rows[-1]
     areas = sum(_area(box) for box in boxes.values())
     groups = ([(objects, union)] if len(objects) * _area(union) <= 2 * areas
               else [([k], box) for k, box in boxes.items()])
@@ -218,14 +230,29 @@ def _guide_contested(decided: torch.Tensor, share: torch.Tensor, guide: torch.Te
                                                      decided[members, r0:r1, c0:c1])
 
 
-def _reach_box(rows: torch.Tensor, cols: torch.Tensor) -> tuple[int, int, int, int]:
-    """Rows ``r0:r1`` and columns ``c0:c1`` of the flagged rows and columns, widened by the
-    guided filter's reach (``2 * GUIDE_RADIUS``) within the view."""
+def _reach_boxes(rows: torch.Tensor, cols: torch.Tensor) -> list:
+    """Per line ``k`` of the ``(K, U)`` flagged rows and ``(K, V)`` flagged columns: whether any
+    is flagged, then its box ``(r0, r1, c0, c1)``: the first to one past the last flagged row
+    and column, widened by the guided filter's reach (``2 * GUIDE_RADIUS``) within the view.
+
+    Returns
+    -------
+    list
+        ``[found, box_0, ..., box_{K-1}]``: ``found`` a list of K bools, each box a tuple of
+        four ints (meaningless where nothing is flagged). One host copy for all of them.
+    """
     reach = 2 * GUIDE_RADIUS
-    r = torch.nonzero(rows, as_tuple=True)[0]
-    c = torch.nonzero(cols, as_tuple=True)[0]
-    return (max(int(r[0]) - reach, 0), min(int(r[-1]) + reach + 1, len(rows)),
-            max(int(c[0]) - reach, 0), min(int(c[-1]) + reach + 1, len(cols)))
+    height, width = rows.shape[-1], cols.shape[-1]
+
+    def ends(flags: torch.Tensor, size: int) -> tuple[torch.Tensor, torch.Tensor]:
+        first = flags.to(torch.uint8).argmax(dim=1)  # the first maximum: the first flag
+        last = size - 1 - flags.flip(1).to(torch.uint8).argmax(dim=1)
+        return (first - reach).clamp(min=0), (last + reach + 1).clamp(max=size)
+
+    r0, r1 = ends(rows, height)
+    c0, c1 = ends(cols, width)
+    table = torch.stack([rows.any(dim=1).long(), r0, r1, c0, c1], dim=1).tolist()
+    return [[bool(line[0]) for line in table], *[tuple(line[1:]) for line in table]]
 
 
 def _area(box: tuple[int, int, int, int]) -> int:
