@@ -168,3 +168,42 @@ def test_the_center_disparity_estimate_is_its_own_stage(scenes):
             time.sleep(0.05)
     assert timer.seconds["inner"] >= 0.05 and timer.seconds["outer"] < 0.05
     assert timer.outermost["outer"] >= 0.05 and "inner" not in timer.outermost
+
+
+def test_stage_timer_with_events_charges_the_same_stages_without_waiting(monkeypatch):
+    """On CUDA the stage boundaries are events read when the times are read (issue 44's GPU
+    run: a synchronisation per boundary was half of one click's host waits): the stages get
+    the seconds host clocks give them, and the events are waited for once, at the first read."""
+    import lfsam.timing as timing
+
+    waits = []
+
+    class FakeEvent:  # stands in for torch.cuda.Event: stamped when recorded
+        def __init__(self) -> None:
+            self.at = time.perf_counter()
+
+        def synchronize(self) -> None:
+            waits.append(self)
+
+        def elapsed_time(self, end: FakeEvent) -> float:
+            return (end.at - self.at) * 1000.0
+
+    monkeypatch.setattr(timing, "_cuda_event", FakeEvent)
+    timer = timing.StageTimer(torch.device("cpu"), events=True)
+    clock = timing.StageTimer(torch.device("cpu"))
+    for each in (timer, clock):
+        with each("outer"):
+            time.sleep(0.01)
+            with each("inner"):
+                time.sleep(0.03)
+            time.sleep(0.01)
+        with each("inner"):
+            time.sleep(0.02)
+    assert not waits  # nothing waited for while timing
+    assert set(timer.seconds) == {"outer", "inner"} and len(waits) == 1
+    for stage, expected in (("outer", 0.02), ("inner", 0.05)):
+        assert timer.seconds[stage] == pytest.approx(clock.seconds[stage], abs=0.008)
+        assert timer.seconds[stage] >= expected
+    assert timer.outermost["outer"] >= 0.05 and timer.outermost["inner"] >= 0.02
+    assert timer.outermost["outer"] == pytest.approx(clock.outermost["outer"], abs=0.008)
+    assert len(waits) == 1  # read once, then kept

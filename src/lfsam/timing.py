@@ -6,20 +6,40 @@ import time
 from collections import defaultdict
 from collections.abc import Iterator
 from contextlib import contextmanager
+from typing import Any
 
 import torch
 
 __all__ = ["StageTimer"]
 
 
+def _cuda_event() -> Any:
+    """A recorded CUDA event that can be timed (a hook, so tests can stand in for CUDA)."""
+    event = torch.cuda.Event(enable_timing=True)
+    event.record()
+    return event
+
+
 class StageTimer:
     """Accumulates wall-clock seconds per named stage.
 
-    On CUDA the device is synchronised at both ends of a stage, so asynchronous GPU work is
-    charged to the stage that launched it. A stage timed inside another is charged to the inner
-    stage only (the outer one pauses meanwhile), so the stages never count a second twice: the
-    center view's disparity estimate, made on first use while the initial segmentation carries
-    clicks into the reference view, is ``disparity``, not ``initial`` (issue 46).
+    On CUDA the stage boundaries are CUDA events recorded in the stream, not host
+    synchronisations (docs/design.md section 3.5): a boundary costs no wait, asynchronous GPU
+    work is still charged to the stage that launched it (the time between two events is the
+    time the GPU took from one to the other, idle gaps included), and the events are read once,
+    when :attr:`seconds` or :attr:`outermost` is first read after new stages (one wait for the
+    last event). A stage timed inside another is charged to the inner stage only (the outer one
+    pauses meanwhile), so the stages never count a second twice: the center view's disparity
+    estimate, made on first use while the initial segmentation carries clicks into the
+    reference view, is ``disparity``, not ``initial`` (issue 46).
+
+    Parameters
+    ----------
+    device : torch.device
+        The device the timed work runs on.
+    events : bool, optional
+        Mark boundaries with CUDA events; default on CUDA. False marks them with the host
+        clock (on CUDA after a synchronisation, as before issue 44's GPU run).
 
     Attributes
     ----------
@@ -40,32 +60,64 @@ class StageTimer:
     ['initial']
     """
 
-    def __init__(self, device: torch.device) -> None:
-        self.seconds: dict[str, float] = defaultdict(float)
-        self.outermost: dict[str, float] = defaultdict(float)
+    def __init__(self, device: torch.device, *, events: bool | None = None) -> None:
+        self._seconds: dict[str, float] = defaultdict(float)
+        self._outermost: dict[str, float] = defaultdict(float)
         self._cuda = device.type == "cuda"
-        self._open: list[list] = []  # [stage, when its own time last (re)started]
+        self._events = self._cuda if events is None else events
+        self._open: list[list] = []  # [stage, the mark its own time last (re)started at]
+        # with events: (table, stage, start event, end event), read when the tables are read
+        self._pending: list[tuple[dict[str, float], str, Any, Any]] = []
+
+    @property
+    def seconds(self) -> dict[str, float]:
+        """Each stage's own seconds (reads the pending events: waits for the last one)."""
+        self._resolve()
+        return self._seconds
+
+    @property
+    def outermost(self) -> dict[str, float]:
+        """Each stage's seconds timed outside any other stage (reads the pending events)."""
+        self._resolve()
+        return self._outermost
 
     @contextmanager
     def __call__(self, stage: str) -> Iterator[None]:
         """Time the ``with`` block and add it to ``stage`` (less the stages nested in it)."""
-        if self._cuda:
-            torch.cuda.synchronize()
-        start = time.perf_counter()
+        start = self._mark()
         if self._open:  # the outer stage pauses
             outer = self._open[-1]
-            self.seconds[outer[0]] += start - outer[1]
+            self._add(self._seconds, outer[0], outer[1], start)
         entry = [stage, start]
         self._open.append(entry)
         try:
             yield
         finally:
-            if self._cuda:
-                torch.cuda.synchronize()
-            now = time.perf_counter()
+            now = self._mark()
             self._open.pop()
-            self.seconds[stage] += now - entry[1]
+            self._add(self._seconds, stage, entry[1], now)
             if self._open:
                 self._open[-1][1] = now  # the outer stage goes on
             else:
-                self.outermost[stage] += now - start
+                self._add(self._outermost, stage, start, now)
+
+    def _mark(self) -> Any:
+        if self._events:
+            return _cuda_event()
+        if self._cuda:
+            torch.cuda.synchronize()
+        return time.perf_counter()
+
+    def _add(self, table: dict[str, float], stage: str, start: Any, end: Any) -> None:
+        if self._events:
+            self._pending.append((table, stage, start, end))
+        else:
+            table[stage] += end - start
+
+    def _resolve(self) -> None:
+        if not self._pending:
+            return
+        pending, self._pending = self._pending, []
+        pending[-1][3].synchronize()  # events complete in order: the last one is the latest
+        for table, stage, start, end in pending:
+            table[stage] += start.elapsed_time(end) / 1000.0
