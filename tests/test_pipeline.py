@@ -207,3 +207,25 @@ def test_stage_timer_with_events_charges_the_same_stages_without_waiting(monkeyp
     assert timer.outermost["outer"] >= 0.05 and timer.outermost["inner"] >= 0.02
     assert timer.outermost["outer"] == pytest.approx(clock.outermost["outer"], abs=0.008)
     assert len(waits) == 1  # read once, then kept
+
+
+def test_stage_timer_keeps_a_bounded_number_of_events(monkeypatch):
+    """A timer whose times are never read (a long interactive session) reads its events after
+    ``MAX_PENDING`` intervals instead of keeping every one."""
+    import lfsam.timing as timing
+
+    class FakeEvent:
+        def synchronize(self) -> None:
+            pass
+
+        def elapsed_time(self, end: FakeEvent) -> float:
+            return 1.0
+
+    monkeypatch.setattr(timing, "_cuda_event", FakeEvent)
+    monkeypatch.setattr(timing, "MAX_PENDING", 10)
+    timer = timing.StageTimer(torch.device("cpu"), events=True)
+    for _ in range(100):
+        with timer("step"):
+            pass
+        assert len(timer._pending) < 10
+    assert timer.seconds["step"] == pytest.approx(100 * 0.001)

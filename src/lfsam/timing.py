@@ -12,6 +12,10 @@ import torch
 
 __all__ = ["StageTimer"]
 
+#: Events read at the latest after this many timed intervals, so a long-lived timer whose
+#: times are never read (an interactive session, a stream) keeps a bounded number of events.
+MAX_PENDING = 4096
+
 
 def _cuda_event() -> Any:
     """A recorded CUDA event that can be timed (a hook, so tests can stand in for CUDA)."""
@@ -28,8 +32,9 @@ class StageTimer:
     work is still charged to the stage that launched it (the time between two events is the
     time the GPU took from one to the other, idle gaps included), and the events are read once,
     when :attr:`seconds` or :attr:`outermost` is first read after new stages (one wait for the
-    last event). A stage timed inside another is charged to the inner stage only (the outer one
-    pauses meanwhile), so the stages never count a second twice: the center view's disparity
+    last event), or after :data:`MAX_PENDING` intervals. A stage timed inside another is
+    charged to the inner stage only (the outer one pauses meanwhile), so the stages never count
+    a second twice: the center view's disparity
     estimate, made on first use while the initial segmentation carries clicks into the
     reference view, is ``disparity``, not ``initial`` (issue 46).
 
@@ -111,6 +116,8 @@ class StageTimer:
     def _add(self, table: dict[str, float], stage: str, start: Any, end: Any) -> None:
         if self._events:
             self._pending.append((table, stage, start, end))
+            if len(self._pending) >= MAX_PENDING:  # a long session whose times nobody reads
+                self._resolve()
         else:
             table[stage] += end - start
 
