@@ -25,7 +25,7 @@ from lfsam.disparity.views import ViewDisparities
 from lfsam.embeddings import EmbeddingStore
 from lfsam.lightfield import LightField
 from lfsam.pipeline.config import PipelineConfig
-from lfsam.pipeline.fusion import fuse_labels
+from lfsam.pipeline.fusion import ViewLabels, fuse_labels
 from lfsam.pipeline.initial import initial_segmentation
 from lfsam.pipeline.objects import (
     Clicks,
@@ -379,25 +379,19 @@ class StreamingEngine:
             total=len(views), desc="views", unit="view", disable=not self.progress or None,
             leave=False,
         )
-        labels = None
-        pending: dict[View, dict[int, torch.Tensor]] = defaultdict(dict)
-        if paint_order is not None:
-            labels = np.zeros((*lf.grid_shape, *lf.view_shape), dtype=np.int32)
-            rank = {i: k for k, i in enumerate(ids)}
-            paint = torch.as_tensor([rank[i] for i in paint_order], device=self.device)
-            lookup = torch.as_tensor([0, *ids], dtype=torch.int32, device=self.device)
+        sink = (None if paint_order is None else
+                ViewLabels(lf.grid_shape, lf.view_shape, ids, paint_order, self.device))
+        pending: dict[View, set[int]] = defaultdict(set)
 
         def done(view: View, final: dict[int, torch.Tensor]) -> None:
-            """Keep a view's final masks until every object has one there; then fuse."""
-            pending[view].update(final)
-            if len(pending[view]) < len(ids):
-                return
-            masks = pending.pop(view)
-            if labels is not None:
+            """Count a view done once every object has its final masks there (fused then)."""
+            if sink is not None:
                 with self.timer("fuse"):
-                    fused = fuse_labels(torch.stack([masks[i] for i in ids]), paint)
-                    labels[view] = lookup[fused.long()].cpu().numpy()
-            bar.update(1)
+                    sink.add(view, final)
+            pending[view].update(final)
+            if len(pending[view]) == len(ids):
+                del pending[view]
+                bar.update(1)
 
         # The reference views are encoded already (step 1): they go first, on their own, so
         # that every later batch encodes a full ``batch_size`` of new views. Views whose
@@ -444,6 +438,10 @@ class StreamingEngine:
             ))
         self._clear_sources()
         bar.close()
+        labels = None
+        if sink is not None:
+            with self.timer("fuse"):
+                labels = sink.field()  # on a GPU: every view's labels in one copy
         for i in ids:
             obj = objects[i]
             obj.coarse = coarse_out[i]

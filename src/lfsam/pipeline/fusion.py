@@ -7,9 +7,10 @@ means unlabeled.
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 
-__all__ = ["fuse_labels"]
+__all__ = ["ViewLabels", "fuse_labels"]
 
 _CHUNK = 32
 
@@ -41,3 +42,62 @@ def fuse_labels(masks: torch.Tensor, paint_order: torch.Tensor) -> torch.Tensor:
     lookup = torch.zeros(n + 1, dtype=torch.int32, device=device)
     lookup[1:] = paint_order.to(device=device, dtype=torch.int32) + 1
     return lookup[top.long()]
+
+
+class ViewLabels:
+    """The label field of a run, fused view by view as each view's masks are all in.
+
+    Each view's final masks are kept until every object has one there, then painted
+    (:func:`fuse_labels`) on their device. On a CPU the labels go straight into the field; on a
+    GPU they stay on the device until :meth:`field` reads them all back in one copy, so a view's
+    labels never make the host wait mid-run (docs/design.md section 3.5).
+
+    Parameters
+    ----------
+    grid_shape, view_shape : tuple of int
+        The light field's ``(S, T)`` and ``(U, V)``.
+    ids : list of int
+        The objects of the run, in the order of ``rank``.
+    paint_order : list of int
+        ``ids`` in paint order (docs/design.md section 3.6).
+    device : torch.device
+        Where the masks are.
+    """
+
+    def __init__(self, grid_shape: tuple[int, int], view_shape: tuple[int, int], ids: list[int],
+                 paint_order: list[int], device: torch.device) -> None:
+        self.ids = list(ids)
+        self._labels = np.zeros((*grid_shape, *view_shape), dtype=np.int32)
+        rank = {i: k for k, i in enumerate(self.ids)}
+        self._paint = torch.as_tensor([rank[i] for i in paint_order], device=device)
+        self._lookup = torch.as_tensor([0, *self.ids], dtype=torch.int32, device=device)
+        self._waiting: dict[tuple[int, int], dict[int, torch.Tensor]] = {}
+        self._on_device: dict[tuple[int, int], torch.Tensor] = {}
+        self._defer = device.type == "cuda"
+
+    def add(self, view: tuple[int, int], final: dict[int, torch.Tensor]) -> bool:
+        """Take some objects' final ``(U, V)`` masks in ``view``; fuse the view once every
+        object has one there. Returns whether the view was fused."""
+        masks = self._waiting.setdefault(view, {})
+        masks.update(final)
+        if len(masks) < len(self.ids):
+            return False
+        del self._waiting[view]
+        fused = self._lookup[fuse_labels(torch.stack([masks[i] for i in self.ids]),
+                                         self._paint).long()]
+        if self._defer:
+            self._on_device[view] = fused
+        else:
+            self._labels[view] = fused.cpu().numpy()
+        return True
+
+    def field(self) -> np.ndarray:
+        """The ``(S, T, U, V)`` int32 label field (0 where no object, and in views not fused);
+        the labels kept on a GPU come back in one copy."""
+        if self._on_device:
+            views = list(self._on_device)
+            back = torch.stack([self._on_device[v] for v in views]).cpu().numpy()
+            for view, labels in zip(views, back, strict=True):
+                self._labels[view] = labels
+            self._on_device.clear()
+        return self._labels
