@@ -59,8 +59,9 @@ class OcclusionWeights:
         out = torch.zeros(
             (self.num_masks, height * width), dtype=torch.bool, device=self.weight.device
         )
-        keep = self.weight > 0
-        out[self.mask_index[keep], self.pixel_index[keep]] = True
+        # every pair written (each is one distinct pixel of one mask): no selection of the kept
+        # ones, which would make a GPU wait for the host (docs/design.md section 3.5)
+        out[self.mask_index, self.pixel_index] = self.weight > 0
         return out.reshape(self.num_masks, height, width)
 
 
