@@ -71,9 +71,10 @@ from lfsam.result import SegmentationResult
 from lfsam.segmenters.base import Segmenter
 from lfsam.text_search import find_text
 from lfsam.video.carry import Template, carry
+from lfsam.video.frame_search import mean_disparity, search_frame
 from lfsam.video.memory import reference_memory_for
 from lfsam.video.prompts import frame_of, negatives_since, prompts_at, start_frame
-from lfsam.video.search import MAX_GROWTH, Track, mean_disparity, search_frame
+from lfsam.video.search import MAX_GROWTH, Track
 from lfsam.video.source import check_frame
 
 __all__ = ["MAX_GROWTH", "OnlineTracker", "memory_states"]

@@ -25,9 +25,9 @@ later frame and comes back under its own id (*found*). The search of one object 
    With ``disparities`` the view's disparity is a fourth channel: a pixel farther in depth
    from the object's last disparity than :func:`predicted_disparity`'s tolerance is not the
    object whatever its colour (a background of the object's colours is told apart by its
-   depth; off in :func:`search_frame`, :data:`DEPTH_GATE`). It needs at least
-   :data:`NEAR_SUPPORT` of its template supported near the prediction, :data:`FAR_SUPPORT`
-   elsewhere.
+   depth; off in :func:`lfsam.video.frame_search.search_frame`, :data:`DEPTH_GATE`). It
+   needs at least :data:`NEAR_SUPPORT` of its template supported near the prediction,
+   :data:`FAR_SUPPORT` elsewhere.
 4. **Prompts**: up to three positive points at the deepest supported pixels (where their
    answer is refused, each alone), negative points on neighbouring objects placed earlier in
    the frame (center view), the user's negative clicks of that view, and for SAM 2 a box
@@ -51,7 +51,6 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import ndimage
 
-from lfsam.pipeline.references import reference_views
 from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
 from lfsam.video.carry import (
     MIN_PIXELS,
@@ -60,7 +59,6 @@ from lfsam.video.carry import (
     deepest,
 )
 from lfsam.video.match import cost_map, placed_at, robust_costs, with_depth
-from lfsam.video.prompts import negatives_since, prompts_at, start_frame
 
 __all__ = [
     "CANDIDATES",
@@ -103,10 +101,11 @@ MIN_ALIKE = 0.35
 #: object from a background of the same colours by its depth (objects change depth by up to
 #: about a pixel of disparity per frame).
 DISPARITY_TOLERANCE = 1.2
-#: Whether :func:`search_frame` gates the match by depth (:func:`search_object`'s
-#: ``disparities``). Off: with the oracle's boundary jitter the gate lost more objects on the
-#: development videos (seeds 7-12, jitter 1: 6.27 % of the visible triples against 3.60 %
-#: without it), and it found none more on the held-out videos without jitter.
+#: Whether :func:`lfsam.video.frame_search.search_frame` gates the match by depth
+#: (:func:`search_object`'s ``disparities``). Off: with the oracle's boundary jitter the
+#: gate lost more objects on the development videos (seeds 7-12, jitter 1: 6.27 % of the
+#: visible triples against 3.60 % without it), and it found none more on the held-out videos
+#: without jitter.
 DEPTH_GATE = False
 #: The disparity tolerance grows with the frames unseen up to this many frames' worth.
 DISPARITY_FRAMES = 2
@@ -471,142 +470,3 @@ def update(track: Track, view: tuple[int, int], mask: np.ndarray, located: Templ
     track.unseen = 0
     track.lost = False
     track.sightings += 1
-
-
-def carried_to(mask: np.ndarray, disparity: object, source: tuple[int, int],
-               target: tuple[int, int]) -> np.ndarray:
-    """A mask of view ``source`` carried into view ``target`` by the source view's disparity
-    (section 1: ``p - d (s_target - s_source, t_target - t_source)``), rounded, closed by one
-    pixel: where an object placed in one view is in another (what the source view cannot see
-    is left out)."""
-    out = np.zeros_like(mask)
-    rows, cols = np.nonzero(mask)
-    if rows.size == 0 or source == target:
-        return mask.copy()
-    values = np.asarray(disparity.cpu().numpy() if hasattr(disparity, "cpu") else disparity)
-    d = np.nan_to_num(values[rows, cols])
-    r = np.rint(rows - d * (target[0] - source[0])).astype(int)
-    c = np.rint(cols - d * (target[1] - source[1])).astype(int)
-    keep = (r >= 0) & (r < mask.shape[0]) & (c >= 0) & (c < mask.shape[1])
-    if not keep.any():
-        return out
-    r, c = r[keep], c[keep]
-    r0, c0 = max(r.min() - 2, 0), max(c.min() - 2, 0)
-    crop = out[r0:r.max() + 3, c0:c.max() + 3]  # a view: closed in place, in the crop only
-    crop[r - r0, c - c0] = True
-    crop |= ndimage.binary_closing(crop, iterations=1)
-    return out
-
-
-def mean_disparity(disparity: object, mask: np.ndarray) -> float:
-    """The mean of a view's disparity (a tensor or array) over ``mask`` (0 where empty)."""
-    values = np.asarray(disparity.cpu().numpy() if hasattr(disparity, "cpu") else disparity)
-    picked = values[mask]
-    picked = picked[np.isfinite(picked)]
-    return float(picked.mean()) if picked.size else 0.0
-
-
-def search_frame(predictor: object, lf: object, index: int, order: Sequence[int],
-                 prompts: dict[int, ObjectPrompts | None], tracks: dict[int, Track],
-                 use_box: bool) -> dict[int, str]:
-    """One frame of constrained-prompt tracking with the search (module docstring): every
-    object of ``order`` is prompted (the user's positive prompts at ``index``) or searched for,
-    added to ``predictor`` where it is found; returns each object's state (:data:`STATES`).
-
-    ``prompts[obj_id]`` holds the object's prompts of every frame (None for an object found
-    automatically); ``tracks`` is updated in place.
-    """
-    center = lf.center
-    ring = [v for v in reference_views(lf.grid_shape, "ring")[1:] if lf.present[v]]
-    placed_ids = np.zeros(lf.view_shape, np.int64)
-    done: list[tuple[int, tuple[int, int], np.ndarray]] = []
-    cache: dict[tuple[tuple[int, int], int], np.ndarray] = {}
-    maps: dict[tuple[int, int], np.ndarray] = {}
-
-    def disparity_of(view: tuple[int, int]) -> np.ndarray:
-        """A view's disparity map as an array (once per frame)."""
-        if view not in maps:
-            values = predictor.disparity(view)
-            maps[view] = np.asarray(values.cpu().numpy() if hasattr(values, "cpu")
-                                    else values, np.float32)
-        return maps[view]
-
-    def placed_in(view: tuple[int, int]) -> np.ndarray:
-        """Where the objects placed so far in this frame are in ``view``."""
-        key = (view, len(done))
-        if key not in cache:
-            out = np.zeros(lf.view_shape, bool)
-            for _, source, mask in done:
-                out |= mask if source == view else carried_to(
-                    mask, predictor.disparity(source), source, view)
-            cache[key] = out
-        return cache[key]
-
-    def answer(obj: ObjectPrompts) -> tuple[tuple[int, int], np.ndarray]:
-        predictor.set_object(obj)
-        view, mask, _ = predictor.predict_reference(obj.obj_id)
-        return view, mask
-
-    def place(obj_id: int, view: tuple[int, int], mask: np.ndarray) -> None:
-        done.append((obj_id, view, mask))
-        here = mask if view == center else carried_to(mask, predictor.disparity(view), view,
-                                                      center)
-        placed_ids[here & (placed_ids == 0)] = obj_id
-
-    states: dict[int, str] = {}
-    own_prompts = {i: (None if prompts.get(i) is None else prompts_at(prompts[i], index))
-                   for i in order}
-    started = [i for i in order if prompts.get(i) is None
-               or (start_frame(prompts[i]) is not None and index >= start_frame(prompts[i]))]
-    prompted = [i for i in started if own_prompts[i] is not None and own_prompts[i].has_positive]
-    carried = [i for i in started if i not in prompted and i in tracks
-               and tracks[i].template is not None]
-    # the surest first (most of the template still seen at its predicted place), so that an
-    # object that went behind another cannot take that one's place
-    first = {i: first_look(tracks[i], lf.views[tracks[i].view], center,
-                           disparity_of(tracks[i].view) if DEPTH_GATE else None)
-             for i in carried}
-    carried.sort(key=lambda i: (tracks[i].unseen > 0, -first[i][0], i))
-    for obj_id in prompted:
-        negatives = negatives_since(prompts[obj_id], index)
-        own = own_prompts[obj_id]
-        view, mask = answer(own.with_points([p for p in negatives if p not in own.points]))
-        known = placed_in(view)
-        if not mask.any() or (mask & known).sum() > 0.5 * mask.sum():
-            predictor.remove_object(obj_id)
-            track = tracks.setdefault(obj_id, Track(view))
-            track.unseen += 1
-            states[obj_id] = track.state = "hidden"
-            continue
-        disparity = mean_disparity(predictor.disparity(view), mask)
-        old = tracks.get(obj_id)
-        track = Track(view, Template.from_mask(lf.views[view], mask), disparity=disparity,
-                      area=int(mask.sum()), sightings=1, state="prompted")
-        if old is not None:
-            track.velocity, track.area = old.velocity, max(old.area, track.area)
-        tracks[obj_id] = track
-        states[obj_id] = "prompted"
-        place(obj_id, view, mask)
-    for obj_id in carried:
-        track = tracks[obj_id]
-        negatives = () if prompts.get(obj_id) is None else negatives_since(prompts[obj_id], index)
-        own = own_prompts[obj_id]
-        fresh = () if own is None else tuple(p for p in own.points if not p.positive)
-        found = search_object(obj_id, track, lambda v: lf.views[v], center, ring, answer,
-                              placed_in, placed_ids, negatives, use_box, first[obj_id][1],
-                              fresh, disparity_of if DEPTH_GATE else None)
-        if found is None:
-            if obj_id in predictor.object_ids:
-                predictor.remove_object(obj_id)
-            track.unseen += 1
-            track.lost = True
-            states[obj_id] = track.state = "hidden"
-            continue
-        view, mask, _shift, located = found
-        update(track, view, mask, located, lf.views[view],
-               mean_disparity(predictor.disparity(view), mask), center)
-        states[obj_id] = track.state
-        place(obj_id, view, mask)
-    for obj_id in order:
-        states.setdefault(obj_id, "waiting")
-    return states
