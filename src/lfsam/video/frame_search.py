@@ -18,7 +18,7 @@ from lfsam.video.carry import Template
 from lfsam.video.prompts import negatives_since, prompts_at, start_frame
 from lfsam.video.search import Track, first_look, search_object, update
 
-__all__ = ["carried_to", "mean_disparity", "search_frame"]
+__all__ = ["carried_to", "mean_disparity", "median_disparity", "search_frame"]
 
 
 def carried_to(mask: np.ndarray, disparity: object, source: tuple[int, int],
@@ -52,6 +52,15 @@ def mean_disparity(disparity: object, mask: np.ndarray) -> float:
     picked = values[mask]
     picked = picked[np.isfinite(picked)]
     return float(picked.mean()) if picked.size else 0.0
+
+
+def median_disparity(disparity: object, mask: np.ndarray) -> float | None:
+    """The median of a view's disparity over ``mask`` (None where it has no finite value):
+    an answer's depth, robust to a boundary that spills onto the background."""
+    values = np.asarray(disparity.cpu().numpy() if hasattr(disparity, "cpu") else disparity)
+    picked = values[mask]
+    picked = picked[np.isfinite(picked)]
+    return float(np.median(picked)) if picked.size else None
 
 
 def search_frame(predictor: object, lf: object, index: int, order: Sequence[int],
@@ -142,7 +151,8 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         fresh = () if own is None else tuple(p for p in own.points if not p.positive)
         found = search_object(obj_id, track, lambda v: lf.views[v], center, ring, answer,
                               placed_in, placed_ids, negatives, use_box, first[obj_id][1],
-                              fresh, disparity_of if search.DEPTH_GATE else None)
+                              fresh, disparity_of if search.DEPTH_GATE else None,
+                              lambda v, m: median_disparity(predictor.disparity(v), m))
         if found is None:
             if obj_id in predictor.object_ids:
                 predictor.remove_object(obj_id)

@@ -67,6 +67,7 @@ __all__ = [
     "NEAR_SUPPORT",
     "STATES",
     "Track",
+    "explaining_shift",
     "looks_alike",
     "search_object",
     "search_radius",
@@ -94,6 +95,9 @@ RESCORED = 2
 NEAR_REACH = 4
 #: A template is replaced by an answer at least this fraction of the object's largest area.
 KEEP_TEMPLATE = 0.6
+#: An answer showing less than this fraction of the object's largest area keeps its velocity
+#: (:func:`update`).
+HALF_SEEN = 0.5
 #: Colour histogram intersection an answer away from the prediction needs.
 MIN_ALIKE = 0.35
 #: Disparity difference (pixels) from the object's last disparity, per frame since it was
@@ -107,6 +111,13 @@ DISPARITY_TOLERANCE = 1.2
 #: visible triples against 3.60 % without it), and it found none more on the held-out videos
 #: without jitter.
 DEPTH_GATE = False
+#: An answer whose support lies mostly beside it (look-alike pixels around a partly hidden
+#: object) is still the object where, at a shift within the search radius, the template
+#: shows this fraction of the answer's pixels (:func:`explaining_shift`).
+EXPLAINED = 0.5
+#: Of the shifts explaining an answer this nearly as well as the best, the nearest to the
+#: prediction is taken.
+ALMOST = 0.9
 #: The disparity tolerance grows with the frames unseen up to this many frames' worth.
 DISPARITY_FRAMES = 2
 
@@ -284,6 +295,7 @@ def search_object(
     first: tuple | None = None,
     fresh: Sequence[PointPrompt] = (),
     disparities: Callable[[tuple[int, int]], np.ndarray | None] | None = None,
+    depth: Callable[[tuple[int, int], np.ndarray], float | None] | None = None,
 ) -> tuple[tuple[int, int], np.ndarray, tuple[int, int], Template] | None:
     """Find a carried object in this frame (see the module docstring).
 
@@ -319,6 +331,11 @@ def search_object(
         ``disparities(view)``: that view's ``(U, V)`` disparity map (None: unknown); a
         template pixel is then supported only where the view's disparity is near the object's
         predicted disparity (:func:`with_depth`).
+    depth : callable, optional
+        ``depth(view, mask)``: an answer's median disparity in that view (None: unknown). An
+        answer found again after hidden frames, or accepted by :func:`explaining_shift`,
+        must then lie within :func:`predicted_disparity`'s tolerance of the object's
+        disparity (:func:`_accept`).
 
     Returns
     -------
@@ -354,7 +371,7 @@ def search_object(
     others = [v for v in dict.fromkeys([center, *views]) if v != track.view]
     first_stage = match(track.view, radius, first)
     found = _prompt_stage(obj_id, track, first_stage, center, answer, placed, placed_ids,
-                          negatives, use_box, fresh)
+                          negatives, use_box, fresh, depth)
     if found is not None:
         return found
     # the views are ranked by their SSD candidates alone; every shift near the prediction
@@ -365,7 +382,7 @@ def search_object(
     whole = (match(v, None) for v in [track.view, *others[:1]])
     for stage in [*near, *whole]:
         found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
-                              negatives, use_box, fresh)
+                              negatives, use_box, fresh, depth)
         if found is not None:
             return found
     return None
@@ -374,16 +391,17 @@ def search_object(
 def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, int],
                   answer: Callable, placed: Callable, placed_ids: np.ndarray | None,
                   negatives: Sequence[PointPrompt], use_box: bool,
-                  fresh: Sequence[PointPrompt]
+                  fresh: Sequence[PointPrompt], depth: Callable | None = None
                   ) -> tuple[tuple[int, int], np.ndarray, tuple[int, int], Template] | None:
     """Prompt one stage's match (:func:`search_object`, steps 4 and 5): the accepted view,
-    mask, shift and located template, or None."""
+    mask, shift and located template, or None. The support needed is a share of the
+    template's part inside the frame (an object leaving the frame shows only that part)."""
     view, radius, image, template, found, support = stage
     if found is None:
         return None
     carried, _, shift = found
     needed = NEAR_SUPPORT if radius is not None else FAR_SUPPORT
-    if support.sum() < max(MIN_PIXELS, needed * template.mask.sum()):
+    if support.sum() < max(MIN_PIXELS, needed * carried.sum()):
         return None
     known = placed(view)
     seeds = support.copy()
@@ -404,11 +422,14 @@ def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, in
     for chosen in tries:
         points = (*(PointPrompt(x, y, True, view) for x, y in chosen), *negative)
         ref_view, mask = answer(ObjectPrompts(obj_id, points, box))
-        if _accept(mask, support, carried, track,
-                   known if ref_view == view else placed(ref_view), image, template):
-            located = replace(template, origin=(template.origin[0] + shift[0],
-                                                template.origin[1] + shift[1]))
-            return ref_view, mask, shift, located
+        judged = (ref_view, depth) if depth is not None else None
+        at = _accept(mask, support, carried, track,
+                     known if ref_view == view else placed(ref_view), image, template,
+                     shift, radius, judged)
+        if at is not None:
+            located = replace(template, origin=(template.origin[0] + at[0],
+                                                template.origin[1] + at[1]))
+            return ref_view, mask, at, located
     return None
 
 
@@ -426,22 +447,63 @@ def first_look(track: Track, image: np.ndarray, center: tuple[int, int],
     return float(found[1].sum()) / max(int(template.mask.sum()), 1), found
 
 
+def explaining_shift(mask: np.ndarray, template: Template, image: np.ndarray, radius: int
+                     ) -> tuple[int, int] | None:
+    """The shift within ``radius`` pixels of the template's place at which its pixels that
+    still look the same (:func:`lfsam.video.match.robust_costs`' support) cover most of
+    ``mask`` (ties: the nearer shift), if they cover :data:`EXPLAINED` of it and at least
+    :data:`lfsam.video.carry.MIN_PIXELS`; else None (of the shifts within :data:`ALMOST` of
+    the best count, the nearest). An answer is then a part of the object
+    near where it should be, whatever the match chose: the support of a partly hidden
+    object's match may lie on look-alike pixels beside it."""
+    du, dv = np.mgrid[-radius:radius + 1, -radius:radius + 1]
+    du, dv = du.ravel(), dv.ravel()
+    # pixels outside the answer never look like the template: the support counts only it
+    inside = np.where(mask[..., None], image[..., :3], np.float32(1e4)).astype(np.float32)
+    _, counts = robust_costs(replace(template, image=template.image[..., :3]), inside, du, dv)
+    if counts.max() < max(MIN_PIXELS, EXPLAINED * mask.sum()):
+        return None
+    # a part of the object fits the template at a range of shifts: of those within
+    # ALMOST of the best, the nearest to the prediction (the motion decides)
+    near = np.where(counts >= ALMOST * counts.max(), du**2 + dv**2, np.iinfo(np.int64).max)
+    k = int(np.argmin(near))
+    return int(du[k]), int(dv[k])
+
+
 def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: Track,
-            placed: np.ndarray | None, image: np.ndarray, template: Template) -> bool:
-    """Whether an answer is the searched object (see the module docstring, step 5)."""
+            placed: np.ndarray | None, image: np.ndarray, template: Template,
+            shift: tuple[int, int] = (0, 0), radius: int | None = None,
+            depth: tuple | None = None) -> tuple[int, int] | None:
+    """Whether an answer is the searched object (see the module docstring, step 5): the
+    template's shift where it is (``shift``, or :func:`explaining_shift`'s), or None.
+
+    ``depth``: ``(view, depth(view, mask))`` of :func:`search_object`: an object found again
+    after hidden frames, or by :func:`explaining_shift`, must also lie at its depth."""
     area = int(mask.sum())
     if area == 0 or area > MAX_GROWTH * max(track.area, 1) + 50:
-        return False
+        return None
     if placed is not None and (mask & placed).sum() > 0.5 * area:
-        return False
+        return None
     covered = int((mask & support).sum())
+    explained = False
     if covered < 0.5 * support.sum():
         # a support partly on look-alike pixels around the object: the answer must then lie
-        # where the object was carried to and hold a quarter of the support
+        # where the object was carried to and hold a quarter of the support, or be a part of
+        # the template near the prediction
         inside = int((mask & ndimage.binary_dilation(carried, iterations=2)).sum())
         if covered < 0.25 * support.sum() or inside < 0.7 * area:
-            return False
-    return looks_alike(image[mask], template.image[template.mask]) >= MIN_ALIKE
+            at = None if radius is None else explaining_shift(mask, template, image, radius)
+            if at is None:
+                return None
+            shift, explained = at, True
+    if looks_alike(image[mask], template.image[template.mask]) < MIN_ALIKE:
+        return None
+    if depth is not None and (explained or track.unseen > 0):
+        value = depth[1](depth[0], mask)
+        expected, tolerance = predicted_disparity(track)
+        if value is not None and abs(value - expected) > tolerance:
+            return None
+    return shift
 
 
 def update(track: Track, view: tuple[int, int], mask: np.ndarray, located: Template,
@@ -453,10 +515,13 @@ def update(track: Track, view: tuple[int, int], mask: np.ndarray, located: Templ
               + track.disparity * _offset(track.view, center))
     now = np.asarray(located.origin, np.float64) + disparity * _offset(view, center)
     measured = (now - before) / steps
-    if track.sightings >= 1:
-        track.velocity = (float(measured[0]), float(measured[1]))
-        track.disparity_rate = (disparity - track.disparity) / steps
     area = int(mask.sum())
+    if track.sightings >= 1:
+        # a small part of the object fits the template at a range of shifts: where the
+        # answer shows less than HALF_SEEN of the object, the velocity is kept
+        if area >= HALF_SEEN * track.area:
+            track.velocity = (float(measured[0]), float(measured[1]))
+        track.disparity_rate = (disparity - track.disparity) / steps
     if area >= KEEP_TEMPLATE * track.area or track.template is None:
         track.template = Template.from_mask(image, mask)
         track.view = view
