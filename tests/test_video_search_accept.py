@@ -1,0 +1,123 @@
+"""What the search of issue 47 accepts as the searched object (docs/design.md section 10,
+"Tracking", steps 3 and 5): an object leaving the frame is found by the part of it still
+inside; a partly hidden object whose match lies on look-alike pixels beside it is still found
+where a part of its template explains the answer near the prediction, but not at another
+depth; an object found again must lie at its depth; a small visible part does not set the
+velocity."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lfsam.prompts import ObjectPrompts
+from lfsam.video.carry import Template
+from lfsam.video.search import (
+    EXPLAINED,
+    HALF_SEEN,
+    Track,
+    _accept,
+    explaining_shift,
+    search_object,
+    update,
+)
+
+SIZE, CENTER = (40, 50), (2, 2)
+
+
+def _background(seed: int = 5) -> np.ndarray:
+    return np.random.default_rng(seed).uniform(0, 110, (*SIZE, 3)).astype(np.float32)
+
+
+def _answer(labels: np.ndarray):
+    """The oracle of one view: the label under the first positive point."""
+    def answer(obj: ObjectPrompts):
+        point = next(p for p in obj.points if p.positive)
+        view = point.view or CENTER
+        return view, labels == labels[round(point.y), round(point.x)]
+    return answer
+
+
+def test_an_object_leaving_the_frame_is_found_by_its_part_inside():
+    """A 30x30 object with 2 columns (60 pixels, under a tenth of its template) still inside
+    the frame: its support is a share of the template's part inside the frame (before: of the
+    whole template, so it was hidden while 60 of its pixels showed)."""
+    rng = np.random.default_rng(1)
+    look = (np.array([220.0, 60.0, 60.0]) + rng.uniform(-5, 5, (30, 30, 3))).astype(np.float32)
+    image, labels = _background(), np.ones(SIZE, np.int64)
+    image[5:35, 48:50] = look[:, :2]
+    labels[5:35, 48:50] = 2
+    template = Template(look, np.ones((30, 30), bool), (5, 48))
+    track = Track(CENTER, template, area=900, sightings=2)
+    found = search_object(1, track, lambda v: image, CENTER, [], _answer(labels),
+                          lambda v: None, None, (), False)
+    assert found is not None
+    view, mask, shift, _ = found
+    assert view == CENTER and shift == (0, 0)
+    np.testing.assert_array_equal(mask, labels == 2)
+
+
+def _partly_hidden(shift=(3, 5)):
+    """A textured 12x12 template at (10, 10); in the image only its top 5 rows show, moved by
+    ``shift``; the returned support lies on the background elsewhere (look-alike pixels)."""
+    rng = np.random.default_rng(2)
+    look = rng.uniform(130, 255, (12, 12, 3)).astype(np.float32)
+    template = Template(look, np.ones((12, 12), bool), (10, 10))
+    image = _background()
+    r, c = 10 + shift[0], 10 + shift[1]
+    image[r:r + 5, c:c + 12] = look[:5]
+    mask = np.zeros(SIZE, bool)
+    mask[r:r + 5, c:c + 12] = True
+    support = np.zeros(SIZE, bool)
+    support[25:35, 30:40] = True  # the match's support: beside the answer
+    carried = np.zeros(SIZE, bool)
+    carried[24:36, 29:41] = True
+    return template, image, mask, support, carried
+
+
+def test_an_answer_beside_a_look_alike_support_is_explained_by_the_template():
+    template, image, mask, support, carried = _partly_hidden()
+    assert explaining_shift(mask, template, image, 6) == (3, 5)
+    assert explaining_shift(mask, template, image, 2) is None  # too far from the prediction
+    track = Track(CENTER, template, area=144, sightings=3, disparity=1.0)
+    # before: refused (it covers none of the support and lies outside the carried mask)
+    assert _accept(mask, support, carried, track, None, image, template, (0, 0), 6) == (3, 5)
+    # another object of the template's colours but not its pixels: not explained
+    other = image.copy()
+    other[mask] = np.random.default_rng(9).permutation(image[mask])
+    assert _accept(mask, support, carried, track, None, other, template, (0, 0), 6) is None
+    assert EXPLAINED * mask.sum() >= 12
+
+
+def test_the_explained_answer_and_a_found_again_answer_must_lie_at_the_objects_depth():
+    template, image, mask, support, carried = _partly_hidden()
+    track = Track(CENTER, template, area=144, sightings=3, disparity=1.0)
+
+    def at(value):
+        return CENTER, lambda view, m: value
+
+    assert _accept(mask, support, carried, track, None, image, template, (0, 0), 6,
+                   at(1.5)) == (3, 5)
+    assert _accept(mask, support, carried, track, None, image, template, (0, 0), 6,
+                   at(4.0)) is None  # a look-alike at another depth does not steal the id
+    # an answer on the support itself: the depth is checked only after hidden frames
+    on_support = support.copy()
+    image[on_support] = template.image[:10, :10].reshape(-1, 3)
+    assert _accept(on_support, support, carried, track, None, image, template, (1, 2), 6,
+                   at(4.0)) == (1, 2)
+    track.unseen = 2
+    assert _accept(on_support, support, carried, track, None, image, template, (1, 2), 6,
+                   at(4.0)) is None
+    assert _accept(on_support, support, carried, track, None, image, template, (1, 2), 6,
+                   at(2.5)) == (1, 2)  # within two frames' tolerance
+
+
+def test_a_small_visible_part_keeps_the_velocity():
+    template = Template(np.full((10, 10, 3), 200, np.float32), np.ones((10, 10), bool), (10, 10))
+    image = np.zeros((*SIZE, 3), np.float32)
+    for area, moved in ((int(HALF_SEEN * 100) - 10, False), (100, True)):
+        track = Track(CENTER, template, velocity=(1.0, 1.0), area=100, sightings=2)
+        mask = np.zeros(SIZE, bool)
+        mask.flat[:area] = True
+        located = Template(template.image, template.mask, (20, 10))  # 10 rows on
+        update(track, CENTER, mask, located, image, 0.0, CENTER)
+        assert (track.velocity == (10.0, 0.0)) is moved
