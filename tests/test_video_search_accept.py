@@ -2,8 +2,7 @@
 "Tracking", steps 3 and 5): an object leaving the frame is found by the part of it still
 inside; a partly hidden object whose match lies on look-alike pixels beside it is still found
 where a part of its template explains the answer near the prediction, but not at another
-depth; an object found again must lie at its depth; a small visible part does not set the
-velocity."""
+depth; an object found again must lie at its depth."""
 
 from __future__ import annotations
 
@@ -13,12 +12,10 @@ from lfsam.prompts import ObjectPrompts
 from lfsam.video.carry import Template
 from lfsam.video.search import (
     EXPLAINED,
-    HALF_SEEN,
     Track,
     _accept,
     explaining_shift,
     search_object,
-    update,
 )
 
 SIZE, CENTER = (40, 50), (2, 2)
@@ -109,15 +106,3 @@ def test_the_explained_answer_and_a_found_again_answer_must_lie_at_the_objects_d
                    at(4.0)) is None
     assert _accept(on_support, support, carried, track, None, image, template, (1, 2), 6,
                    at(2.5)) == (1, 2)  # within two frames' tolerance
-
-
-def test_a_small_visible_part_keeps_the_velocity():
-    template = Template(np.full((10, 10, 3), 200, np.float32), np.ones((10, 10), bool), (10, 10))
-    image = np.zeros((*SIZE, 3), np.float32)
-    for area, moved in ((int(HALF_SEEN * 100) - 10, False), (100, True)):
-        track = Track(CENTER, template, velocity=(1.0, 1.0), area=100, sightings=2)
-        mask = np.zeros(SIZE, bool)
-        mask.flat[:area] = True
-        located = Template(template.image, template.mask, (20, 10))  # 10 rows on
-        update(track, CENTER, mask, located, image, 0.0, CENTER)
-        assert (track.velocity == (10.0, 0.0)) is moved

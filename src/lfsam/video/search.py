@@ -95,9 +95,6 @@ RESCORED = 2
 NEAR_REACH = 4
 #: A template is replaced by an answer at least this fraction of the object's largest area.
 KEEP_TEMPLATE = 0.6
-#: An answer showing less than this fraction of the object's largest area keeps its velocity
-#: (:func:`update`).
-HALF_SEEN = 0.5
 #: Colour histogram intersection an answer away from the prediction needs.
 MIN_ALIKE = 0.35
 #: Disparity difference (pixels) from the object's last disparity, per frame since it was
@@ -370,13 +367,19 @@ def search_object(
     # carried from there and prompted there); 3. the whole of its own view and the center's
     others = [v for v in dict.fromkeys([center, *views]) if v != track.view]
     first_stage = match(track.view, radius, first)
-    found = _prompt_stage(obj_id, track, first_stage, center, answer, placed, placed_ids,
-                          negatives, use_box, fresh, depth)
-    if found is not None:
-        return found
+    # an object cut by the frame's border in its own view (less than SURE of its template
+    # inside) is prompted in the view that sees most of it: its own view joins the ranking
+    cut = bool(first_stage[4] is not None
+               and first_stage[4][0].sum() < SURE * track.template.mask.sum())
+    if not cut:
+        found = _prompt_stage(obj_id, track, first_stage, center, answer, placed, placed_ids,
+                              negatives, use_box, fresh, depth)
+        if found is not None:
+            return found
     # the views are ranked by their SSD candidates alone; every shift near the prediction
     # is scored (near_support) only in the RESCORED best-ranked views, about to be prompted
-    near = sorted((match(v, radius, reach=0) for v in others), key=lambda st: -share(st))
+    near = sorted([*(match(v, radius, reach=0) for v in others), *([first_stage] * cut)],
+                  key=lambda st: -share(st))
     near = (st if share(st) >= SURE or rank >= RESCORED else match(st[0], radius)
             for rank, st in enumerate(near))
     whole = (match(v, None) for v in [track.view, *others[:1]])
@@ -515,13 +518,10 @@ def update(track: Track, view: tuple[int, int], mask: np.ndarray, located: Templ
               + track.disparity * _offset(track.view, center))
     now = np.asarray(located.origin, np.float64) + disparity * _offset(view, center)
     measured = (now - before) / steps
-    area = int(mask.sum())
     if track.sightings >= 1:
-        # a small part of the object fits the template at a range of shifts: where the
-        # answer shows less than HALF_SEEN of the object, the velocity is kept
-        if area >= HALF_SEEN * track.area:
-            track.velocity = (float(measured[0]), float(measured[1]))
+        track.velocity = (float(measured[0]), float(measured[1]))
         track.disparity_rate = (disparity - track.disparity) / steps
+    area = int(mask.sum())
     if area >= KEEP_TEMPLATE * track.area or track.template is None:
         track.template = Template.from_mask(image, mask)
         track.view = view
