@@ -106,3 +106,20 @@ def test_the_explained_answer_and_a_found_again_answer_must_lie_at_the_objects_d
                    at(4.0)) is None
     assert _accept(on_support, support, carried, track, None, image, template, (1, 2), 6,
                    at(2.5)) == (1, 2)  # within two frames' tolerance
+
+
+def test_the_objects_disparity_is_the_median_over_an_answer_spilling_onto_the_background():
+    """A 6x6 object at disparity 2 on a background at -1, answered one pixel too wide (the
+    oracle's jitter): the median stays on the object (the mean, 0.3, was 1.7 off, beyond the
+    depth gate's tolerance, so the gate refused the object's own pixels)."""
+    from lfsam.video.frame_search import median_disparity, object_disparity
+    from lfsam.video.search import DISPARITY_TOLERANCE
+
+    disparity = np.full(SIZE, -1.0, np.float32)
+    disparity[10:16, 10:16] = 2.0
+    dilated = np.zeros(SIZE, bool)
+    dilated[9:17, 9:17] = True
+    assert object_disparity(disparity, dilated) == 2.0
+    assert abs(float(disparity[dilated].mean()) - 2.0) > DISPARITY_TOLERANCE
+    assert median_disparity(disparity, np.zeros(SIZE, bool)) is None
+    assert object_disparity(np.full(SIZE, np.nan, np.float32), dilated) == 0.0

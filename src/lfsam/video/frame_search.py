@@ -18,7 +18,7 @@ from lfsam.video.carry import Template
 from lfsam.video.prompts import negatives_since, prompts_at, start_frame
 from lfsam.video.search import Track, first_look, search_object, update
 
-__all__ = ["carried_to", "mean_disparity", "median_disparity", "search_frame"]
+__all__ = ["carried_to", "median_disparity", "object_disparity", "search_frame"]
 
 
 def carried_to(mask: np.ndarray, disparity: object, source: tuple[int, int],
@@ -46,14 +46,6 @@ def carried_to(mask: np.ndarray, disparity: object, source: tuple[int, int],
     return out
 
 
-def mean_disparity(disparity: object, mask: np.ndarray) -> float:
-    """The mean of a view's disparity (a tensor or array) over ``mask`` (0 where empty)."""
-    values = np.asarray(disparity.cpu().numpy() if hasattr(disparity, "cpu") else disparity)
-    picked = values[mask]
-    picked = picked[np.isfinite(picked)]
-    return float(picked.mean()) if picked.size else 0.0
-
-
 def median_disparity(disparity: object, mask: np.ndarray) -> float | None:
     """The median of a view's disparity over ``mask`` (None where it has no finite value):
     an answer's depth, robust to a boundary that spills onto the background."""
@@ -61,6 +53,16 @@ def median_disparity(disparity: object, mask: np.ndarray) -> float | None:
     picked = values[mask]
     picked = picked[np.isfinite(picked)]
     return float(np.median(picked)) if picked.size else None
+
+
+def object_disparity(disparity: object, mask: np.ndarray) -> float:
+    """An object's disparity: :func:`median_disparity` over its answer (0 where it has none).
+    The median, not the mean: an answer whose boundary spills a pixel onto the background
+    (the oracle's jitter, SAM's soft edges) would pull a small object's mean towards the
+    background's depth, and the depth gate (:data:`lfsam.video.search.DEPTH_GATE`) would then
+    refuse the object's own pixels."""
+    value = median_disparity(disparity, mask)
+    return 0.0 if value is None else value
 
 
 def search_frame(predictor: object, lf: object, index: int, order: Sequence[int],
@@ -135,7 +137,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             track.unseen += 1
             states[obj_id] = track.state = "hidden"
             continue
-        disparity = mean_disparity(predictor.disparity(view), mask)
+        disparity = object_disparity(predictor.disparity(view), mask)
         old = tracks.get(obj_id)
         track = Track(view, Template.from_mask(lf.views[view], mask), disparity=disparity,
                       area=int(mask.sum()), sightings=1, state="prompted")
@@ -162,7 +164,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             continue
         view, mask, _shift, located = found
         update(track, view, mask, located, lf.views[view],
-               mean_disparity(predictor.disparity(view), mask), center)
+               object_disparity(predictor.disparity(view), mask), center)
         states[obj_id] = track.state
         place(obj_id, view, mask)
     for obj_id in order:

@@ -71,7 +71,7 @@ from lfsam.result import SegmentationResult
 from lfsam.segmenters.base import Segmenter
 from lfsam.text_search import find_text
 from lfsam.video.carry import Template, carry
-from lfsam.video.frame_search import mean_disparity, search_frame
+from lfsam.video.frame_search import object_disparity, search_frame
 from lfsam.video.memory import reference_memory_for
 from lfsam.video.prompts import frame_of, negatives_since, prompts_at, start_frame
 from lfsam.video.search import MAX_GROWTH, Track
@@ -295,7 +295,7 @@ class OnlineTracker:
                     view, mask, _ = predictor.predict_reference(obj_id)
                     self._tracks[obj_id] = _Track(
                         view, Template.from_mask(lf.views[view], mask), area=int(mask.sum()),
-                        disparity=mean_disparity(predictor.disparity(view), mask),
+                        disparity=object_disparity(predictor.disparity(view), mask),
                         sightings=1, state="prompted")
                     states[obj_id] = "prompted"
             found = [] if first_auto else [i for i in sorted(self._tracks)
