@@ -123,3 +123,27 @@ def test_the_objects_disparity_is_the_median_over_an_answer_spilling_onto_the_ba
     assert abs(float(disparity[dilated].mean()) - 2.0) > DISPARITY_TOLERANCE
     assert median_disparity(disparity, np.zeros(SIZE, bool)) is None
     assert object_disparity(np.full(SIZE, np.nan, np.float32), dilated) == 0.0
+
+
+def test_a_sliver_at_the_border_far_from_the_prediction_does_not_take_a_hidden_objects_id():
+    """A look-alike entering at the frame's border, far from where a hidden object should
+    be, shows a quarter of the object's template inside the frame: away from the prediction
+    the support needed is a share of the whole template, so the id is not given to it (with
+    the share of the part inside the frame, it was)."""
+    rng = np.random.default_rng(4)
+    look = (np.array([220.0, 60.0, 60.0]) + rng.uniform(-5, 5, (20, 20, 3))).astype(np.float32)
+    image, labels = _background(), np.ones(SIZE, np.int64)
+    image[10:30, 45:50] = look[:, :5]
+    labels[10:30, 45:50] = 2
+    template = Template(look, np.ones((20, 20), bool), (10, 10))
+    track = Track(CENTER, template, area=400, sightings=3, unseen=1)
+    found = search_object(1, track, lambda v: image, CENTER, [], _answer(labels),
+                          lambda v: None, None, (), False)
+    assert found is None
+    # the same sliver where the object is predicted (it is leaving the frame there): found
+    near = Track(CENTER, Template(look, np.ones((20, 20), bool), (10, 45)), area=400,
+                 sightings=3)
+    found = search_object(1, near, lambda v: image, CENTER, [], _answer(labels),
+                          lambda v: None, None, (), False)
+    assert found is not None
+    np.testing.assert_array_equal(found[1], labels == 2)

@@ -406,14 +406,20 @@ def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, in
                   fresh: Sequence[PointPrompt], depth: Callable | None = None
                   ) -> tuple[tuple[int, int], np.ndarray, tuple[int, int], Template] | None:
     """Prompt one stage's match (:func:`search_object`, steps 4 and 5): the accepted view,
-    mask, shift and located template, or None. The support needed is a share of the
-    template's part inside the frame (an object leaving the frame shows only that part)."""
+    mask, shift and located template, or None. The support needed near the prediction is a
+    share of the template's part inside the frame (an object leaving the frame shows only
+    that part), elsewhere of the whole template."""
     view, radius, image, template, found, support = stage
     if found is None:
         return None
     carried, _, shift = found
-    needed = NEAR_SUPPORT if radius is not None else FAR_SUPPORT
-    if support.sum() < max(MIN_PIXELS, needed * carried.sum()):
+    # near the prediction a share of the template's part inside the frame (an object leaving
+    # the frame shows only that part); away from it a share of the whole template: a sliver
+    # at the frame's border far from where the object should be is not enough to give its
+    # id back (a look-alike entering there took a hidden object's id)
+    needed = (NEAR_SUPPORT * carried.sum() if radius is not None
+              else FAR_SUPPORT * template.mask.sum())
+    if support.sum() < max(MIN_PIXELS, needed):
         return None
     known = placed(view)
     seeds = support.copy()
