@@ -45,9 +45,7 @@ later frame and comes back under its own id (*found*). The search of one object 
    appearance, motion and depth before an id is given back, so that a look-alike elsewhere
    in depth cannot take it. The support needed is a share of the template's part inside the
    frame (an object leaving the frame shows only that part), and an object cut by the
-   frame's border in its own view is prompted in the view that sees most of it. Where every
-   answer of a stage is refused, the support left outside the refused answers (a background
-   of the object's colours, another object) is prompted once more (:data:`RETRY_LEFT`).
+   frame's border in its own view is prompted in the view that sees most of it.
 
 The template is replaced by the answer when the answer shows most of the object; a mostly
 hidden answer keeps the fuller template (moved to where it was found). Each object's state per
