@@ -126,9 +126,6 @@ EXPLAINED = 0.5
 #: Of the shifts explaining an answer this nearly as well as the best, the nearest to the
 #: prediction is taken.
 ALMOST = 0.9
-#: Whether the support left after the refused answers is prompted once more
-#: (:func:`_prompt_stage`).
-RETRY_LEFT = True
 #: An answer grown past :data:`MAX_GROWTH` (an object first seen mostly covered, then
 #: uncovered) is accepted where it holds 90 % of the support, is at most this share of the
 #: view and lies at the object's depth (:func:`_accept`).
@@ -447,29 +444,17 @@ def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, in
     # all positive points together; where that answer is refused, each alone (a point on a
     # look-alike pixel of the background must not sink the others)
     tries = [positives] + ([[p] for p in positives] if len(positives) > 1 else [])
-    refused = np.zeros_like(support)
-    for retry in (False, True):
-        for chosen in tries:
-            points = (*(PointPrompt(x, y, True, view) for x, y in chosen), *negative)
-            ref_view, mask = answer(ObjectPrompts(obj_id, points, box))
-            judged = (ref_view, depth) if depth is not None else None
-            at = _accept(mask, support, carried, track,
-                         known if ref_view == view else placed(ref_view), image, template,
-                         shift, radius, judged)
-            if at is not None:
-                located = replace(template, origin=(template.origin[0] + at[0],
-                                                    template.origin[1] + at[1]))
-                return ref_view, mask, at, located
-            if ref_view == view:
-                refused |= mask
-        # the refused answers are something else (a look-alike background, another object):
-        # the support they hold is not this object's; what is left of it is prompted once more
-        left = support & ~refused
-        if retry or not RETRY_LEFT or left.sum() == support.sum() or left.sum() < max(
-                MIN_PIXELS, needed):
-            break
-        support = left
-        tries = [[p] for p in _positive_points(left, 1)]
+    for chosen in tries:
+        points = (*(PointPrompt(x, y, True, view) for x, y in chosen), *negative)
+        ref_view, mask = answer(ObjectPrompts(obj_id, points, box))
+        judged = (ref_view, depth) if depth is not None else None
+        at = _accept(mask, support, carried, track,
+                     known if ref_view == view else placed(ref_view), image, template,
+                     shift, radius, judged)
+        if at is not None:
+            located = replace(template, origin=(template.origin[0] + at[0],
+                                                template.origin[1] + at[1]))
+            return ref_view, mask, at, located
     return None
 
 
