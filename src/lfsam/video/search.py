@@ -36,7 +36,9 @@ later frame and comes back under its own id (*found*). The search of one object 
    mostly where the template was carried to: a support partly on look-alike pixels around the
    object; or, near the prediction, a part of the template explains it at a shift within the
    search radius, :func:`explaining_shift`, the shift then used), is at most
-   :data:`MAX_GROWTH` times the object's largest area, does not lie mostly on an object
+   :data:`MAX_GROWTH` times the object's largest area (or, an object being uncovered, holds
+   90 % of the support, is at most :data:`UNCOVERED_VIEW` of the view and lies at its depth),
+   does not lie mostly on an object
    placed earlier in that view, looks like the template (colour histograms,
    :func:`looks_alike`) and, when found again after hidden frames or explained so, lies at
    the object's depth (its median disparity within :func:`predicted_disparity`'s tolerance):
@@ -124,6 +126,11 @@ EXPLAINED = 0.5
 #: Of the shifts explaining an answer this nearly as well as the best, the nearest to the
 #: prediction is taken.
 ALMOST = 0.9
+#: An answer grown past :data:`MAX_GROWTH` (an object first seen mostly covered, then
+#: uncovered) is accepted where it holds 90 % of the support, is at most this share of the
+#: view and lies at the object's depth (:func:`_accept`).
+UNCOVERED = True
+UNCOVERED_VIEW = 0.25
 #: The disparity tolerance grows with the frames unseen up to this many frames' worth.
 DISPARITY_FRAMES = 2
 
@@ -498,11 +505,17 @@ def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: T
     ``depth``: ``(view, depth(view, mask))`` of :func:`search_object`: an object found again
     after hidden frames, or by :func:`explaining_shift`, must also lie at its depth."""
     area = int(mask.sum())
-    if area == 0 or area > MAX_GROWTH * max(track.area, 1) + 50:
+    covered = int((mask & support).sum())
+    grown = area > MAX_GROWTH * max(track.area, 1) + 50
+    # an object first seen mostly covered grows past MAX_GROWTH as it is uncovered: it is
+    # still the object where the answer holds its whole support, is at most UNCOVERED_VIEW of
+    # the view (not the background) and lies at its depth (checked below)
+    if area == 0 or (grown and not (UNCOVERED and depth is not None
+                                    and covered >= 0.9 * support.sum()
+                                    and area <= UNCOVERED_VIEW * mask.size)):
         return None
     if placed is not None and (mask & placed).sum() > 0.5 * area:
         return None
-    covered = int((mask & support).sum())
     explained = False
     if covered < 0.5 * support.sum():
         # a support partly on look-alike pixels around the object: the answer must then lie
@@ -516,7 +529,7 @@ def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: T
             shift, explained = at, True
     if looks_alike(image[mask], template.image[template.mask]) < MIN_ALIKE:
         return None
-    if depth is not None and (explained or track.unseen > 0):
+    if depth is not None and (explained or grown or track.unseen > 0):
         value = depth[1](depth[0], mask)
         expected, tolerance = predicted_disparity(track)
         if value is not None and abs(value - expected) > tolerance:
