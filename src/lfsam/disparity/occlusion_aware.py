@@ -22,14 +22,18 @@ Steps, all whole-image torch operations (any device, CUDA when present):
    hypotheses is then no longer the resolution; :func:`subpixel_winner`).
 5. *Confidence* (:mod:`lfsam.disparity.confidence`): the cost-curve margin times the left-right
    consistency with the outermost views of the reference's row and column.
+   Steps 2-5 run with two feature scales (3 x 3 and 5 x 5 normalisation windows), and every
+   pixel keeps the 5 x 5 result away from intensity edges and depth jumps
+   (:mod:`lfsam.disparity.feature_scales`).
 6. *Fusion* (:mod:`lfsam.disparity.fusion`, when the reference's row and column are complete):
    the structure tensor's disparity where this one is unsure and the tensor sure (the bands
    along depth edges), the mean of the two where they agree within a quarter step.
 
 Measured (``benchmarks/bench_disparity.py``; docs/performance.md, "Disparity"): BadPix(0.07) on
-HCI antinous 6.1 % and cotton 2.2 % (8-pixel border excluded; 7.3 % and 2.6 % before issue 45's
-view-set choice and aggregation), lower BadPix and MSE than the sheared structure tensor on the
-synthetic scenes.
+HCI antinous 5.0 % and cotton 2.2 % (8-pixel border excluded; over all pixels 5.6 % and 2.3 %;
+7.3 % and 2.6 % before issue 45's view-set choice and aggregation, 6.1 % and 2.2 % before its
+two feature scales), lower BadPix and MSE than the sheared structure tensor on the synthetic
+scenes.
 """
 
 from __future__ import annotations
