@@ -26,13 +26,14 @@ Steps, all whole-image torch operations (any device, CUDA when present):
    pixel keeps the 5 x 5 result away from intensity edges and depth jumps
    (:mod:`lfsam.disparity.feature_scales`).
 6. *Fusion* (:mod:`lfsam.disparity.fusion`, when the reference's row and column are complete):
-   the structure tensor's disparity where this one is unsure and the tensor sure (the bands
-   along depth edges), the mean of the two where they agree within a quarter step.
+   the structure tensor's disparity where this one is unsure, the tensor sure and its value
+   farther (the bands along depth edges), the mean of the two where they agree within a
+   quarter step.
 
 Measured (``benchmarks/bench_disparity.py``; docs/performance.md, "Disparity"): BadPix(0.07) on
-HCI antinous 5.0 % and cotton 2.2 % (8-pixel border excluded; over all pixels 5.6 % and 2.3 %;
+HCI antinous 4.7 % and cotton 2.2 % (8-pixel border excluded; over all pixels 5.4 % and 2.3 %;
 7.3 % and 2.6 % before issue 45's view-set choice and aggregation, 6.1 % and 2.2 % before its
-two feature scales), lower BadPix and MSE than the sheared structure tensor on the synthetic
+two feature scales and farther-only fusion), lower BadPix and MSE than the sheared structure tensor on the synthetic
 scenes.
 """
 
@@ -307,7 +308,7 @@ def estimate_disparity_occlusion_aware(
     fusion : bool
         Fuse with the structure tensor's disparity over the same range
         (:func:`lfsam.disparity.fusion.fuse_disparities`): its value where this estimate is
-        unsure and the tensor sure (depth edges), the mean where both agree. About 1.6 times the
+        unsure and the tensor sure and farther (depth edges), the mean where both agree. About 1.6 times the
         time; the confidence stays this estimator's. Only where the reference's row and column
         are complete (a sparse partial grid skips it).
 
