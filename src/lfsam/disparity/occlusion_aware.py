@@ -33,8 +33,8 @@ Steps, all whole-image torch operations (any device, CUDA when present):
 Measured (``benchmarks/bench_disparity.py``; docs/performance.md, "Disparity"): BadPix(0.07) on
 HCI antinous 4.7 % and cotton 2.2 % (8-pixel border excluded; over all pixels 5.4 % and 2.3 %;
 7.3 % and 2.6 % before issue 45's view-set choice and aggregation, 6.1 % and 2.2 % before its
-two feature scales and farther-only fusion), lower BadPix and MSE than the sheared structure tensor on the synthetic
-scenes.
+two feature scales and farther-only fusion), lower BadPix and MSE than the sheared structure
+tensor on the synthetic scenes.
 """
 
 from __future__ import annotations
@@ -308,8 +308,8 @@ def estimate_disparity_occlusion_aware(
     fusion : bool
         Fuse with the structure tensor's disparity over the same range
         (:func:`lfsam.disparity.fusion.fuse_disparities`): its value where this estimate is
-        unsure and the tensor sure and farther (depth edges), the mean where both agree. About 1.6 times the
-        time; the confidence stays this estimator's. Only where the reference's row and column
+        unsure and the tensor sure and farther (depth edges), the mean where both agree. About
+        1.6 times the time; the confidence stays this estimator's. Only where the reference's row and column
         are complete (a sparse partial grid skips it).
 
     Returns
