@@ -309,8 +309,8 @@ def estimate_disparity_occlusion_aware(
         Fuse with the structure tensor's disparity over the same range
         (:func:`lfsam.disparity.fusion.fuse_disparities`): its value where this estimate is
         unsure and the tensor sure and farther (depth edges), the mean where both agree. About
-        1.6 times the time; the confidence stays this estimator's. Only where the reference's row and column
-        are complete (a sparse partial grid skips it).
+        1.6 times the time; the confidence stays this estimator's. Only where the reference's
+        row and column are complete (a sparse partial grid skips it).
 
     Returns
     -------
