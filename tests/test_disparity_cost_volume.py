@@ -173,8 +173,17 @@ def test_fusion_takes_the_sure_tensor_where_the_volume_is_unsure_and_averages_ag
     confidence = torch.tensor([[0.01, 0.01, 0.9, 0.9]])
     other = torch.tensor([[2.0, 2.0, 1.02, 2.0]])
     other_confidence = torch.tensor([[0.9, 0.5, 0.9, 0.9]])
-    fused = fuse_disparities(disparity, confidence, other, other_confidence, step=0.2)
+    fused = fuse_disparities(
+        disparity, confidence, other, other_confidence, step=0.2, farther_only=False
+    )
     assert torch.allclose(fused, torch.tensor([[2.0, 1.0, 1.01, 1.0]]))
+    # by default only a farther (lower) value of the tensor replaces the volume's: a nearer
+    # one (2.0 against 1.0) does not, a farther one (0.3) does
+    fused = fuse_disparities(disparity, confidence, other, other_confidence, step=0.2)
+    assert torch.allclose(fused, torch.tensor([[1.0, 1.0, 1.01, 1.0]]))
+    farther = torch.tensor([[0.3, 0.3, 1.02, 0.3]])
+    fused = fuse_disparities(disparity, confidence, farther, other_confidence, step=0.2)
+    assert torch.allclose(fused, torch.tensor([[0.3, 1.0, 1.01, 1.0]]))
 
 
 def test_parabola_is_biased_on_a_v_shaped_cost():

@@ -137,6 +137,14 @@ class ViewSet:
         """Where the views are."""
         return self.gray.device
 
+    def with_features(self, features: torch.Tensor, reference_features: torch.Tensor) -> ViewSet:
+        """The same views with other matching features (e.g. a wider normalisation window,
+        :mod:`lfsam.disparity.feature_scales`)."""
+        return ViewSet(
+            self.reference, self.gray, features, reference_features, self.offsets, self.colour,
+            self.grays,
+        )
+
 
 def view_set(
     views: LightField | np.ndarray,

@@ -22,14 +22,19 @@ Steps, all whole-image torch operations (any device, CUDA when present):
    hypotheses is then no longer the resolution; :func:`subpixel_winner`).
 5. *Confidence* (:mod:`lfsam.disparity.confidence`): the cost-curve margin times the left-right
    consistency with the outermost views of the reference's row and column.
+   Steps 2-5 run with two feature scales (3 x 3 and 5 x 5 normalisation windows), and every
+   pixel keeps the 5 x 5 result away from intensity edges and depth jumps
+   (:mod:`lfsam.disparity.feature_scales`).
 6. *Fusion* (:mod:`lfsam.disparity.fusion`, when the reference's row and column are complete):
-   the structure tensor's disparity where this one is unsure and the tensor sure (the bands
-   along depth edges), the mean of the two where they agree within a quarter step.
+   the structure tensor's disparity where this one is unsure, the tensor sure and its value
+   farther (the bands along depth edges), the mean of the two where they agree within a
+   quarter step.
 
 Measured (``benchmarks/bench_disparity.py``; docs/performance.md, "Disparity"): BadPix(0.07) on
-HCI antinous 6.1 % and cotton 2.2 % (8-pixel border excluded; 7.3 % and 2.6 % before issue 45's
-view-set choice and aggregation), lower BadPix and MSE than the sheared structure tensor on the
-synthetic scenes.
+HCI antinous 4.7 % and cotton 2.2 % (8-pixel border excluded; over all pixels 5.4 % and 2.3 %;
+7.3 % and 2.6 % before issue 45's view-set choice and aggregation, 6.1 % and 2.2 % before its
+two feature scales and farther-only fusion), lower BadPix and MSE than the sheared structure
+tensor on the synthetic scenes.
 """
 
 from __future__ import annotations
@@ -46,8 +51,9 @@ from lfsam.disparity.confidence import (
     consistency_confidence,
     margin_confidence,
 )
-from lfsam.disparity.cost_volume import build_cost_volume, view_set
+from lfsam.disparity.cost_volume import ViewSet, build_cost_volume, matching_features, view_set
 from lfsam.disparity.estimate import DisparityEstimate
+from lfsam.disparity.feature_scales import fine_scale_mask
 from lfsam.disparity.filters import guided_filter
 from lfsam.disparity.fusion import fuse_disparities
 from lfsam.disparity.range import estimate_disparity_range
@@ -178,6 +184,51 @@ def _full_cross(views: LightField | np.ndarray, offsets: np.ndarray) -> bool:
     return in_row == t_count - 1 and in_column == s_count - 1
 
 
+def _estimate_one_scale(
+    views_around: ViewSet,
+    hypotheses: np.ndarray,
+    *,
+    truncation: float,
+    selection_radius: int,
+    occlusion_aware: bool,
+    full_set_ratio: float | None,
+    aggregation: str,
+    aggregation_radius: int,
+    line_radius: int,
+    aggregation_eps: float,
+    subpixel_fit: str,
+    step: float,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Steps 2-5 of the module docstring with the features of ``views_around``: the disparity
+    (winner-take-all, sub-pixel) and its confidence."""
+    cost = build_cost_volume(
+        views_around,
+        hypotheses,
+        truncation=truncation,
+        selection_radius=selection_radius,
+        occlusion_aware=occlusion_aware,
+        full_set_ratio=full_set_ratio,
+    )
+    if aggregation == "oriented":
+        cost = aggregate_costs(
+            cost,
+            views_around.colour,
+            square_radius=aggregation_radius,
+            line_radius=line_radius,
+            eps=aggregation_eps,
+        )
+    else:
+        cost = guided_filter(views_around.gray, cost, aggregation_radius, aggregation_eps)
+    cost = cost.contiguous()
+    values = torch.as_tensor(hypotheses, dtype=torch.float32, device=cost.device)
+    disparity, index = subpixel_winner(cost, values, subpixel_fit)
+    margin = margin_confidence(cost, index)
+    agreement = consistency_confidence(
+        cost, values, disparity, _check_offsets(views_around.offsets), sigma=max(step, 0.1)
+    )
+    return disparity, combine_confidence(margin, agreement)
+
+
 def estimate_disparity_occlusion_aware(
     views: LightField | np.ndarray,
     disparity_range: tuple[float, float] | None = None,
@@ -188,6 +239,7 @@ def estimate_disparity_occlusion_aware(
     max_step: float = 0.25,
     feature_radius: int = 1,
     feature_eps: float = 0.002,
+    wide_feature_radius: int | None = 2,
     truncation: float = 1.0,
     selection_radius: int = 2,
     occlusion_aware: bool = True,
@@ -223,6 +275,11 @@ def estimate_disparity_occlusion_aware(
     feature_radius, feature_eps : int, float
         Window radius and regulariser of the local intensity normalisation
         (:func:`lfsam.disparity.cost_volume.matching_features`).
+    wide_feature_radius : int, optional
+        Radius of the second, wider feature window, whose result replaces the fine one's away
+        from intensity edges and depth jumps (:mod:`lfsam.disparity.feature_scales`; about 1.6
+        times the time); None (or ``feature_radius``): one scale only (before issue 45's third
+        round).
     truncation : float
         Largest cost of one view at one pixel.
     selection_radius : int
@@ -251,9 +308,9 @@ def estimate_disparity_occlusion_aware(
     fusion : bool
         Fuse with the structure tensor's disparity over the same range
         (:func:`lfsam.disparity.fusion.fuse_disparities`): its value where this estimate is
-        unsure and the tensor sure (depth edges), the mean where both agree. About 1.6 times the
-        time; the confidence stays this estimator's. Only where the reference's row and column
-        are complete (a sparse partial grid skips it).
+        unsure and the tensor sure and farther (depth edges), the mean where both agree. About
+        1.6 times the time; the confidence stays this estimator's. Only where the reference's
+        row and column are complete (a sparse partial grid skips it).
 
     Returns
     -------
@@ -280,33 +337,29 @@ def estimate_disparity_occlusion_aware(
             source = "estimated"
         hypotheses = disparity_hypotheses(disparity_range, num_hypotheses, max_step)
         lo, hi = float(hypotheses[0]), float(hypotheses[-1])
-        cost = build_cost_volume(
-            views_around,
-            hypotheses,
-            truncation=truncation,
-            selection_radius=selection_radius,
-            occlusion_aware=occlusion_aware,
-            full_set_ratio=full_set_ratio,
-        )
-        if aggregation == "oriented":
-            cost = aggregate_costs(
-                cost,
-                views_around.colour,
-                square_radius=aggregation_radius,
-                line_radius=line_radius,
-                eps=aggregation_eps,
-            )
-        else:
-            cost = guided_filter(views_around.gray, cost, aggregation_radius, aggregation_eps)
-        cost = cost.contiguous()
-        values = torch.as_tensor(hypotheses, dtype=torch.float32, device=cost.device)
-        disparity, index = subpixel_winner(cost, values, subpixel_fit)
         step = float(hypotheses[1] - hypotheses[0]) if len(hypotheses) > 1 else 1.0
-        margin = margin_confidence(cost, index)
-        agreement = consistency_confidence(
-            cost, values, disparity, _check_offsets(views_around.offsets), sigma=max(step, 0.1)
-        )
-        confidence = combine_confidence(margin, agreement)
+        scale_options = {
+            "truncation": truncation,
+            "selection_radius": selection_radius,
+            "occlusion_aware": occlusion_aware,
+            "full_set_ratio": full_set_ratio,
+            "aggregation": aggregation,
+            "aggregation_radius": aggregation_radius,
+            "line_radius": line_radius,
+            "aggregation_eps": aggregation_eps,
+            "subpixel_fit": subpixel_fit,
+            "step": step,
+        }
+        disparity, confidence = _estimate_one_scale(views_around, hypotheses, **scale_options)
+        if wide_feature_radius is not None and wide_feature_radius != feature_radius:
+            wide = views_around.with_features(
+                matching_features(views_around.grays, wide_feature_radius, feature_eps),
+                matching_features(views_around.gray, wide_feature_radius, feature_eps),
+            )
+            wide_disparity, wide_confidence = _estimate_one_scale(wide, hypotheses, **scale_options)
+            fine = fine_scale_mask(views_around.gray, disparity)
+            disparity = torch.where(fine, disparity, wide_disparity)
+            confidence = torch.where(fine, confidence, wide_confidence)
         fused = fusion and _full_cross(views, views_around.offsets)
         if fused:
             tensor = estimate_disparity_structure_tensor(
@@ -332,6 +385,7 @@ def estimate_disparity_occlusion_aware(
         "views_used": len(views_around.offsets) + 1,
         "feature_radius": feature_radius,
         "feature_eps": feature_eps,
+        "wide_feature_radius": wide_feature_radius,
         "truncation": truncation,
         "selection_radius": selection_radius,
         "occlusion_aware": occlusion_aware,

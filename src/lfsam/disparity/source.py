@@ -36,8 +36,10 @@ __all__ = ["load_disparity_spec", "resolve_disparity", "resolve_view_disparity"]
 #: "Disparity estimation") but the masks carried with it are worse: on 9x9 synthetic scenes
 #: (oracle, estimated disparity) 13% more wrong pixels in the views filled by
 #: ``--refine-views sparse`` and a lower SIoU with every view refined (docs/design.md
-#: section 3.2).
-CARRYING_OPTIONS: dict[str, bool] = {"fusion": False}
+#: section 3.2). It also keeps the single feature scale (``wide_feature_radius=None``): the
+#: second, wider scale (issue 45, third round) roughly doubles the estimate's time and has not
+#: been measured on carried masks, so segmentation keeps the estimate it was measured with.
+CARRYING_OPTIONS: dict[str, bool | None] = {"fusion": False, "wide_feature_radius": None}
 
 DisparitySpec = str | os.PathLike | np.ndarray
 
