@@ -162,9 +162,9 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             track.lost = True
             states[obj_id] = track.state = "hidden"
             continue
-        view, mask, _shift, located = found
+        view, mask, shift, located = found
         update(track, view, mask, located, lf.views[view],
-               object_disparity(predictor.disparity(view), mask), center)
+               object_disparity(predictor.disparity(view), mask), center, shift is not None)
         states[obj_id] = track.state
         place(obj_id, view, mask)
     for obj_id in order:

@@ -21,7 +21,10 @@ from lfsam.video.carry import (
     search_window,
 )
 
-__all__ = ["MAX_GATHER", "cost_map", "pixel_costs", "placed_at", "robust_costs", "with_depth"]
+__all__ = [
+    "MAX_GATHER", "cost_map", "likely_shifts", "pixel_costs", "placed_at", "robust_costs",
+    "with_depth",
+]
 
 #: At most this many (shift, pixel) pairs are gathered by :func:`robust_costs`: beyond it,
 #: every k-th template pixel is scored and the sums are scaled (many shifts of a large
@@ -90,6 +93,57 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
     else:
         count, own = out[2], out[3]
     return masked_cost(own, cross, energy, count, float(m.sum()), margins)
+
+
+#: Colour bins per channel of :func:`likely_shifts`' look-up (as
+#: :func:`lfsam.video.search.looks_alike`'s histograms).
+BINS = 6
+
+
+def likely_shifts(template: Template, image: np.ndarray, radius: int, count: int,
+                  taken: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The ``count`` shifts within ``radius`` pixels of the template's place where most of its
+    pixels land on pixels that *could* support it, all shifts at once (one batch of real
+    FFTs): a view pixel could support the template where its colour lies in a colour bin of
+    the template's pixels (:data:`BINS` per channel) and, with a
+    disparity channel (:func:`with_depth`), it lies within the depth gate. The count is an
+    upper bound of :func:`robust_costs`' support that does not pair pixels, so it is not led
+    astray by a cover over most of the template as the masked SSD is: the candidates for
+    an object whose prediction missed it (the search's widening stage,
+    :func:`lfsam.video.search.search_object`), scored exactly by :func:`robust_costs` after.
+    ``taken``: the view's pixels known to be other objects (``(U, V)`` bool), which cannot.
+
+    Returns
+    -------
+    du, dv : (count,) int arrays
+        The shifts, the likeliest first (ties: the nearer).
+    """
+    window, valid, (top, left, bottom, right) = search_window(template, image, radius)
+    look = template.image[template.mask]
+    size = BINS ** 3
+
+    def bins(values: np.ndarray) -> np.ndarray:
+        q = np.clip((values[..., :3] * BINS / 256.0).astype(np.int64), 0, BINS - 1)
+        return (q[..., 0] * BINS + q[..., 1]) * BINS + q[..., 2]
+
+    present = np.zeros((BINS,) * 3, bool)
+    present.reshape(-1)[bins(look)] = True
+    present = present.reshape(size)
+    could = present[bins(window)] & (valid > 0)
+    if taken is not None:
+        could &= search_window(template, taken[..., None].astype(np.float32),
+                               radius)[0][..., 0] == 0
+    if window.shape[-1] > 3:  # the depth gate: the template's pixels are all at one depth
+        could &= np.abs(window[..., 3] - look[0, 3]) <= MAX_PIXEL_DIFFERENCE
+    h, w = template.mask.shape
+    rh, rw = could.shape
+    shape = (fft.next_fast_len(rh, True), fft.next_fast_len(rw, True))
+    x_hat = fft.rfft2(could.astype(np.float32), s=shape)
+    k_hat = fft.rfft2(template.mask[::-1, ::-1].astype(np.float32), s=shape)
+    score = fft.irfft2(x_hat * k_hat, s=shape)[h - 1:rh, w - 1:rw]
+    du, dv = np.mgrid[-top:bottom + 1, -left:right + 1]
+    order = np.lexsort(((du**2 + dv**2).ravel(), -np.rint(score).ravel()))[:count]
+    return du.ravel()[order], dv.ravel()[order]
 
 
 def robust_costs(template: Template, image: np.ndarray, du: np.ndarray, dv: np.ndarray

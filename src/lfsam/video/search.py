@@ -67,7 +67,13 @@ from lfsam.video.carry import (
     box_around,
     deepest,
 )
-from lfsam.video.match import cost_map, placed_at, robust_costs, with_depth
+from lfsam.video.match import (
+    cost_map,
+    likely_shifts,
+    placed_at,
+    robust_costs,
+    with_depth,
+)
 
 __all__ = [
     "CANDIDATES",
@@ -133,6 +139,15 @@ UNCOVERED = True
 UNCOVERED_VIEW = 0.25
 #: The disparity tolerance grows with the frames unseen up to this many frames' worth.
 DISPARITY_FRAMES = 2
+#: The widening stage (:func:`search_object`, stage 3): where the prediction missed, the
+#: shifts within the search radius where most of the template's pixels could be the object
+#: (:func:`lfsam.video.match.likely_shifts`), this many scored exactly per view; the
+#: :data:`WIDE_VIEWS` views whose best shift shows most of the template prompted, each
+#: needing :data:`WIDE_SUPPORT` of the template's part inside the frame supported and the
+#: answer at the object's depth.
+WIDE_CANDIDATES = 24
+WIDE_VIEWS = 2
+WIDE_SUPPORT = 0.2
 
 
 @dataclass
@@ -353,7 +368,10 @@ def search_object(
     Returns
     -------
     (view, mask, shift, template) or None
-        The accepted reference view and mask, and the located template; None: not found.
+        The accepted reference view and mask, the template's shift from its predicted place
+        (None: a part of the object found by the widening stage, whose place is no measure
+        of its motion; the template is then the predicted one) and the located template;
+        None: not found.
     """
     expected, tolerance = predicted_disparity(track)
     radius = search_radius(track)
@@ -372,6 +390,28 @@ def search_object(
         support = None
         if found is not None:
             known = placed(view)
+            support = found[1] if known is None else found[1] & ~known
+        return view, radius, image, template, found, support
+
+    def widened(view: tuple[int, int]) -> tuple:
+        """:func:`match` over the likeliest shifts within the radius (stage 3)."""
+        image = images(view).astype(np.float32)
+        template = predicted(track, view, center)
+        gated, view_image = with_depth(template, image, None if disparities is None
+                                       else disparities(view), expected, tolerance)
+        known = placed(view)
+        du, dv = likely_shifts(gated, view_image, radius, WIDE_CANDIDATES, known)
+        costs, _ = robust_costs(gated, view_image, du, dv)
+        k = int(np.argmin(costs))
+        # the likely map is flat over a part of the object: the best refined nearby
+        ru, rv = np.mgrid[-2:3, -2:3]
+        du, dv = (du[k] + ru).ravel(), (dv[k] + rv).ravel()
+        costs, _ = robust_costs(gated, view_image, du, dv)
+        k = int(np.lexsort((np.abs(du - du[12]) + np.abs(dv - dv[12]), costs))[0])
+        placed_there = placed_at(gated, view_image, int(du[k]), int(dv[k]))
+        found = support = None
+        if placed_there is not None:
+            found = (*placed_there, (int(du[k]), int(dv[k])))
             support = found[1] if known is None else found[1] & ~known
         return view, radius, image, template, found, support
 
@@ -398,8 +438,22 @@ def search_object(
                   key=lambda st: -share(st))
     near = (st if share(st) >= SURE or rank >= RESCORED else match(st[0], radius)
             for rank, st in enumerate(near))
-    whole = (match(v, None) for v in [track.view, *others[:1]])
-    for stage in [*near, *whole]:
+    for stage in near:
+        found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
+                              negatives, use_box, fresh, depth)
+        if found is not None:
+            return found
+    # 3. widening: the prediction missed (the object turned while hidden, or was hidden before
+    # its velocity was known, and the masked SSD is led astray by the cover over most of
+    # it): the likeliest shifts within the radius in every view, the views showing most of
+    # it prompted, the answer at the object's depth
+    wide = sorted((widened(v) for v in [track.view, *others]), key=lambda st: -share(st))
+    for stage in wide[:WIDE_VIEWS]:
+        found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
+                              negatives, use_box, fresh, depth, widened=True)
+        if found is not None:
+            return found
+    for stage in (match(v, None) for v in [track.view, *others[:1]]):
         found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
                               negatives, use_box, fresh, depth)
         if found is not None:
@@ -410,7 +464,8 @@ def search_object(
 def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, int],
                   answer: Callable, placed: Callable, placed_ids: np.ndarray | None,
                   negatives: Sequence[PointPrompt], use_box: bool,
-                  fresh: Sequence[PointPrompt], depth: Callable | None = None
+                  fresh: Sequence[PointPrompt], depth: Callable | None = None,
+                  widened: bool = False
                   ) -> tuple[tuple[int, int], np.ndarray, tuple[int, int], Template] | None:
     """Prompt one stage's match (:func:`search_object`, steps 4 and 5): the accepted view,
     mask, shift and located template, or None. The support needed near the prediction is a
@@ -424,8 +479,8 @@ def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, in
     # the frame shows only that part); away from it a share of the whole template: a sliver
     # at the frame's border far from where the object should be is not enough to give its
     # id back (a look-alike entering there took a hidden object's id)
-    needed = (NEAR_SUPPORT * carried.sum() if radius is not None
-              else FAR_SUPPORT * template.mask.sum())
+    needed = ((WIDE_SUPPORT if widened else NEAR_SUPPORT) * carried.sum()
+              if radius is not None else FAR_SUPPORT * template.mask.sum())
     if support.sum() < max(MIN_PIXELS, needed):
         return None
     known = placed(view)
@@ -450,7 +505,13 @@ def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, in
         judged = (ref_view, depth) if depth is not None else None
         at = _accept(mask, support, carried, track,
                      known if ref_view == view else placed(ref_view), image, template,
-                     shift, radius, judged)
+                     shift, None if widened else radius, judged, checked=widened)
+        if at is not None and widened and mask.sum() < KEEP_TEMPLATE * track.area:
+            # a part of the object found away from the prediction: the template fits that
+            # part at a range of shifts, so the place it gives is no measure of the motion
+            # (a velocity of tens of pixels); the object is kept where it was predicted, its
+            # motion unchanged (no shift: :func:`update`)
+            return ref_view, mask, None, template
         if at is not None:
             located = replace(template, origin=(template.origin[0] + at[0],
                                                 template.origin[1] + at[1]))
@@ -498,7 +559,7 @@ def explaining_shift(mask: np.ndarray, template: Template, image: np.ndarray, ra
 def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: Track,
             placed: np.ndarray | None, image: np.ndarray, template: Template,
             shift: tuple[int, int] = (0, 0), radius: int | None = None,
-            depth: tuple | None = None) -> tuple[int, int] | None:
+            depth: tuple | None = None, checked: bool = False) -> tuple[int, int] | None:
     """Whether an answer is the searched object (see the module docstring, step 5): the
     template's shift where it is (``shift``, or :func:`explaining_shift`'s), or None.
 
@@ -529,7 +590,7 @@ def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: T
             shift, explained = at, True
     if looks_alike(image[mask], template.image[template.mask]) < MIN_ALIKE:
         return None
-    if depth is not None and (explained or grown or track.unseen > 0):
+    if depth is not None and (checked or explained or grown or track.unseen > 0):
         value = depth[1](depth[0], mask)
         expected, tolerance = predicted_disparity(track)
         if value is not None and abs(value - expected) > tolerance:
@@ -538,15 +599,17 @@ def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: T
 
 
 def update(track: Track, view: tuple[int, int], mask: np.ndarray, located: Template,
-           image: np.ndarray, disparity: float, center: tuple[int, int]) -> None:
+           image: np.ndarray, disparity: float, center: tuple[int, int],
+           moved: bool = True) -> None:
     """The track after the object was found in ``view`` (``located``: its template where it
-    was found; ``disparity``: the answer's mean disparity)."""
+    was found; ``disparity``: the answer's median disparity; ``moved`` False: the place is
+    the prediction's, not a measure, and the velocity is kept)."""
     steps = track.unseen + 1
     before = (np.asarray(track.template.origin, np.float64)
               + track.disparity * _offset(track.view, center))
     now = np.asarray(located.origin, np.float64) + disparity * _offset(view, center)
     measured = (now - before) / steps
-    if track.sightings >= 1:
+    if track.sightings >= 1 and moved:
         track.velocity = (float(measured[0]), float(measured[1]))
         track.disparity_rate = (disparity - track.disparity) / steps
     area = int(mask.sum())
