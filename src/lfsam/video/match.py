@@ -22,7 +22,7 @@ from lfsam.video.carry import (
 )
 
 __all__ = [
-    "MAX_GATHER", "cost_map", "likely_shifts", "pixel_costs", "placed_at", "robust_costs",
+    "ALMOST", "BINS", "MAX_GATHER", "cost_map", "likely_shifts", "pixel_costs", "placed_at", "robust_costs",
     "with_depth",
 ]
 
@@ -98,13 +98,15 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
 #: Colour bins per channel of :func:`likely_shifts`' look-up (as
 #: :func:`lfsam.video.search.looks_alike`'s histograms).
 BINS = 6
+#: :func:`likely_shifts` keeps the shifts this nearly as likely as the likeliest.
+ALMOST = 0.9
 
 
 def likely_shifts(template: Template, image: np.ndarray, radius: int, count: int,
                   taken: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The ``count`` shifts within ``radius`` pixels of the template's place where most of its
-    pixels land on pixels that *could* support it, all shifts at once (one batch of real
-    FFTs): a view pixel could support the template where its colour lies in a colour bin of
+    """The shifts within ``radius`` pixels of the template's place where most of its pixels
+    land on pixels that *could* support it (at most ``count``, those within :data:`ALMOST`
+    of the likeliest), all shifts at once (two real FFTs): a view pixel could support the template where its colour lies in a colour bin of
     the template's pixels (:data:`BINS` per channel) and, with a
     disparity channel (:func:`with_depth`), it lies within the depth gate. The count is an
     upper bound of :func:`robust_costs`' support that does not pair pixels, so it is not led
@@ -115,8 +117,9 @@ def likely_shifts(template: Template, image: np.ndarray, radius: int, count: int
 
     Returns
     -------
-    du, dv : (count,) int arrays
-        The shifts, the likeliest first (ties: the nearer).
+    du, dv : int arrays
+        The shifts, the likeliest first (ties: the nearer); empty where no pixel could
+        support the template.
     """
     window, valid, (top, left, bottom, right) = search_window(template, image, radius)
     look = template.image[template.mask]
@@ -142,7 +145,11 @@ def likely_shifts(template: Template, image: np.ndarray, radius: int, count: int
     k_hat = fft.rfft2(template.mask[::-1, ::-1].astype(np.float32), s=shape)
     score = fft.irfft2(x_hat * k_hat, s=shape)[h - 1:rh, w - 1:rw]
     du, dv = np.mgrid[-top:bottom + 1, -left:right + 1]
-    order = np.lexsort(((du**2 + dv**2).ravel(), -np.rint(score).ravel()))[:count]
+    score = np.rint(score).ravel()
+    order = np.lexsort(((du**2 + dv**2).ravel(), -score))[:count]
+    # the bound is flat over a part of the object seen whole (every shift that lays the
+    # template over it): all of that plateau, not only its nearest shifts
+    order = order[score[order] >= max(ALMOST * score[order[0]], 1.0)]
     return du.ravel()[order], dv.ravel()[order]
 
 

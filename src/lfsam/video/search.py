@@ -145,7 +145,7 @@ DISPARITY_FRAMES = 2
 #: :data:`WIDE_VIEWS` views whose best shift shows most of the template prompted, each
 #: needing :data:`WIDE_SUPPORT` of the template's part inside the frame supported and the
 #: answer at the object's depth.
-WIDE_CANDIDATES = 24
+WIDE_CANDIDATES = 400
 WIDE_VIEWS = 2
 WIDE_SUPPORT = 0.2
 
@@ -401,13 +401,16 @@ def search_object(
                                        else disparities(view), expected, tolerance)
         known = placed(view)
         du, dv = likely_shifts(gated, view_image, radius, WIDE_CANDIDATES, known)
+        if du.size == 0:
+            return view, radius, image, template, None, None
         costs, _ = robust_costs(gated, view_image, du, dv)
-        k = int(np.argmin(costs))
-        # the likely map is flat over a part of the object: the best refined nearby
-        ru, rv = np.mgrid[-2:3, -2:3]
+        k = int(np.argmin(costs))  # the first of equal costs: the likelier, the nearer
+        # scored on a sample of the template's pixels where the plateau is wide: the best
+        # refined around it on all of them
+        ru, rv = np.mgrid[-1:2, -1:2]
         du, dv = (du[k] + ru).ravel(), (dv[k] + rv).ravel()
         costs, _ = robust_costs(gated, view_image, du, dv)
-        k = int(np.lexsort((np.abs(du - du[12]) + np.abs(dv - dv[12]), costs))[0])
+        k = int(np.lexsort(((np.abs(ru) + np.abs(rv)).ravel(), costs))[0])
         placed_there = placed_at(gated, view_image, int(du[k]), int(dv[k]))
         found = support = None
         if placed_there is not None:
