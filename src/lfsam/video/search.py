@@ -147,7 +147,7 @@ DISPARITY_FRAMES = 2
 #: answer at the object's depth.
 WIDE_CANDIDATES = 400
 WIDE_VIEWS = 2
-WIDE_SUPPORT = 0.2
+WIDE_SUPPORT = 0.15
 
 
 @dataclass
@@ -403,8 +403,11 @@ def search_object(
         du, dv = likely_shifts(gated, view_image, radius, WIDE_CANDIDATES, known)
         if du.size == 0:
             return view, radius, image, template, None, None
-        costs, _ = robust_costs(gated, view_image, du, dv)
-        k = int(np.argmin(costs))  # the first of equal costs: the likelier, the nearer
+        _, counts = robust_costs(gated, view_image, du, dv)
+        # of the shifts supported nearly as well as the best, the nearest to the prediction:
+        # a part of the object fits the template at a range of shifts (the motion decides)
+        k = int(np.argmin(np.where(counts >= ALMOST * counts.max(), du**2 + dv**2,
+                                   np.iinfo(np.int64).max)))
         # scored on a sample of the template's pixels where the plateau is wide: the best
         # refined around it on all of them
         ru, rv = np.mgrid[-1:2, -1:2]
