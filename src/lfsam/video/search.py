@@ -69,6 +69,7 @@ from lfsam.video.carry import (
 )
 from lfsam.video.match import (
     cost_map,
+    cost_maps,
     likely_shifts,
     placed_at,
     robust_costs,
@@ -237,14 +238,16 @@ def near_support(template: Template, image: np.ndarray, reach: int
     return cost.reshape(du.shape), du, dv
 
 
-def _best_shift(template: Template, image: np.ndarray, radius: int | None, reach: int = 0
+def _best_shift(template: Template, image: np.ndarray, radius: int | None, reach: int = 0,
+                costs_given: tuple | None = None
                 ) -> tuple[np.ndarray, np.ndarray, tuple[int, int]] | None:
     """The shifted mask and support of the shift with the least robust cost
     (:func:`near_support`) among the :data:`CANDIDATES` cheapest by masked SSD
-    (:func:`lfsam.video.match.cost_map`) and, with ``reach`` and where none of those shows
-    most of the template, every shift that close to the predicted place (ties: the nearer
-    shift)."""
-    cost, du, dv = cost_map(template, image, radius)
+    (:func:`lfsam.video.match.cost_map`; ``costs_given``: its result, computed already) and,
+    with ``reach`` and where none of those shows most of the template, every shift that
+    close to the predicted place (ties: the nearer shift)."""
+    cost, du, dv = costs_given if costs_given is not None else cost_map(template, image,
+                                                                        radius)
     flat = cost.ravel()
     finite = np.flatnonzero(np.isfinite(flat))
     best: tuple[float, int, tuple[int, int]] | None = None
@@ -380,25 +383,46 @@ def search_object(
               reach: int | None = None) -> tuple:
         """The view's image, the predicted template there, its match and its support less
         the pixels of objects placed already (they are not this one)."""
-        image = images(view).astype(np.float32)
-        template = predicted(track, view, center)
+        image, template, gated = prepared(view)
         if reach is None:
             reach = near_reach(track) if radius is not None else 0
-        found = given if given is not None else _best_shift(
-            *with_depth(template, image, None if disparities is None else disparities(view),
-                        expected, tolerance), radius, reach)
+        found = given if given is not None else _best_shift(*gated, radius, reach)
+        return staged(view, radius, image, template, found)
+
+    def staged(view: tuple[int, int], radius: int | None, image: np.ndarray,
+              template: Template, found: tuple | None) -> tuple:
         support = None
         if found is not None:
             known = placed(view)
             support = found[1] if known is None else found[1] & ~known
         return view, radius, image, template, found, support
 
+    looks: dict[tuple[int, int], tuple] = {}
+
+    def prepared(view: tuple[int, int]) -> tuple:
+        """The view's image, the predicted template there and both gated by depth
+        (:func:`with_depth`), once per view."""
+        if view not in looks:
+            image = images(view).astype(np.float32)
+            template = predicted(track, view, center)
+            looks[view] = (image, template, with_depth(
+                template, image, None if disparities is None else disparities(view),
+                expected, tolerance))
+        return looks[view]
+
+    def ranked(views: Sequence[tuple[int, int]]) -> list[tuple]:
+        """:func:`match` in each view, without the near shifts' scoring, the masked SSD of
+        every view from one batch of FFTs (the template's transform once)."""
+        if not views:
+            return []
+        ready = [prepared(v) for v in views]
+        maps = cost_maps([r[2][0] for r in ready], [r[2][1] for r in ready], radius)
+        return [staged(v, radius, image, template, _best_shift(*gated, radius, 0, m))
+                for v, (image, template, gated), m in zip(views, ready, maps, strict=True)]
+
     def widened(view: tuple[int, int]) -> tuple:
         """:func:`match` over the likeliest shifts within the radius (stage 3)."""
-        image = images(view).astype(np.float32)
-        template = predicted(track, view, center)
-        gated, view_image = with_depth(template, image, None if disparities is None
-                                       else disparities(view), expected, tolerance)
+        image, template, (gated, view_image) = prepared(view)
         known = placed(view)
         du, dv = likely_shifts(gated, view_image, radius, WIDE_CANDIDATES, known)
         if du.size == 0:
@@ -440,8 +464,7 @@ def search_object(
             return found
     # the views are ranked by their SSD candidates alone; every shift near the prediction
     # is scored (near_support) only in the RESCORED best-ranked views, about to be prompted
-    near = sorted([*(match(v, radius, reach=0) for v in others), *([first_stage] * cut)],
-                  key=lambda st: -share(st))
+    near = sorted([*ranked(others), *([first_stage] * cut)], key=lambda st: -share(st))
     near = (st if share(st) >= SURE or rank >= RESCORED else match(st[0], radius)
             for rank, st in enumerate(near))
     for stage in near:
