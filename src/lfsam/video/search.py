@@ -70,7 +70,8 @@ from lfsam.video.carry import (
 from lfsam.video.match import (
     cost_map,
     cost_maps,
-    likely_shifts,
+    likely_shifts_many,
+    margins_in,
     placed_at,
     robust_costs,
     with_depth,
@@ -298,11 +299,14 @@ def _positive_points(support: np.ndarray, count: int = 3) -> list[tuple[float, f
 def _neighbour_points(carried: np.ndarray, support: np.ndarray, placed_ids: np.ndarray | None
                       ) -> list[tuple[float, float]]:
     """A negative ``(x, y)`` point on each object placed earlier that touches ``carried``."""
-    if placed_ids is None:
+    if placed_ids is None or not carried.any():
         return []
-    near = ndimage.binary_dilation(carried, iterations=4)
+    rows, cols = np.nonzero(carried)
+    r0, c0 = max(rows.min() - 5, 0), max(cols.min() - 5, 0)
+    crop = (slice(r0, rows.max() + 6), slice(c0, cols.max() + 6))
+    near = ndimage.binary_dilation(carried[crop], iterations=4)  # the same, in its crop
     points = []
-    for other in np.unique(placed_ids[near]):
+    for other in np.unique(placed_ids[crop][near]):
         if other == 0:
             continue
         region = (placed_ids == other) & ~support
@@ -386,7 +390,8 @@ def search_object(
         image, template, gated = prepared(view)
         if reach is None:
             reach = near_reach(track) if radius is not None else 0
-        found = given if given is not None else _best_shift(*gated, radius, reach)
+        found = given if given is not None else _best_shift(
+            *gated, radius, reach, ssd.get(view) if radius is not None else None)
         return staged(view, radius, image, template, found)
 
     def staged(view: tuple[int, int], radius: int | None, image: np.ndarray,
@@ -398,6 +403,7 @@ def search_object(
         return view, radius, image, template, found, support
 
     looks: dict[tuple[int, int], tuple] = {}
+    ssd: dict[tuple[int, int], tuple] = {}  # each view's masked SSD within the radius
 
     def prepared(view: tuple[int, int]) -> tuple:
         """The view's image, the predicted template there and both gated by depth
@@ -417,16 +423,25 @@ def search_object(
             return []
         ready = [prepared(v) for v in views]
         maps = cost_maps([r[2][0] for r in ready], [r[2][1] for r in ready], radius)
+        ssd.update(zip(views, maps, strict=True))  # scored near the prediction after
         return [staged(v, radius, image, template, _best_shift(*gated, radius, 0, m))
                 for v, (image, template, gated), m in zip(views, ready, maps, strict=True)]
 
-    def widened(view: tuple[int, int]) -> tuple:
-        """:func:`match` over the likeliest shifts within the radius (stage 3)."""
+    def widening(views: Sequence[tuple[int, int]]) -> list[tuple]:
+        """Stage 3's matches (:func:`widened`) in the :data:`WIDE_VIEWS` views where most of
+        the template could be (:func:`lfsam.video.match.likely_shifts_many`: every view's
+        likely shifts from one batch of FFTs), those showing most of it first."""
+        ready = [prepared(v) for v in views]
+        likely = likely_shifts_many([r[2][0] for r in ready], [r[2][1] for r in ready],
+                                    radius, WIDE_CANDIDATES, [placed(v) for v in views])
+        order = sorted((k for k in range(len(views)) if likely[k][2] >= MIN_PIXELS),
+                       key=lambda k: -likely[k][2])[:WIDE_VIEWS]
+        return sorted((widened(views[k], *likely[k][:2]) for k in order),
+                      key=lambda st: -share(st))
+
+    def widened(view: tuple[int, int], du: np.ndarray, dv: np.ndarray) -> tuple:
+        """:func:`match` over the likely shifts ``du, dv`` within the radius (stage 3)."""
         image, template, (gated, view_image) = prepared(view)
-        known = placed(view)
-        du, dv = likely_shifts(gated, view_image, radius, WIDE_CANDIDATES, known)
-        if du.size == 0:
-            return view, radius, image, template, None, None
         _, counts = robust_costs(gated, view_image, du, dv)
         # of the shifts supported nearly as well as the best, the nearest to the prediction:
         # a part of the object fits the template at a range of shifts (the motion decides)
@@ -439,11 +454,8 @@ def search_object(
         costs, _ = robust_costs(gated, view_image, du, dv)
         k = int(np.lexsort(((np.abs(ru) + np.abs(rv)).ravel(), costs))[0])
         placed_there = placed_at(gated, view_image, int(du[k]), int(dv[k]))
-        found = support = None
-        if placed_there is not None:
-            found = (*placed_there, (int(du[k]), int(dv[k])))
-            support = found[1] if known is None else found[1] & ~known
-        return view, radius, image, template, found, support
+        return staged(view, radius, image, template, None if placed_there is None
+                      else (*placed_there, (int(du[k]), int(dv[k]))))
 
     def share(stage: tuple) -> float:
         return 0.0 if stage[4] is None else float(stage[5].sum()) / stage[3].mask.sum()
@@ -476,13 +488,18 @@ def search_object(
     # its velocity was known, and the masked SSD is led astray by the cover over most of
     # it): the likeliest shifts within the radius in every view, the views showing most of
     # it prompted, the answer at the object's depth
-    wide = sorted((widened(v) for v in [track.view, *others]), key=lambda st: -share(st))
-    for stage in wide[:WIDE_VIEWS]:
+    for stage in widening([track.view, *others]):
         found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
                               negatives, use_box, fresh, depth, widened=True)
         if found is not None:
             return found
-    for stage in (match(v, None) for v in [track.view, *others[:1]]):
+    # 4. the whole view, where the radius has not covered it yet (a radius reaching every
+    # shift that overlaps the view matched the same shifts in stage 2, with less support
+    # needed)
+    whole = [v for v in [track.view, *others[:1]]
+             if margins_in([prepared(v)[1]], [prepared(v)[0]], radius)
+             != margins_in([prepared(v)[1]], [prepared(v)[0]], None)]
+    for stage in (match(v, None) for v in whole):
         found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
                               negatives, use_box, fresh, depth)
         if found is not None:
