@@ -246,6 +246,10 @@ def cost_maps(templates: Sequence[Template], images: Sequence[np.ndarray], radiu
     return results
 
 
+#: A value no pixel is near: the sentinel :func:`robust_costs` reads outside the frame.
+_FAR = np.float32(1e6)
+
+
 def robust_costs(template: Template, image: np.ndarray, du: np.ndarray, dv: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
     """The *robust* cost of the template at each shift ``(du[k], dv[k])``: the sum over its
@@ -270,9 +274,11 @@ def robust_costs(template: Template, image: np.ndarray, du: np.ndarray, dv: np.n
     r = template.origin[0] + rows[None, :] + np.asarray(du).reshape(-1, 1)
     c = template.origin[1] + cols[None, :] + np.asarray(dv).reshape(-1, 1)
     inside = (r >= 0) & (r < height) & (c >= 0) & (c < width)
-    values = image[np.clip(r, 0, height - 1), np.clip(c, 0, width - 1)]  # (K, N, C)
+    # one flat gather; a pixel outside the frame reads a sentinel that costs the truncation
+    flat = np.concatenate([image.reshape(height * width, -1),
+                           np.full((1, image.shape[-1]), _FAR, np.float32)])
+    values = flat[np.where(inside, r * width + c, height * width)]  # (K, N, C)
     diff = pixel_costs(values, look[None])
-    diff[~inside] = MAX_PIXEL_DIFFERENCE
     scale = total / max(rows.size, 1)
     if step == 1:
         return diff.sum(1), (diff < MAX_PIXEL_DIFFERENCE).sum(1)

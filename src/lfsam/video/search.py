@@ -311,8 +311,10 @@ def _neighbour_points(carried: np.ndarray, support: np.ndarray, placed_ids: np.n
             continue
         region = (placed_ids == other) & ~support
         if region.sum() >= MIN_PIXELS:
-            row, col, _ = deepest(region)
-            points.append((float(col), float(row)))
+            rows, cols = np.nonzero(region)  # the deepest pixel found in the region's crop
+            r0, c0 = rows.min(), cols.min()
+            row, col, _ = deepest(region[r0:rows.max() + 1, c0:cols.max() + 1])
+            points.append((float(col + c0), float(row + r0)))
     return points
 
 
