@@ -8,6 +8,7 @@ placed already and pixels at another depth."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from lfsam.prompts import ObjectPrompts
 from lfsam.video.carry import Template
@@ -52,10 +53,15 @@ def _search(image, labels, track, placed=None):
                          depth=lambda v, m: 1.0)
 
 
-def test_an_object_whose_prediction_missed_is_found_by_its_band_within_the_radius():
-    image, labels, template = _scene()
-    track = Track(CENTER, template, area=196, sightings=3, unseen=1, disparity=1.0,
-                  velocity=(0.0, 0.0))
+@pytest.mark.parametrize("shift, unseen, sightings", [
+    ((13, -16), 1, 3),  # it turned while hidden for a frame
+    ((14, -27), 3, 1),  # hidden since frame 1, no velocity: back 30 px from where it was
+])
+def test_an_object_whose_prediction_missed_is_found_by_its_band_within_the_radius(
+        shift, unseen, sightings):
+    image, labels, template = _scene(shift)
+    track = Track(CENTER, template, area=196, sightings=sightings, unseen=unseen,
+                  disparity=1.0, velocity=(0.0, 0.0))
     found = _search(image, labels, track)
     assert found is not None  # before: hidden (the SSD led astray by the cover)
     view, mask, shift, located = found
@@ -91,3 +97,30 @@ def test_likely_shifts_rank_the_true_shift_first_on_a_plain_view():
     template = Template(look, np.ones((10, 12), bool), (20, 30))
     du, dv = likely_shifts(template, image, 12, 5)
     assert (int(du[0]), int(dv[0])) == (7, -5)
+
+
+def test_the_ring_views_masked_ssd_from_one_batch_gives_each_views_numbers():
+    """:func:`lfsam.video.match.cost_maps` (one object predicted in several views, the
+    template's transform once, windows cut at the frame and given one shape) against
+    :func:`lfsam.video.match.cost_map` of each view alone, shift by shift."""
+    from lfsam.video.match import cost_map, cost_maps
+
+    rng = np.random.default_rng(7)
+    look = rng.uniform(0, 255, (9, 11, 4)).astype(np.float32)
+    mask = rng.random((9, 11)) > 0.3
+    origins = [(12, 15), (1, 2), (50, 70), (-4, 44)]
+    templates = [Template(look, mask, o) for o in origins]
+    images = [rng.uniform(0, 255, (*SIZE, 4)).astype(np.float32) for _ in origins]
+    for radius in (6, 20):
+        batch = cost_maps(templates, images, radius)
+        for template, image, (cost, du, dv) in zip(templates, images, batch, strict=True):
+            alone, du1, dv1 = cost_map(template, image, radius)
+            at = {(a, b): x for a, b, x in zip(du.ravel(), dv.ravel(), cost.ravel(),
+                                                strict=True)}
+            got = np.array([at[(a, b)] for a, b in zip(du1.ravel(), dv1.ravel(),
+                                                        strict=True)])
+            assert np.array_equal(np.isfinite(got), np.isfinite(alone.ravel()))
+            finite = np.isfinite(got)
+            np.testing.assert_allclose(got[finite], alone.ravel()[finite], rtol=1e-4,
+                                       atol=0.5)
+            assert abs(du1).max() <= radius and abs(dv1).max() <= radius

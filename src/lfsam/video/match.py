@@ -274,11 +274,19 @@ def robust_costs(template: Template, image: np.ndarray, du: np.ndarray, dv: np.n
     r = template.origin[0] + rows[None, :] + np.asarray(du).reshape(-1, 1)
     c = template.origin[1] + cols[None, :] + np.asarray(dv).reshape(-1, 1)
     inside = (r >= 0) & (r < height) & (c >= 0) & (c < width)
-    # one flat gather; a pixel outside the frame reads a sentinel that costs the truncation
-    flat = np.concatenate([image.reshape(height * width, -1),
-                           np.full((1, image.shape[-1]), _FAR, np.float32)])
-    values = flat[np.where(inside, r * width + c, height * width)]  # (K, N, C)
-    diff = pixel_costs(values, look[None])
+    # one flat index, gathered channel by channel (the channels summed in place: as
+    # pixel_costs, without a (K, N, C) array); a pixel outside the frame reads a sentinel
+    # that costs the truncation
+    index = np.where(inside, r * width + c, height * width)
+    planes = np.concatenate([image.reshape(height * width, -1),
+                             np.full((1, image.shape[-1]), _FAR, np.float32)]).T
+    diff = np.abs(planes[0][index] - look[:, 0])
+    for channel in (1, 2):
+        diff += np.abs(planes[channel][index] - look[:, channel])
+    if image.shape[-1] > 3:  # the depth gate (pixel_costs)
+        diff[np.abs(planes[3][index] - look[:, 3]) > MAX_PIXEL_DIFFERENCE] = (
+            MAX_PIXEL_DIFFERENCE)
+    np.minimum(diff, MAX_PIXEL_DIFFERENCE, out=diff)
     scale = total / max(rows.size, 1)
     if step == 1:
         return diff.sum(1), (diff < MAX_PIXEL_DIFFERENCE).sum(1)

@@ -17,7 +17,12 @@ later frame and comes back under its own id (*found*). The search of one object 
    often visible there: the light field, as ``--references ring`` finds hidden objects),
    ranked by how much of the template their match supports, the view where it is seen most
    first, each within :func:`search_radius` pixels (growing with every frame unseen); then the
-   whole of its own view and of the center view.
+   *widening*: where the prediction missed (the object turned while hidden, or was hidden
+   before its velocity was known), the shifts within the radius where most of the template
+   could be by colour and depth (:func:`lfsam.video.match.likely_shifts_many`, every view
+   at once), scored exactly in the :data:`WIDE_VIEWS` likeliest views (a part found there
+   keeps the predicted place and velocity); then the whole of its own view and of the
+   center view where the radius did not cover it.
 3. **Matching.** The masked SSD of the template at every shift (:func:`lfsam.video.match.
    cost_map`, one batch of FFTs); of its :data:`CANDIDATES` cheapest shifts the one whose
    *support* (pixels that still look like the template, :func:`lfsam.video.match.
@@ -143,11 +148,11 @@ UNCOVERED_VIEW = 0.25
 DISPARITY_FRAMES = 2
 #: The widening stage (:func:`search_object`, stage 3): where the prediction missed, the
 #: shifts within the search radius where most of the template's pixels could be the object
-#: (:func:`lfsam.video.match.likely_shifts`), this many scored exactly per view; the
-#: :data:`WIDE_VIEWS` views whose best shift shows most of the template prompted, each
-#: needing :data:`WIDE_SUPPORT` of the template's part inside the frame supported and the
-#: answer at the object's depth.
-WIDE_CANDIDATES = 400
+#: (:func:`lfsam.video.match.likely_shifts_many`), at most this many scored exactly per
+#: view; the :data:`WIDE_VIEWS` views whose best shift shows most of the template prompted,
+#: each needing :data:`WIDE_SUPPORT` of the template's part inside the frame supported and
+#: the answer at the object's depth.
+WIDE_CANDIDATES = 150
 WIDE_VIEWS = 2
 WIDE_SUPPORT = 0.15
 
@@ -430,16 +435,18 @@ def search_object(
                 for v, (image, template, gated), m in zip(views, ready, maps, strict=True)]
 
     def widening(views: Sequence[tuple[int, int]]) -> list[tuple]:
-        """Stage 3's matches (:func:`widened`) in the :data:`WIDE_VIEWS` views where most of
-        the template could be (:func:`lfsam.video.match.likely_shifts_many`: every view's
-        likely shifts from one batch of FFTs), those showing most of it first."""
+        """Stage 3's matches (:func:`widened`, every view's likely shifts from one batch of
+        FFTs, :func:`lfsam.video.match.likely_shifts_many`): the :data:`WIDE_VIEWS` views
+        whose match shows most of the template, the most first."""
         ready = [prepared(v) for v in views]
         likely = likely_shifts_many([r[2][0] for r in ready], [r[2][1] for r in ready],
                                     radius, WIDE_CANDIDATES, [placed(v) for v in views])
-        order = sorted((k for k in range(len(views)) if likely[k][2] >= MIN_PIXELS),
-                       key=lambda k: -likely[k][2])[:WIDE_VIEWS]
-        return sorted((widened(views[k], *likely[k][:2]) for k in order),
-                      key=lambda st: -share(st))
+        # every view where some shift could hold MIN_PIXELS is scored exactly: ranked by the
+        # bound alone, the view showing the object was left out on seed 703 (its return a
+        # frame late)
+        return sorted((widened(v, du, dv) for v, (du, dv, bound) in zip(views, likely,
+                                                                        strict=True)
+                       if bound >= MIN_PIXELS), key=lambda st: -share(st))[:WIDE_VIEWS]
 
     def widened(view: tuple[int, int], du: np.ndarray, dv: np.ndarray) -> tuple:
         """:func:`match` over the likely shifts ``du, dv`` within the radius (stage 3)."""
