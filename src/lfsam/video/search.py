@@ -20,9 +20,9 @@ later frame and comes back under its own id (*found*). The search of one object 
    *widening*: where the prediction missed (the object turned while hidden, or was hidden
    before its velocity was known), the shifts within the radius where most of the template
    could be by colour and depth (:func:`lfsam.video.match.likely_shifts_many`, every view
-   at once), scored exactly in the :data:`WIDE_VIEWS` likeliest views (a part found there
-   keeps the predicted place and velocity); then the whole of its own view and of the
-   center view where the radius did not cover it.
+   at once), scored exactly, the :data:`WIDE_VIEWS` views showing most of it prompted (a
+   part found there keeps the predicted place and velocity); then the whole of its own view
+   and of the center view where the radius did not cover it.
 3. **Matching.** The masked SSD of the template at every shift (:func:`lfsam.video.match.
    cost_map`, one batch of FFTs); of its :data:`CANDIDATES` cheapest shifts the one whose
    *support* (pixels that still look like the template, :func:`lfsam.video.match.
@@ -523,7 +523,9 @@ def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, in
                   widened: bool = False
                   ) -> tuple[tuple[int, int], np.ndarray, tuple[int, int], Template] | None:
     """Prompt one stage's match (:func:`search_object`, steps 4 and 5): the accepted view,
-    mask, shift and located template, or None. The support needed near the prediction is a
+    mask, shift and located template, or None (``widened``: a match of the widening stage,
+    needing :data:`WIDE_SUPPORT` and the answer at the object's depth, its shift None where
+    the answer is a part of the object). The support needed near the prediction is a
     share of the template's part inside the frame (an object leaving the frame shows only
     that part), elsewhere of the whole template."""
     view, radius, image, template, found, support = stage
