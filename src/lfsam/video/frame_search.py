@@ -91,13 +91,15 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         return maps[view]
 
     def placed_in(view: tuple[int, int]) -> np.ndarray:
-        """Where the objects placed so far in this frame are in ``view``."""
+        """Where the objects placed so far in this frame are in ``view`` (each object's
+        carried mask once per view: the union grows by the objects placed since)."""
         key = (view, len(done))
         if key not in cache:
-            out = np.zeros(lf.view_shape, bool)
-            for _, source, mask in done:
+            ready = max((n for v, n in cache if v == view), default=0)
+            out = (cache[(view, ready)] if ready else np.zeros(lf.view_shape, bool)).copy()
+            for _, source, mask in done[ready:]:
                 out |= mask if source == view else carried_to(
-                    mask, predictor.disparity(source), source, view)
+                    mask, disparity_of(source), source, view)
             cache[key] = out
         return cache[key]
 
@@ -108,8 +110,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
 
     def place(obj_id: int, view: tuple[int, int], mask: np.ndarray) -> None:
         done.append((obj_id, view, mask))
-        here = mask if view == center else carried_to(mask, predictor.disparity(view), view,
-                                                      center)
+        here = mask if view == center else carried_to(mask, disparity_of(view), view, center)
         placed_ids[here & (placed_ids == 0)] = obj_id
 
     states: dict[int, str] = {}
@@ -137,7 +138,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             track.unseen += 1
             states[obj_id] = track.state = "hidden"
             continue
-        disparity = object_disparity(predictor.disparity(view), mask)
+        disparity = object_disparity(disparity_of(view), mask)
         old = tracks.get(obj_id)
         track = Track(view, Template.from_mask(lf.views[view], mask), disparity=disparity,
                       area=int(mask.sum()), sightings=1, state="prompted")
@@ -154,7 +155,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         found = search_object(obj_id, track, lambda v: lf.views[v], center, ring, answer,
                               placed_in, placed_ids, negatives, use_box, first[obj_id][1],
                               fresh, disparity_of if search.DEPTH_GATE else None,
-                              lambda v, m: median_disparity(predictor.disparity(v), m))
+                              lambda v, m: median_disparity(disparity_of(v), m))
         if found is None:
             if obj_id in predictor.object_ids:
                 predictor.remove_object(obj_id)
@@ -162,9 +163,9 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             track.lost = True
             states[obj_id] = track.state = "hidden"
             continue
-        view, mask, _shift, located = found
+        view, mask, shift, located = found
         update(track, view, mask, located, lf.views[view],
-               object_disparity(predictor.disparity(view), mask), center)
+               object_disparity(disparity_of(view), mask), center, shift is not None)
         states[obj_id] = track.state
         place(obj_id, view, mask)
     for obj_id in order:

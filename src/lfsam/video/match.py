@@ -9,6 +9,7 @@ background of the same colours by its depth, the light field's own cue.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -18,15 +19,55 @@ from lfsam.video.carry import (
     MAX_PIXEL_DIFFERENCE,
     Template,
     masked_cost,
-    search_window,
 )
 
-__all__ = ["MAX_GATHER", "cost_map", "pixel_costs", "placed_at", "robust_costs", "with_depth"]
+__all__ = [
+    "ALMOST", "BINS", "MAX_GATHER", "cost_map", "cost_maps", "likely_shifts",
+    "likely_shifts_many", "pixel_costs", "placed_at", "robust_costs",
+    "with_depth",
+]
 
 #: At most this many (shift, pixel) pairs are gathered by :func:`robust_costs`: beyond it,
 #: every k-th template pixel is scored and the sums are scaled (many shifts of a large
 #: template near a prediction).
 MAX_GATHER = 60_000
+
+
+def margins_in(templates: Sequence[Template], images: Sequence[np.ndarray],
+               radius: int | None) -> tuple[int, int, int, int]:
+    """The reach ``(top, left, bottom, right)`` of the shifts within ``radius`` pixels of each
+    template's place that can overlap its frame (a shift laying the template wholly outside
+    is never a match: the window is cut there, the same shifts scored in a smaller FFT);
+    the largest over the templates, so that their windows have one shape."""
+    reach = np.zeros(4, np.int64)
+    for template, image in zip(templates, images, strict=True):
+        height, width = image.shape[:2]
+        h, w = template.mask.shape
+        r0, c0 = template.origin
+        whole = np.array([r0 + h, c0 + w, height - r0, width - c0])
+        cut = np.clip(whole, 0, None if radius is None else int(radius))
+        reach = np.maximum(reach, cut)
+    return tuple(int(x) for x in reach)
+
+
+def window_at(template: Template, image: np.ndarray, margins: tuple[int, int, int, int]
+              ) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]]:
+    """:func:`lfsam.video.carry.search_window` with the reach ``margins`` of
+    :func:`margins_in`."""
+    height, width = image.shape[:2]
+    h, w = template.mask.shape
+    top, left, bottom, right = margins
+    region_r0, region_c0 = template.origin[0] - top, template.origin[1] - left
+    rh, rw = h + top + bottom, w + left + right
+    region = np.zeros((rh, rw, image.shape[-1]), np.float32)
+    valid = np.zeros((rh, rw), np.float32)
+    sr0, sc0 = max(region_r0, 0), max(region_c0, 0)
+    sr1, sc1 = min(region_r0 + rh, height), min(region_c0 + rw, width)
+    if sr1 > sr0 and sc1 > sc0:
+        region[sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = (
+            image[sr0:sr1, sc0:sc1])
+        valid[sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = 1.0
+    return region, valid, margins
 
 
 def with_depth(template: Template, image: np.ndarray, disparity: np.ndarray | None,
@@ -63,7 +104,7 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
         The shift of each entry.
     """
     h, w = template.mask.shape
-    window, valid, margins = search_window(template, image, radius)
+    window, valid, margins = window_at(template, image, margins_in([template], [image], radius))
     rh, rw, channels = window.shape
     region = np.ascontiguousarray(np.moveaxis(window, -1, 0))  # (C, rh, rw)
     inside = bool(valid.all())
@@ -92,6 +133,123 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
     return masked_cost(own, cross, energy, count, float(m.sum()), margins)
 
 
+#: Colour bins per channel of :func:`likely_shifts`' look-up (as
+#: :func:`lfsam.video.search.looks_alike`'s histograms).
+BINS = 6
+#: :func:`likely_shifts` keeps the shifts this nearly as likely as the likeliest.
+ALMOST = 0.9
+
+
+def likely_shifts(template: Template, image: np.ndarray, radius: int, count: int,
+                  taken: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The shifts within ``radius`` pixels of the template's place where most of its pixels
+    land on pixels that *could* support it (at most ``count``, those within :data:`ALMOST`
+    of the likeliest), all shifts at once (:func:`likely_shifts_many` of one view)."""
+    du, dv, _ = likely_shifts_many([template], [image], radius, count, [taken])[0]
+    return du, dv
+
+
+def likely_shifts_many(templates: Sequence[Template], images: Sequence[np.ndarray],
+                       radius: int, count: int, taken: Sequence[np.ndarray | None]
+                       ) -> list[tuple[np.ndarray, np.ndarray, int]]:
+    """For each template in its image (the templates alike but for their origin: one object
+    predicted in several views), the shifts within ``radius`` pixels of its place where most
+    of its pixels land on pixels that *could* support it (at most ``count``, those within
+    :data:`ALMOST` of the likeliest), every shift of every view from one batch of real FFTs.
+    A view pixel could support the template where its colour lies in a colour bin of the
+    template's pixels (:data:`BINS` per channel), it is not ``taken`` (a ``(U, V)`` bool
+    mask of pixels known to be other objects, or None) and, with a disparity channel
+    (:func:`with_depth`), it lies within the depth gate. The count is an upper bound of
+    :func:`robust_costs`' support that does not pair pixels, so it is not led astray by a
+    cover over most of the template as the masked SSD is: the candidates for an object
+    whose prediction missed it (the search's widening stage,
+    :func:`lfsam.video.search.search_object`), scored exactly by :func:`robust_costs` after.
+
+    Returns
+    -------
+    list of (du, dv, bound)
+        Per view the shifts (int arrays), the likeliest first (ties: the nearer; empty where
+        no pixel could support the template) and the largest count.
+    """
+    first = templates[0]
+    look = first.image[first.mask]
+
+    def bins(values: np.ndarray) -> np.ndarray:
+        q = np.clip((values[..., :3] * BINS / 256.0).astype(np.int64), 0, BINS - 1)
+        return (q[..., 0] * BINS + q[..., 1]) * BINS + q[..., 2]
+
+    present = np.zeros(BINS**3, bool)
+    present[bins(look)] = True
+    coulds, margins = [], []
+    reach = margins_in(templates, images, radius)
+    for template, image, known in zip(templates, images, taken, strict=True):
+        window, valid, _ = window_at(template, image, reach)
+        could = present[bins(window)] & (valid > 0)
+        if known is not None:
+            could &= window_at(template, known[..., None].astype(np.float32),
+                               reach)[0][..., 0] == 0
+        if window.shape[-1] > 3:  # the depth gate: the template's pixels are at one depth
+            could &= np.abs(window[..., 3] - look[0, 3]) <= MAX_PIXEL_DIFFERENCE
+        coulds.append(could)
+        margins.append(reach)
+    h, w = first.mask.shape
+    rh, rw = coulds[0].shape
+    shape = (fft.next_fast_len(rh, True), fft.next_fast_len(rw, True))
+    x_hat = fft.rfft2(np.stack(coulds).astype(np.float32), s=shape)
+    k_hat = fft.rfft2(first.mask[::-1, ::-1].astype(np.float32), s=shape)
+    scores = np.rint(fft.irfft2(x_hat * k_hat, s=shape)[:, h - 1:rh, w - 1:rw])
+    out = []
+    for score, (top, left, bottom, right) in zip(scores, margins, strict=True):
+        du, dv = np.mgrid[-top:bottom + 1, -left:right + 1]
+        score = score.ravel()
+        order = np.lexsort(((du**2 + dv**2).ravel(), -score))[:count]
+        best = int(score[order[0]])
+        # the bound is flat over a part of the object seen whole (every shift that lays the
+        # template over it): all of that plateau, not only its nearest shifts
+        order = order[score[order] >= max(ALMOST * best, 1.0)]
+        out.append((du.ravel()[order], dv.ravel()[order], best))
+    return out
+
+
+def cost_maps(templates: Sequence[Template], images: Sequence[np.ndarray], radius: int
+              ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """:func:`cost_map` of each template in its image, the templates alike but for their
+    origin (one object predicted in several views), from one batch of real FFTs: the
+    template's transform once, the views' windows together. The same numbers as
+    :func:`cost_map` up to rounding."""
+    first = templates[0]
+    h, w = first.mask.shape
+    margins = margins_in(templates, images, radius)
+    windows = [window_at(t, im, margins) for t, im in zip(templates, images, strict=True)]
+    rh, rw, channels = windows[0][0].shape
+    m = first.mask.astype(np.float32)
+    a = np.moveaxis(first.image, -1, 0) * m  # (C, h, w)
+    shape = (fft.next_fast_len(rh, True), fft.next_fast_len(rw, True))
+    kernels = np.concatenate([a, m[None], (a**2).sum(0)[None]])[:, ::-1, ::-1]
+    k_hat = fft.rfft2(kernels, s=shape)
+    signals = np.stack([np.concatenate([np.moveaxis(win, -1, 0), (win**2).sum(-1)[None],
+                                        valid[None]]) for win, valid, _ in windows])
+    x_hat = fft.rfft2(signals, s=shape)  # (V, C + 2, ...)
+    products = np.stack([(x_hat[:, :channels] * k_hat[:channels]).sum(1),
+                         x_hat[:, channels] * k_hat[channels],
+                         x_hat[:, channels + 1] * k_hat[channels],
+                         x_hat[:, channels + 1] * k_hat[channels + 1]], 1)
+    out = fft.irfft2(products, s=shape)[..., h - 1:rh, w - 1:rw]
+    results = []
+    for k, (_, valid, margins) in enumerate(windows):
+        cross, energy = out[k, 0], out[k, 1]
+        if valid.all():  # as cost_map: the overlap terms are constants inside the frame
+            count, own = np.full(cross.shape, m.sum()), np.full(cross.shape, (a**2).sum())
+        else:
+            count, own = out[k, 2], out[k, 3]
+        results.append(masked_cost(own, cross, energy, count, float(m.sum()), margins))
+    return results
+
+
+#: A value no pixel is near: the sentinel :func:`robust_costs` reads outside the frame.
+_FAR = np.float32(1e6)
+
+
 def robust_costs(template: Template, image: np.ndarray, du: np.ndarray, dv: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
     """The *robust* cost of the template at each shift ``(du[k], dv[k])``: the sum over its
@@ -116,9 +274,19 @@ def robust_costs(template: Template, image: np.ndarray, du: np.ndarray, dv: np.n
     r = template.origin[0] + rows[None, :] + np.asarray(du).reshape(-1, 1)
     c = template.origin[1] + cols[None, :] + np.asarray(dv).reshape(-1, 1)
     inside = (r >= 0) & (r < height) & (c >= 0) & (c < width)
-    values = image[np.clip(r, 0, height - 1), np.clip(c, 0, width - 1)]  # (K, N, C)
-    diff = pixel_costs(values, look[None])
-    diff[~inside] = MAX_PIXEL_DIFFERENCE
+    # one flat index, gathered channel by channel (the channels summed in place: as
+    # pixel_costs, without a (K, N, C) array); a pixel outside the frame reads a sentinel
+    # that costs the truncation
+    index = np.where(inside, r * width + c, height * width)
+    planes = np.concatenate([image.reshape(height * width, -1),
+                             np.full((1, image.shape[-1]), _FAR, np.float32)]).T
+    diff = np.abs(planes[0][index] - look[:, 0])
+    for channel in (1, 2):
+        diff += np.abs(planes[channel][index] - look[:, channel])
+    if image.shape[-1] > 3:  # the depth gate (pixel_costs)
+        diff[np.abs(planes[3][index] - look[:, 3]) > MAX_PIXEL_DIFFERENCE] = (
+            MAX_PIXEL_DIFFERENCE)
+    np.minimum(diff, MAX_PIXEL_DIFFERENCE, out=diff)
     scale = total / max(rows.size, 1)
     if step == 1:
         return diff.sum(1), (diff < MAX_PIXEL_DIFFERENCE).sum(1)

@@ -17,7 +17,12 @@ later frame and comes back under its own id (*found*). The search of one object 
    often visible there: the light field, as ``--references ring`` finds hidden objects),
    ranked by how much of the template their match supports, the view where it is seen most
    first, each within :func:`search_radius` pixels (growing with every frame unseen); then the
-   whole of its own view and of the center view.
+   *widening*: where the prediction missed (the object turned while hidden, or was hidden
+   before its velocity was known), the shifts within the radius where most of the template
+   could be by colour and depth (:func:`lfsam.video.match.likely_shifts_many`, every view
+   at once), scored exactly, the :data:`WIDE_VIEWS` views showing most of it prompted (a
+   part found there keeps the predicted place and velocity); then the whole of its own view
+   and of the center view where the radius did not cover it.
 3. **Matching.** The masked SSD of the template at every shift (:func:`lfsam.video.match.
    cost_map`, one batch of FFTs); of its :data:`CANDIDATES` cheapest shifts the one whose
    *support* (pixels that still look like the template, :func:`lfsam.video.match.
@@ -67,7 +72,15 @@ from lfsam.video.carry import (
     box_around,
     deepest,
 )
-from lfsam.video.match import cost_map, placed_at, robust_costs, with_depth
+from lfsam.video.match import (
+    cost_map,
+    cost_maps,
+    likely_shifts_many,
+    margins_in,
+    placed_at,
+    robust_costs,
+    with_depth,
+)
 
 __all__ = [
     "CANDIDATES",
@@ -133,6 +146,15 @@ UNCOVERED = True
 UNCOVERED_VIEW = 0.25
 #: The disparity tolerance grows with the frames unseen up to this many frames' worth.
 DISPARITY_FRAMES = 2
+#: The widening stage (:func:`search_object`, stage 3): where the prediction missed, the
+#: shifts within the search radius where most of the template's pixels could be the object
+#: (:func:`lfsam.video.match.likely_shifts_many`), at most this many scored exactly per
+#: view; the :data:`WIDE_VIEWS` views whose best shift shows most of the template prompted,
+#: each needing :data:`WIDE_SUPPORT` of the template's part inside the frame supported and
+#: the answer at the object's depth.
+WIDE_CANDIDATES = 150
+WIDE_VIEWS = 2
+WIDE_SUPPORT = 0.15
 
 
 @dataclass
@@ -222,14 +244,16 @@ def near_support(template: Template, image: np.ndarray, reach: int
     return cost.reshape(du.shape), du, dv
 
 
-def _best_shift(template: Template, image: np.ndarray, radius: int | None, reach: int = 0
+def _best_shift(template: Template, image: np.ndarray, radius: int | None, reach: int = 0,
+                costs_given: tuple | None = None
                 ) -> tuple[np.ndarray, np.ndarray, tuple[int, int]] | None:
     """The shifted mask and support of the shift with the least robust cost
     (:func:`near_support`) among the :data:`CANDIDATES` cheapest by masked SSD
-    (:func:`lfsam.video.match.cost_map`) and, with ``reach`` and where none of those shows
-    most of the template, every shift that close to the predicted place (ties: the nearer
-    shift)."""
-    cost, du, dv = cost_map(template, image, radius)
+    (:func:`lfsam.video.match.cost_map`; ``costs_given``: its result, computed already) and,
+    with ``reach`` and where none of those shows most of the template, every shift that
+    close to the predicted place (ties: the nearer shift)."""
+    cost, du, dv = costs_given if costs_given is not None else cost_map(template, image,
+                                                                        radius)
     flat = cost.ravel()
     finite = np.flatnonzero(np.isfinite(flat))
     best: tuple[float, int, tuple[int, int]] | None = None
@@ -280,17 +304,22 @@ def _positive_points(support: np.ndarray, count: int = 3) -> list[tuple[float, f
 def _neighbour_points(carried: np.ndarray, support: np.ndarray, placed_ids: np.ndarray | None
                       ) -> list[tuple[float, float]]:
     """A negative ``(x, y)`` point on each object placed earlier that touches ``carried``."""
-    if placed_ids is None:
+    if placed_ids is None or not carried.any():
         return []
-    near = ndimage.binary_dilation(carried, iterations=4)
+    rows, cols = np.nonzero(carried)
+    r0, c0 = max(rows.min() - 5, 0), max(cols.min() - 5, 0)
+    crop = (slice(r0, rows.max() + 6), slice(c0, cols.max() + 6))
+    near = ndimage.binary_dilation(carried[crop], iterations=4)  # the same, in its crop
     points = []
-    for other in np.unique(placed_ids[near]):
+    for other in np.unique(placed_ids[crop][near]):
         if other == 0:
             continue
         region = (placed_ids == other) & ~support
         if region.sum() >= MIN_PIXELS:
-            row, col, _ = deepest(region)
-            points.append((float(col), float(row)))
+            rows, cols = np.nonzero(region)  # the deepest pixel found in the region's crop
+            r0, c0 = rows.min(), cols.min()
+            row, col, _ = deepest(region[r0:rows.max() + 1, c0:cols.max() + 1])
+            points.append((float(col + c0), float(row + r0)))
     return points
 
 
@@ -353,7 +382,10 @@ def search_object(
     Returns
     -------
     (view, mask, shift, template) or None
-        The accepted reference view and mask, and the located template; None: not found.
+        The accepted reference view and mask, the template's shift from its predicted place
+        (None: a part of the object found by the widening stage, whose place is no measure
+        of its motion; the template is then the predicted one) and the located template;
+        None: not found.
     """
     expected, tolerance = predicted_disparity(track)
     radius = search_radius(track)
@@ -362,18 +394,77 @@ def search_object(
               reach: int | None = None) -> tuple:
         """The view's image, the predicted template there, its match and its support less
         the pixels of objects placed already (they are not this one)."""
-        image = images(view).astype(np.float32)
-        template = predicted(track, view, center)
+        image, template, gated = prepared(view)
         if reach is None:
             reach = near_reach(track) if radius is not None else 0
         found = given if given is not None else _best_shift(
-            *with_depth(template, image, None if disparities is None else disparities(view),
-                        expected, tolerance), radius, reach)
+            *gated, radius, reach, ssd.get(view) if radius is not None else None)
+        return staged(view, radius, image, template, found)
+
+    def staged(view: tuple[int, int], radius: int | None, image: np.ndarray,
+              template: Template, found: tuple | None) -> tuple:
         support = None
         if found is not None:
             known = placed(view)
             support = found[1] if known is None else found[1] & ~known
         return view, radius, image, template, found, support
+
+    looks: dict[tuple[int, int], tuple] = {}
+    ssd: dict[tuple[int, int], tuple] = {}  # each view's masked SSD within the radius
+
+    def prepared(view: tuple[int, int]) -> tuple:
+        """The view's image, the predicted template there and both gated by depth
+        (:func:`with_depth`), once per view."""
+        if view not in looks:
+            image = images(view).astype(np.float32)
+            template = predicted(track, view, center)
+            looks[view] = (image, template, with_depth(
+                template, image, None if disparities is None else disparities(view),
+                expected, tolerance))
+        return looks[view]
+
+    def ranked(views: Sequence[tuple[int, int]]) -> list[tuple]:
+        """:func:`match` in each view, without the near shifts' scoring, the masked SSD of
+        every view from one batch of FFTs (the template's transform once)."""
+        if not views:
+            return []
+        ready = [prepared(v) for v in views]
+        maps = cost_maps([r[2][0] for r in ready], [r[2][1] for r in ready], radius)
+        ssd.update(zip(views, maps, strict=True))  # scored near the prediction after
+        return [staged(v, radius, image, template, _best_shift(*gated, radius, 0, m))
+                for v, (image, template, gated), m in zip(views, ready, maps, strict=True)]
+
+    def widening(views: Sequence[tuple[int, int]]) -> list[tuple]:
+        """Stage 3's matches (:func:`widened`, every view's likely shifts from one batch of
+        FFTs, :func:`lfsam.video.match.likely_shifts_many`): the :data:`WIDE_VIEWS` views
+        whose match shows most of the template, the most first."""
+        ready = [prepared(v) for v in views]
+        likely = likely_shifts_many([r[2][0] for r in ready], [r[2][1] for r in ready],
+                                    radius, WIDE_CANDIDATES, [placed(v) for v in views])
+        # every view where some shift could hold MIN_PIXELS is scored exactly: ranked by the
+        # bound alone, the view showing the object was left out on seed 703 (its return a
+        # frame late)
+        return sorted((widened(v, du, dv) for v, (du, dv, bound) in zip(views, likely,
+                                                                        strict=True)
+                       if bound >= MIN_PIXELS), key=lambda st: -share(st))[:WIDE_VIEWS]
+
+    def widened(view: tuple[int, int], du: np.ndarray, dv: np.ndarray) -> tuple:
+        """:func:`match` over the likely shifts ``du, dv`` within the radius (stage 3)."""
+        image, template, (gated, view_image) = prepared(view)
+        _, counts = robust_costs(gated, view_image, du, dv)
+        # of the shifts supported nearly as well as the best, the nearest to the prediction:
+        # a part of the object fits the template at a range of shifts (the motion decides)
+        k = int(np.argmin(np.where(counts >= ALMOST * counts.max(), du**2 + dv**2,
+                                   np.iinfo(np.int64).max)))
+        # scored on a sample of the template's pixels where the plateau is wide: the best
+        # refined around it on all of them
+        ru, rv = np.mgrid[-1:2, -1:2]
+        du, dv = (du[k] + ru).ravel(), (dv[k] + rv).ravel()
+        costs, _ = robust_costs(gated, view_image, du, dv)
+        k = int(np.lexsort(((np.abs(ru) + np.abs(rv)).ravel(), costs))[0])
+        placed_there = placed_at(gated, view_image, int(du[k]), int(dv[k]))
+        return staged(view, radius, image, template, None if placed_there is None
+                      else (*placed_there, (int(du[k]), int(dv[k]))))
 
     def share(stage: tuple) -> float:
         return 0.0 if stage[4] is None else float(stage[5].sum()) / stage[3].mask.sum()
@@ -394,12 +485,30 @@ def search_object(
             return found
     # the views are ranked by their SSD candidates alone; every shift near the prediction
     # is scored (near_support) only in the RESCORED best-ranked views, about to be prompted
-    near = sorted([*(match(v, radius, reach=0) for v in others), *([first_stage] * cut)],
-                  key=lambda st: -share(st))
+    near = sorted([*ranked(others), *([first_stage] * cut)], key=lambda st: -share(st))
     near = (st if share(st) >= SURE or rank >= RESCORED else match(st[0], radius)
             for rank, st in enumerate(near))
-    whole = (match(v, None) for v in [track.view, *others[:1]])
-    for stage in [*near, *whole]:
+    for stage in near:
+        found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
+                              negatives, use_box, fresh, depth)
+        if found is not None:
+            return found
+    # 3. widening: the prediction missed (the object turned while hidden, or was hidden before
+    # its velocity was known, and the masked SSD is led astray by the cover over most of
+    # it): the likeliest shifts within the radius in every view, the views showing most of
+    # it prompted, the answer at the object's depth
+    for stage in widening([track.view, *others]):
+        found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
+                              negatives, use_box, fresh, depth, widened=True)
+        if found is not None:
+            return found
+    # 4. the whole view, where the radius has not covered it yet (a radius reaching every
+    # shift that overlaps the view matched the same shifts in stage 2, with less support
+    # needed)
+    whole = [v for v in [track.view, *others[:1]]
+             if margins_in([prepared(v)[1]], [prepared(v)[0]], radius)
+             != margins_in([prepared(v)[1]], [prepared(v)[0]], None)]
+    for stage in (match(v, None) for v in whole):
         found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
                               negatives, use_box, fresh, depth)
         if found is not None:
@@ -410,10 +519,13 @@ def search_object(
 def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, int],
                   answer: Callable, placed: Callable, placed_ids: np.ndarray | None,
                   negatives: Sequence[PointPrompt], use_box: bool,
-                  fresh: Sequence[PointPrompt], depth: Callable | None = None
+                  fresh: Sequence[PointPrompt], depth: Callable | None = None,
+                  widened: bool = False
                   ) -> tuple[tuple[int, int], np.ndarray, tuple[int, int], Template] | None:
     """Prompt one stage's match (:func:`search_object`, steps 4 and 5): the accepted view,
-    mask, shift and located template, or None. The support needed near the prediction is a
+    mask, shift and located template, or None (``widened``: a match of the widening stage,
+    needing :data:`WIDE_SUPPORT` and the answer at the object's depth, its shift None where
+    the answer is a part of the object). The support needed near the prediction is a
     share of the template's part inside the frame (an object leaving the frame shows only
     that part), elsewhere of the whole template."""
     view, radius, image, template, found, support = stage
@@ -424,8 +536,8 @@ def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, in
     # the frame shows only that part); away from it a share of the whole template: a sliver
     # at the frame's border far from where the object should be is not enough to give its
     # id back (a look-alike entering there took a hidden object's id)
-    needed = (NEAR_SUPPORT * carried.sum() if radius is not None
-              else FAR_SUPPORT * template.mask.sum())
+    needed = ((WIDE_SUPPORT if widened else NEAR_SUPPORT) * carried.sum()
+              if radius is not None else FAR_SUPPORT * template.mask.sum())
     if support.sum() < max(MIN_PIXELS, needed):
         return None
     known = placed(view)
@@ -450,7 +562,13 @@ def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, in
         judged = (ref_view, depth) if depth is not None else None
         at = _accept(mask, support, carried, track,
                      known if ref_view == view else placed(ref_view), image, template,
-                     shift, radius, judged)
+                     shift, None if widened else radius, judged, checked=widened)
+        if at is not None and widened and mask.sum() < KEEP_TEMPLATE * track.area:
+            # a part of the object found away from the prediction: the template fits that
+            # part at a range of shifts, so the place it gives is no measure of the motion
+            # (a velocity of tens of pixels); the object is kept where it was predicted, its
+            # motion unchanged (no shift: :func:`update`)
+            return ref_view, mask, None, template
         if at is not None:
             located = replace(template, origin=(template.origin[0] + at[0],
                                                 template.origin[1] + at[1]))
@@ -498,7 +616,7 @@ def explaining_shift(mask: np.ndarray, template: Template, image: np.ndarray, ra
 def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: Track,
             placed: np.ndarray | None, image: np.ndarray, template: Template,
             shift: tuple[int, int] = (0, 0), radius: int | None = None,
-            depth: tuple | None = None) -> tuple[int, int] | None:
+            depth: tuple | None = None, checked: bool = False) -> tuple[int, int] | None:
     """Whether an answer is the searched object (see the module docstring, step 5): the
     template's shift where it is (``shift``, or :func:`explaining_shift`'s), or None.
 
@@ -529,7 +647,7 @@ def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: T
             shift, explained = at, True
     if looks_alike(image[mask], template.image[template.mask]) < MIN_ALIKE:
         return None
-    if depth is not None and (explained or grown or track.unseen > 0):
+    if depth is not None and (checked or explained or grown or track.unseen > 0):
         value = depth[1](depth[0], mask)
         expected, tolerance = predicted_disparity(track)
         if value is not None and abs(value - expected) > tolerance:
@@ -538,15 +656,17 @@ def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: T
 
 
 def update(track: Track, view: tuple[int, int], mask: np.ndarray, located: Template,
-           image: np.ndarray, disparity: float, center: tuple[int, int]) -> None:
+           image: np.ndarray, disparity: float, center: tuple[int, int],
+           moved: bool = True) -> None:
     """The track after the object was found in ``view`` (``located``: its template where it
-    was found; ``disparity``: the answer's mean disparity)."""
+    was found; ``disparity``: the answer's median disparity; ``moved`` False: the place is
+    the prediction's, not a measure, and the velocity is kept)."""
     steps = track.unseen + 1
     before = (np.asarray(track.template.origin, np.float64)
               + track.disparity * _offset(track.view, center))
     now = np.asarray(located.origin, np.float64) + disparity * _offset(view, center)
     measured = (now - before) / steps
-    if track.sightings >= 1:
+    if track.sightings >= 1 and moved:
         track.velocity = (float(measured[0]), float(measured[1]))
         track.disparity_rate = (disparity - track.disparity) / steps
     area = int(mask.sum())
