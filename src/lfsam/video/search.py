@@ -157,7 +157,7 @@ WIDE_CANDIDATES = 150
 WIDE_VIEWS = 2
 WIDE_SUPPORT = 0.15
 #: A match supporting less of its template moves the velocity only by its share of this.
-VELOCITY_SUPPORT = 0.6
+VELOCITY_SUPPORT = 0.3
 
 
 @dataclass
