@@ -8,7 +8,8 @@ appearance (the template), its motion and its disparity; it is searched for agai
 later frame and comes back under its own id (*found*). The search of one object in a frame
 (:func:`search_object`):
 
-1. **Prediction.** Constant velocity from its last two sightings (in center-view pixels), and
+1. **Prediction.** Constant velocity from its last two sightings (in center-view pixels; a
+   match supporting under :data:`VELOCITY_SUPPORT` of the template moves it by that share), and
    its disparity changing at its last rate: the template is placed where the object should be
    in a view, parallax included (a pixel of the center view at disparity ``d`` is at
    ``p - d (s - s_c, t - t_c)`` in view ``(s, t)``, section 1).
@@ -155,6 +156,8 @@ DISPARITY_FRAMES = 2
 WIDE_CANDIDATES = 150
 WIDE_VIEWS = 2
 WIDE_SUPPORT = 0.15
+#: A match supporting less of its template moves the velocity only by its share of this.
+VELOCITY_SUPPORT = 0.3
 
 
 @dataclass
@@ -173,6 +176,8 @@ class Track:
     #: Largest reference-view area seen.
     area: int = 0
     sightings: int = 0
+    #: Share of the template supported by the match of its latest sighting.
+    support: float = 1.0
     state: str = "waiting"
     history: list[str] = field(default_factory=list)
 
@@ -563,6 +568,7 @@ def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, in
         at = _accept(mask, support, carried, track,
                      known if ref_view == view else placed(ref_view), image, template,
                      shift, None if widened else radius, judged, checked=widened)
+        track.support = float(support.sum()) / max(int(carried.sum()), 1)
         if at is not None and widened and mask.sum() < KEEP_TEMPLATE * track.area:
             # a part of the object found away from the prediction: the template fits that
             # part at a range of shifts, so the place it gives is no measure of the motion
@@ -667,7 +673,10 @@ def update(track: Track, view: tuple[int, int], mask: np.ndarray, located: Templ
     now = np.asarray(located.origin, np.float64) + disparity * _offset(view, center)
     measured = (now - before) / steps
     if track.sightings >= 1 and moved:
-        track.velocity = (float(measured[0]), float(measured[1]))
+        # a poorly supported match moves the velocity only by its share (VELOCITY_SUPPORT)
+        weight = 1.0 if track.sightings < 2 else min(1.0, track.support / VELOCITY_SUPPORT)
+        blended = np.asarray(track.velocity) + weight * (measured - np.asarray(track.velocity))
+        track.velocity = (float(blended[0]), float(blended[1]))
         track.disparity_rate = (disparity - track.disparity) / steps
     area = int(mask.sum())
     if area >= KEEP_TEMPLATE * track.area or track.template is None:
