@@ -93,21 +93,21 @@ def test_untrained_refiner_keeps_the_disparity_and_the_result_is_deterministic()
 
 
 def test_refinement_improves_a_scene_it_was_not_trained_on():
-    # seed 7 and this size are outside the training set (seeds 1000-1159 at 160x224)
-    lf = generate_scene(grid=(9, 9), size=(96, 128), seed=7, num_objects=5)
+    # seed 1 and this size are outside the training set (seeds 1000-1159 at 160x224)
+    lf = generate_scene(grid=(9, 9), size=(96, 128), seed=1, num_objects=5)
     truth = lf.center_disparity
-    on = estimate_disparity(lf, device="cpu")
-    off = estimate_disparity(lf, device="cpu", learned_refinement=False)
+    on = estimate_disparity(lf, device="cpu", learned_refinement=True)
+    off = estimate_disparity(lf, device="cpu")
     assert on.meta["learned_refinement"] and not off.meta["learned_refinement"]
     np.testing.assert_array_equal(on.confidence, off.confidence)
     bad_on = np.mean(np.abs(on.disparity - truth) > 0.07)
     bad_off = np.mean(np.abs(off.disparity - truth) > 0.07)
     assert bad_on < bad_off
-    again = estimate_disparity(lf, device="cpu")
+    again = estimate_disparity(lf, device="cpu", learned_refinement=True)
     np.testing.assert_array_equal(again.disparity, on.disparity)
 
 
-def test_cli_switches_the_refinement_off(tmp_path, capsys):
+def test_cli_switches_the_refinement_on(tmp_path, capsys):
     import json
 
     from lfsam.cli.main import main
@@ -117,14 +117,14 @@ def test_cli_switches_the_refinement_off(tmp_path, capsys):
     scene = tmp_path / "scene.npz"
     write_lightfield(lf, scene)
     outputs = {}
-    for flag in ([], ["--no-learned-refinement"]):
+    for flag in (["--learned-refinement"], []):
         out = tmp_path / f"d{len(flag)}.npy"
         capsys.readouterr()
         assert main(["disparity", str(scene), "--out", str(out), "--device", "cpu", *flag]) == 0
         report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
-        assert report["learned_refinement"] is (not flag)
+        assert report["learned_refinement"] is bool(flag)
         outputs[bool(flag)] = np.load(out)
-    off = estimate_disparity(lf, device="cpu", learned_refinement=False)
-    np.testing.assert_array_equal(outputs[True], off.disparity)
-    on = estimate_disparity(lf, device="cpu")
-    np.testing.assert_array_equal(outputs[False], on.disparity)
+    off = estimate_disparity(lf, device="cpu")
+    np.testing.assert_array_equal(outputs[False], off.disparity)
+    on = estimate_disparity(lf, device="cpu", learned_refinement=True)
+    np.testing.assert_array_equal(outputs[True], on.disparity)

@@ -29,7 +29,8 @@ Steps, all whole-image torch operations (any device, CUDA when present):
    the structure tensor's disparity where this one is unsure, the tensor sure and its value
    farther (the bands along depth edges), the mean of the two where they agree within a
    quarter step.
-7. *Learned refinement* (:mod:`lfsam.disparity.learned_refiner`, issue 45's fourth round): a
+7. *Learned refinement* (optional, ``learned_refinement=True``;
+   :mod:`lfsam.disparity.learned_refiner`, issue 45's fourth round): a
    small network trained on lfsam's synthetic scenes only moves each pixel to the disparity of
    a neighbour 2-6 px away where the colour and the disparity around it say so (the foreground
    spread onto the background at depth jumps); elsewhere the value stays.
@@ -256,7 +257,7 @@ def estimate_disparity_occlusion_aware(
     edge_refinement: bool = False,
     subpixel_fit: str = "equiangular",
     fusion: bool = True,
-    learned_refinement: bool = True,
+    learned_refinement: bool = False,
 ) -> DisparityEstimate:
     """Estimate a view's disparity from an occlusion-aware cost volume (module docstring).
 
@@ -320,8 +321,10 @@ def estimate_disparity_occlusion_aware(
     learned_refinement : bool
         Finish with the small network of :mod:`lfsam.disparity.learned_refiner`, trained on
         lfsam's synthetic scenes only, which corrects the disparity from the reference's colour,
-        the disparity and its confidence (step 7 of the module docstring; False: the estimate
-        before it).
+        the disparity and its confidence (step 7 of the module docstring). Off by default: it
+        lowers BadPix(0.07) on HCI cotton and the synthetic scenes but not on HCI antinous, and
+        it moves some foreground pixels at object outlines to the background
+        (docs/performance.md, "Fourth round").
 
     Returns
     -------

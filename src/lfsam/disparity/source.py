@@ -38,14 +38,8 @@ __all__ = ["load_disparity_spec", "resolve_disparity", "resolve_view_disparity"]
 #: ``--refine-views sparse`` and a lower SIoU with every view refined (docs/design.md
 #: section 3.2). It also keeps the single feature scale (``wide_feature_radius=None``): the
 #: second, wider scale (issue 45, third round) roughly doubles the estimate's time and has not
-#: been measured on carried masks, so segmentation keeps the estimate it was measured with; for
-#: the same reason it leaves out the learned refinement (issue 45, fourth round;
-#: :mod:`lfsam.disparity.learned_refiner`).
-CARRYING_OPTIONS: dict[str, bool | None] = {
-    "fusion": False,
-    "wide_feature_radius": None,
-    "learned_refinement": False,
-}
+#: been measured on carried masks, so segmentation keeps the estimate it was measured with.
+CARRYING_OPTIONS: dict[str, bool | None] = {"fusion": False, "wide_feature_radius": None}
 
 DisparitySpec = str | os.PathLike | np.ndarray
 
