@@ -17,6 +17,11 @@ lit and noisy copies included), never on a benchmark scene, by
 ``scripts/train_disparity_refiner.py`` from a fixed seed; its weights (:data:`DEFAULT_WEIGHTS`,
 about 110 kB) ship inside the package as a NumPy ``.npz`` file (no pickle).
 
+Optional (``estimate_disparity(..., learned_refinement=True)``, ``lfsam disparity
+--learned-refinement``): it lowers BadPix(0.07) on HCI antinous (5.40 -> 5.30 % over all pixels)
+and cotton (2.33 -> 2.06 %) but raises the synthetic +-3 and glossy scenes' errors and can move a
+small near object's pixels to the background (docs/performance.md, "Fourth round").
+
 Whole-image torch operations, any device (CUDA when the estimate runs there); deterministic.
 """
 
