@@ -11,6 +11,8 @@ view step), MSE x 100, BadPix(0.07) over all pixels (no border excluded: the fig
 table quotes), and the seconds of
 
 - ``occlusion-aware``: the default estimator (occlusion-aware cost volume),
+- ``+ refiner``: the same finished by the optional learned refinement of
+  :mod:`lfsam.disparity.learned_refiner` (``learned_refinement=True``, issue 45's fourth round),
 - ``structure-tensor``: the sheared structure tensor (``--method structure-tensor``),
 - ``plain ST``: the plain single-scale structure tensor in NumPy (the comparison baseline),
 - ``plenpy``: plenpy's ``LightField.get_disparity()`` with its defaults, when importable (not a
@@ -208,12 +210,14 @@ def main() -> None:
     for name, lf in cases:
         truth = lf.center_disparity
         ours, ours_s = timed(estimate_disparity, lf)
+        raw, raw_s = timed(estimate_disparity, lf, learned_refinement=True)
         tensor, tensor_s = timed(estimate_disparity, lf, method="structure-tensor")
         # the baselines are clipped to the range ours searched (plenpy clips to vmin, vmax)
         plain, plain_s = timed(estimate_disparity_baseline, lf,
                                disparity_range=ours.disparity_range)
         plen, plen_s = timed(plenpy_disparity, lf.views, ours.disparity_range)
         rows = [("occlusion-aware", ours.disparity, ours.confidence, ours_s),
+                ("+ refiner", raw.disparity, raw.confidence, raw_s),
                 ("structure-tensor", tensor.disparity, tensor.confidence, tensor_s),
                 ("plain ST", plain.disparity, plain.confidence, plain_s)]
         if plen is not None:
@@ -227,10 +231,11 @@ def main() -> None:
                 split = f"{'-':>14s} | {'-':>14s} | {'-':>5s}"
             print(f"| {name:18s} | {method:16s} | {bad7:10.2f} | {bad3:10.2f} | {mse:8.3f} | "
                   f"{every:11.2f} | {seconds:7.2f} | {split} |")
-            if method == "occlusion-aware" and confidence is not None:
-                summary.append(confidence_rank(name, disparity, confidence, truth))
+            if method in ("occlusion-aware", "+ refiner") and confidence is not None:
+                summary.append(confidence_rank(f"{name}, {method}", disparity, confidence, truth))
         if lf is glossy:
-            for method, estimate in (("occlusion-aware", ours), ("structure-tensor", tensor)):
+            for method, estimate in (("occlusion-aware", ours), ("+ refiner", raw),
+                                     ("structure-tensor", tensor)):
                 spot, rest = inner(highlight), ~inner(highlight)
                 err = np.abs(inner(estimate.disparity - truth)) > 0.07
                 conf = inner(estimate.confidence)
