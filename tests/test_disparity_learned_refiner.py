@@ -67,6 +67,24 @@ def test_missing_weights_name_the_fix(tmp_path):
         load_refiner(tmp_path / "nothing.npz")
 
 
+def test_a_file_of_other_arrays_names_the_fix(tmp_path):
+    other = tmp_path / "other.npz"
+    np.savez(other, weights=np.zeros(3))
+    with pytest.raises(LfsamError, match=r"not a weights file.*train_disparity_refiner"):
+        load_refiner(other)
+
+
+def test_cli_refuses_the_refinement_for_another_method(tmp_path, capsys):
+    from lfsam.cli.main import main
+
+    out = tmp_path / "d.npy"
+    code = main(["disparity", str(tmp_path / "not-read"), "--out", str(out),
+                 "--method", "structure-tensor", "--learned-refinement"])
+    assert code == 2
+    assert "--learned-refinement" in capsys.readouterr().err
+    assert not out.exists()
+
+
 def test_candidates_are_the_shifted_disparities():
     d = torch.arange(20 * 30, dtype=torch.float32).view(1, 1, 20, 30)
     c = candidates(d)

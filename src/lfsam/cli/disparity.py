@@ -91,7 +91,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--learned-refinement", dest="learned_refinement", action="store_true",
         help="occlusion-aware: finish with the small network, trained on lfsam's synthetic "
         "scenes only, that moves pixels along depth edges to a neighbour's disparity (off by "
-        "default: better on HCI cotton and synthetic scenes, not on HCI antinous)",
+        "default: better on HCI antinous and cotton, worse on some synthetic scenes, and it "
+        "can move a small near object's pixels to the background)",
     )
     parser.add_argument(
         "--view", metavar="S,T", type=lambda s: parse_pair(s, sep=",", kind=int),
@@ -115,6 +116,11 @@ def run(args: argparse.Namespace) -> int:
                          ("--preview", args.preview)):
         if path:  # every output, before the light field is read
             check_writable(path, folder=False, option=option)
+    if args.learned_refinement and args.method != "occlusion-aware":
+        raise LfsamError(
+            f"--learned-refinement refines the occlusion-aware estimate only, not "
+            f"--method {args.method}; drop one of the two"
+        )
     expect_input(args.path, "disparity", ("lightfield",))
     lightfield = read_lightfield(args.path, format=args.input_format)
     start = time.perf_counter()

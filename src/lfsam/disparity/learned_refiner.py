@@ -123,7 +123,9 @@ class DisparityRefiner(nn.Module):
 
 
 def _box(x: torch.Tensor, radius: int) -> torch.Tensor:
-    """Mean over a ``(2 radius + 1)^2`` window, replicated borders; ``x`` is (N, C, H, W)."""
+    """Mean over a ``(2 radius + 1)^2`` window, replicated borders; ``x`` is (N, C, H, W).
+    ``avg_pool2d``, not :func:`lfsam.disparity.filters.box_blur` (separable at this radius,
+    equal up to rounding): the shipped weights were trained on these exact values."""
     k = 2 * radius + 1
     return F.avg_pool2d(F.pad(x, (radius,) * 4, mode="replicate"), k, stride=1)
 
@@ -170,12 +172,18 @@ def _load_cached(path: str) -> DisparityRefiner:
             f"cannot read the disparity refiner's weights {path}: {error}; reinstall lfsam or "
             "run scripts/train_disparity_refiner.py"
         ) from error
-    with stored:
-        width = int(stored["width"])
-        dilations = tuple(int(d) for d in stored["dilations"])
-        model = DisparityRefiner(width, dilations)
-        state = {key: torch.from_numpy(stored[key]) for key in model.state_dict()}
-    model.load_state_dict(state)
+    try:
+        with stored:
+            width = int(stored["width"])
+            dilations = tuple(int(d) for d in stored["dilations"])
+            model = DisparityRefiner(width, dilations)
+            state = {key: torch.from_numpy(stored[key]) for key in model.state_dict()}
+        model.load_state_dict(state)
+    except (KeyError, TypeError, ValueError, RuntimeError) as error:
+        raise LfsamError(
+            f"{path} is not a weights file of the disparity refiner ({error}); reinstall lfsam "
+            "or run scripts/train_disparity_refiner.py"
+        ) from error
     return model.eval()
 
 

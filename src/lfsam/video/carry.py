@@ -20,7 +20,7 @@ from scipy import ndimage, signal
 
 __all__ = [
     "Carried", "Template", "carry", "cost_map", "locate", "masked_cost", "search_window",
-    "shifted",
+    "shifted", "window_within",
 ]
 
 #: Fraction of the carried mask (inside the frame) that must still look like the template.
@@ -103,10 +103,22 @@ def search_window(template: Template, image: np.ndarray, radius: int | None
     h, w = template.mask.shape
     r0, c0 = template.origin
     if radius is None:
-        top, left, bottom, right = r0 + h, c0 + w, height - r0, width - c0
+        margins = (r0 + h, c0 + w, height - r0, width - c0)
     else:
-        top = left = bottom = right = int(radius)
-    region_r0, region_c0 = r0 - top, c0 - left
+        margins = (int(radius),) * 4
+    return window_within(template, image, margins)
+
+
+def window_within(template: Template, image: np.ndarray,
+                  margins: tuple[int, int, int, int]
+                  ) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]]:
+    """The region of ``image`` that ``template`` can land on with shifts reaching
+    ``margins`` = (top, left, bottom, right) pixels from its place, zero-padded outside the
+    frame (:func:`search_window`'s window, for any reach)."""
+    height, width = image.shape[:2]
+    h, w = template.mask.shape
+    top, left, bottom, right = margins
+    region_r0, region_c0 = template.origin[0] - top, template.origin[1] - left
     rh, rw = h + top + bottom, w + left + right
     region = np.zeros((rh, rw, image.shape[-1]), np.float32)
     valid = np.zeros((rh, rw), np.float32)
@@ -116,7 +128,7 @@ def search_window(template: Template, image: np.ndarray, radius: int | None
         region[sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = (
             image[sr0:sr1, sc0:sc1])
         valid[sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = 1.0
-    return region, valid, (top, left, bottom, right)
+    return region, valid, margins
 
 
 def masked_cost(own: np.ndarray, cross: np.ndarray, energy: np.ndarray, count: np.ndarray,

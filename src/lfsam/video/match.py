@@ -19,6 +19,7 @@ from lfsam.video.carry import (
     MAX_PIXEL_DIFFERENCE,
     Template,
     masked_cost,
+    window_within,
 )
 
 __all__ = [
@@ -48,26 +49,6 @@ def margins_in(templates: Sequence[Template], images: Sequence[np.ndarray],
         cut = np.clip(whole, 0, None if radius is None else int(radius))
         reach = np.maximum(reach, cut)
     return tuple(int(x) for x in reach)
-
-
-def window_at(template: Template, image: np.ndarray, margins: tuple[int, int, int, int]
-              ) -> tuple[np.ndarray, np.ndarray, tuple[int, int, int, int]]:
-    """:func:`lfsam.video.carry.search_window` with the reach ``margins`` of
-    :func:`margins_in`."""
-    height, width = image.shape[:2]
-    h, w = template.mask.shape
-    top, left, bottom, right = margins
-    region_r0, region_c0 = template.origin[0] - top, template.origin[1] - left
-    rh, rw = h + top + bottom, w + left + right
-    region = np.zeros((rh, rw, image.shape[-1]), np.float32)
-    valid = np.zeros((rh, rw), np.float32)
-    sr0, sc0 = max(region_r0, 0), max(region_c0, 0)
-    sr1, sc1 = min(region_r0 + rh, height), min(region_c0 + rw, width)
-    if sr1 > sr0 and sc1 > sc0:
-        region[sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = (
-            image[sr0:sr1, sc0:sc1])
-        valid[sr0 - region_r0:sr1 - region_r0, sc0 - region_c0:sc1 - region_c0] = 1.0
-    return region, valid, margins
 
 
 def with_depth(template: Template, image: np.ndarray, disparity: np.ndarray | None,
@@ -104,7 +85,7 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
         The shift of each entry.
     """
     h, w = template.mask.shape
-    window, valid, margins = window_at(template, image, margins_in([template], [image], radius))
+    window, valid, margins = window_within(template, image, margins_in([template], [image], radius))
     rh, rw, channels = window.shape
     region = np.ascontiguousarray(np.moveaxis(window, -1, 0))  # (C, rh, rw)
     inside = bool(valid.all())
@@ -183,10 +164,10 @@ def likely_shifts_many(templates: Sequence[Template], images: Sequence[np.ndarra
     coulds, margins = [], []
     reach = margins_in(templates, images, radius)
     for template, image, known in zip(templates, images, taken, strict=True):
-        window, valid, _ = window_at(template, image, reach)
+        window, valid, _ = window_within(template, image, reach)
         could = present[bins(window)] & (valid > 0)
         if known is not None:
-            could &= window_at(template, known[..., None].astype(np.float32),
+            could &= window_within(template, known[..., None].astype(np.float32),
                                reach)[0][..., 0] == 0
         if window.shape[-1] > 3:  # the depth gate: the template's pixels are at one depth
             could &= np.abs(window[..., 3] - look[0, 3]) <= MAX_PIXEL_DIFFERENCE
@@ -220,7 +201,7 @@ def cost_maps(templates: Sequence[Template], images: Sequence[np.ndarray], radiu
     first = templates[0]
     h, w = first.mask.shape
     margins = margins_in(templates, images, radius)
-    windows = [window_at(t, im, margins) for t, im in zip(templates, images, strict=True)]
+    windows = [window_within(t, im, margins) for t, im in zip(templates, images, strict=True)]
     rh, rw, channels = windows[0][0].shape
     m = first.mask.astype(np.float32)
     a = np.moveaxis(first.image, -1, 0) * m  # (C, h, w)
