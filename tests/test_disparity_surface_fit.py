@@ -31,7 +31,7 @@ def test_a_quadratic_surface_is_kept_exactly():
 
 
 def test_noise_on_a_slanted_plane_is_averaged_without_flattening_the_slant():
-    u, v = _grid(60, 60)
+    u, _ = _grid(60, 60)
     plane = -0.5 + 0.06 * u  # the slant of HCI antinous' floor, 0.06 px per row
     noise = torch.from_numpy(np.random.default_rng(1).normal(0, 0.06, (60, 60))).float()
     mask = torch.ones(60, 60, dtype=torch.bool)

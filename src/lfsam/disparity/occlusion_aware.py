@@ -25,14 +25,14 @@ Steps, all whole-image torch operations (any device, CUDA when present):
    Steps 2-5 run with two feature scales (3 x 3 and 5 x 5 normalisation windows), and every
    pixel keeps the 5 x 5 result away from intensity edges and depth jumps
    (:mod:`lfsam.disparity.feature_scales`).
-   *Surface fit* (issue 45's fifth round; :mod:`lfsam.disparity.surface_fit`): those pixels
-   away from edges and jumps take the centre of a robust, colour-weighted local quadratic fit
-   of the disparity over 15 x 15 pixels (the noise of dark, weakly textured surfaces, slanted
-   or curved, averaged without flattening them).
 6. *Fusion* (:mod:`lfsam.disparity.fusion`, when the reference's row and column are complete):
    the structure tensor's disparity where this one is unsure, the tensor sure and its value
    farther (the bands along depth edges), the mean of the two where they agree within a
    quarter step.
+   *Surface fit* (issue 45's fifth round; :mod:`lfsam.disparity.surface_fit`): the pixels away
+   from intensity edges and depth jumps (those of the 5 x 5 features) take the centre of a
+   robust, colour-weighted local quadratic fit of the disparity over 15 x 15 pixels: the noise
+   of dark, weakly textured surfaces, slanted or curved, averaged without flattening them.
 7. *Learned refinement* (optional, ``learned_refinement=True``;
    :mod:`lfsam.disparity.learned_refiner`, issue 45's fourth round): a
    small network trained on lfsam's synthetic scenes only moves each pixel to the disparity of
@@ -387,10 +387,6 @@ def estimate_disparity_occlusion_aware(
             fine = fine_scale_mask(views_around.gray, disparity)
             disparity = torch.where(fine, disparity, wide_disparity)
             confidence = torch.where(fine, confidence, wide_confidence)
-        if surface_fit:
-            guide = views_around.colour if views_around.colour is not None else views_around.gray
-            away = ~fine_scale_mask(views_around.gray, disparity) if fine is None else ~fine
-            disparity = fit_surface(disparity, away, guide)
         fused = fusion and _full_cross(views, views_around.offsets)
         if fused:
             tensor = estimate_disparity_structure_tensor(
@@ -403,6 +399,11 @@ def estimate_disparity_occlusion_aware(
                 torch.as_tensor(tensor.confidence, device=disparity.device),
                 step,
             )
+        if surface_fit:
+            away = ~fine_scale_mask(views_around.gray, disparity) if fine is None else ~fine
+            guide = views_around.colour
+            guide = views_around.gray if guide is None else guide
+            disparity = fit_surface(disparity, away, guide)
         if edge_refinement:
             guide = views_around.gray[None]
             disparity = refine_disparity(disparity, confidence, guide)
