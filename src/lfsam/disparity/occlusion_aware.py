@@ -40,9 +40,10 @@ Steps, all whole-image torch operations (any device, CUDA when present):
    spread onto the background at depth jumps); elsewhere the value stays.
 
 Measured (``benchmarks/bench_disparity.py``; docs/performance.md, "Disparity"): BadPix(0.07) on
-HCI antinous 4.7 % and cotton 2.2 % (8-pixel border excluded; over all pixels 5.4 % and 2.3 %;
-7.3 % and 2.6 % before issue 45's view-set choice and aggregation, 6.1 % and 2.2 % before its
-two feature scales and farther-only fusion), lower BadPix and MSE than the sheared structure
+HCI antinous 3.8 % and cotton 2.3 % (8-pixel border excluded; over all pixels 4.5 % and 2.3 %;
+5.4 % and 2.3 % before issue 45's surface fit, 7.3 % and 2.6 % border excluded before its
+view-set choice and aggregation, 6.1 % and 2.2 % before its two feature scales and farther-only
+fusion), lower BadPix and MSE than the sheared structure
 tensor on the synthetic scenes.
 """
 
