@@ -38,7 +38,7 @@ def test_mask_marks_intensity_edges_and_depth_jumps_only():
 def test_estimate_takes_the_fine_scale_near_edges_and_the_wide_one_elsewhere():
     lf = generate_scene(grid=(5, 5), size=(48, 64), seed=3, disparity_range=(-1.0, 1.0))
     options = {"disparity_range": (-1.5, 1.5), "fusion": False, "device": "cpu",
-               "learned_refinement": False}
+               "learned_refinement": False, "surface_fit": False}
     fine = estimate_disparity(lf, wide_feature_radius=None, **options)
     wide = estimate_disparity(lf, feature_radius=2, wide_feature_radius=None, **options)
     both = estimate_disparity(lf, **options)

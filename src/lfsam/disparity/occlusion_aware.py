@@ -29,6 +29,10 @@ Steps, all whole-image torch operations (any device, CUDA when present):
    the structure tensor's disparity where this one is unsure, the tensor sure and its value
    farther (the bands along depth edges), the mean of the two where they agree within a
    quarter step.
+   *Surface fit* (issue 45's fifth round; :mod:`lfsam.disparity.surface_fit`): the pixels away
+   from intensity edges and depth jumps (those of the 5 x 5 features) take the centre of a
+   robust, colour-weighted local quadratic fit of the disparity over 15 x 15 pixels: the noise
+   of dark, weakly textured surfaces, slanted or curved, averaged without flattening them.
 7. *Learned refinement* (optional, ``learned_refinement=True``;
    :mod:`lfsam.disparity.learned_refiner`, issue 45's fourth round): a
    small network trained on lfsam's synthetic scenes only moves each pixel to the disparity of
@@ -36,9 +40,10 @@ Steps, all whole-image torch operations (any device, CUDA when present):
    spread onto the background at depth jumps); elsewhere the value stays.
 
 Measured (``benchmarks/bench_disparity.py``; docs/performance.md, "Disparity"): BadPix(0.07) on
-HCI antinous 4.7 % and cotton 2.2 % (8-pixel border excluded; over all pixels 5.4 % and 2.3 %;
-7.3 % and 2.6 % before issue 45's view-set choice and aggregation, 6.1 % and 2.2 % before its
-two feature scales and farther-only fusion), lower BadPix and MSE than the sheared structure
+HCI antinous 3.8 % and cotton 2.3 % (8-pixel border excluded; over all pixels 4.5 % and 2.3 %;
+5.4 % and 2.3 % before issue 45's surface fit, 7.3 % and 2.6 % border excluded before its
+view-set choice and aggregation, 6.1 % and 2.2 % before its two feature scales and farther-only
+fusion), lower BadPix and MSE than the sheared structure
 tensor on the synthetic scenes.
 """
 
@@ -67,6 +72,7 @@ from lfsam.disparity.refine import refine_disparity
 from lfsam.disparity.structure_tensor import (
     estimate_disparity as estimate_disparity_structure_tensor,
 )
+from lfsam.disparity.surface_fit import fit_surface
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 
@@ -256,6 +262,7 @@ def estimate_disparity_occlusion_aware(
     aggregation_eps: float = 1e-4,
     edge_refinement: bool = False,
     subpixel_fit: str = "equiangular",
+    surface_fit: bool = True,
     fusion: bool = True,
     learned_refinement: bool = False,
 ) -> DisparityEstimate:
@@ -312,6 +319,12 @@ def estimate_disparity_occlusion_aware(
     subpixel_fit : {"equiangular", "parabola"}
         The sub-pixel fit of :func:`subpixel_winner` (the equiangular one is the more precise
         on every bench scene; docs/performance.md).
+    surface_fit : bool
+        Replace the disparity of the pixels away from intensity edges and depth jumps by a
+        robust, colour-weighted local quadratic fit over 15 x 15 pixels
+        (:func:`lfsam.disparity.surface_fit.fit_surface`, issue 45's fifth round): it averages
+        the noise of dark, weakly textured surfaces, slanted or curved, without flattening
+        them. About 1.4 s on 512 x 512 on one CPU thread.
     fusion : bool
         Fuse with the structure tensor's disparity over the same range
         (:func:`lfsam.disparity.fusion.fuse_disparities`): its value where this estimate is
@@ -365,6 +378,7 @@ def estimate_disparity_occlusion_aware(
             "step": step,
         }
         disparity, confidence = _estimate_one_scale(views_around, hypotheses, **scale_options)
+        fine = None
         if wide_feature_radius is not None and wide_feature_radius != feature_radius:
             wide = views_around.with_features(
                 matching_features(views_around.grays, wide_feature_radius, feature_eps),
@@ -386,6 +400,11 @@ def estimate_disparity_occlusion_aware(
                 torch.as_tensor(tensor.confidence, device=disparity.device),
                 step,
             )
+        if surface_fit:
+            away = ~fine_scale_mask(views_around.gray, disparity) if fine is None else ~fine
+            guide = views_around.colour
+            guide = views_around.gray if guide is None else guide
+            disparity = fit_surface(disparity, away, guide)
         if edge_refinement:
             guide = views_around.gray[None]
             disparity = refine_disparity(disparity, confidence, guide)
@@ -407,6 +426,7 @@ def estimate_disparity_occlusion_aware(
         "wide_feature_radius": wide_feature_radius,
         **{key: value for key, value in scale_options.items() if key != "step"},
         "edge_refinement": edge_refinement,
+        "surface_fit": surface_fit,
         "fusion": fused,
         "learned_refinement": learned_refinement,
         "device": str(views_around.device),

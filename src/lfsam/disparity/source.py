@@ -38,8 +38,14 @@ __all__ = ["load_disparity_spec", "resolve_disparity", "resolve_view_disparity"]
 #: ``--refine-views sparse`` and a lower SIoU with every view refined (docs/design.md
 #: section 3.2). It also keeps the single feature scale (``wide_feature_radius=None``): the
 #: second, wider scale (issue 45, third round) roughly doubles the estimate's time and has not
-#: been measured on carried masks, so segmentation keeps the estimate it was measured with.
-CARRYING_OPTIONS: dict[str, bool | None] = {"fusion": False, "wide_feature_radius": None}
+#: been measured on carried masks, so segmentation keeps the estimate it was measured with; nor
+#: the fifth round's local surface fit (``surface_fit=False``), not measured on carried masks
+#: either.
+CARRYING_OPTIONS: dict[str, bool | None] = {
+    "fusion": False,
+    "wide_feature_radius": None,
+    "surface_fit": False,
+}
 
 DisparitySpec = str | os.PathLike | np.ndarray
 
