@@ -38,13 +38,22 @@ all seeds:
   ``--jitter 1`` the oracle erodes a third of its answers by one pixel (a 3x3 square), and an
   object a few pixels wide keeps under half of itself (IoU below 0.5) however it was found.
 
+``--consensus`` runs every mode (search, before, clicked) with the multi-view consensus of
+issue 36 (docs/design.md section 3.9: each refined view's mask voted with its neighbours'):
+``on`` with it, ``off`` without (default), ``both`` each video with and without it, one after
+the other in the same process, so that its cost per frame is a ratio measured in one run
+(printed as ``consensus cost``; with ``--repeat`` the two settings alternate run by run).
+Its cost with a real architecture: ``--model`` (e.g. ``edgetam-tiny-test``, or ``edgetam
+--random-weights`` for EdgeTAM's full-size encoder; random weights: the timings count, the
+scores mean nothing, and the search then widens every frame for objects never found).
+
 The default seeds (101-103) are held out: the tracker was developed on seeds 1-40.
 
 Usage::
 
     OMP_NUM_THREADS=1 python benchmarks/bench_tracking.py [--seeds 101,102,103]
         [--frames 12] [--objects 5] [--jitter 0,1] [--modes search,before,clicked] [--easy]
-        [--repeat 2] [--json OUT]
+        [--repeat 2] [--consensus off|on|both] [--model oracle] [--json OUT]
 """
 
 from __future__ import annotations
@@ -62,11 +71,25 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
 from lfsam.api import ModelOptions, RunOptions, SegmentOptions
 from lfsam.metrics.temporal import frame_matches, identity_switches
+from lfsam.pipeline import PipelineConfig
 from lfsam.prompts import ObjectPrompts, PointPrompt
+from lfsam.segmenters import load_segmenter
 from lfsam.video.online import OnlineTracker
 from lfsam.video.synth import generate_video
 
 MODES = {"search": True, "before": False, "clicked": None}
+#: ``--consensus``: the consensus settings each video is run with.
+CONSENSUS = {"off": (False,), "on": (True,), "both": (False, True)}
+
+
+def options_for(jitter: int, seed: int, consensus: bool = False,
+                model: str = "oracle") -> SegmentOptions:
+    """The run's options: ``model`` (the oracle with ``jitter``), the multi-view consensus
+    (docs/design.md section 3.9) on or off."""
+    oracle = {"boundary_jitter": jitter} if jitter and model == "oracle" else None
+    return SegmentOptions(pipeline=PipelineConfig(consensus=consensus),
+                          run=RunOptions(progress=False),
+                          model=ModelOptions(name=model, oracle=oracle, seed=seed))
 
 
 def clicks(lf, min_pixels: int) -> tuple[list[ObjectPrompts], dict[int, int]]:
@@ -91,14 +114,14 @@ def deepest_click(mask: np.ndarray) -> PointPrompt:
     return PointPrompt(float(col), float(row))
 
 
-def clicked_every_frame(frames, truth: dict[int, int], jitter: int, seed: int):
+def clicked_every_frame(frames, truth: dict[int, int], jitter: int, seed: int,
+                        consensus: bool = False, segmenter=None):
     """The reference without tracking: every object clicked afresh in every frame (one click
     at the deepest pixel of the view where it shows most, if it shows anywhere), each frame
     segmented alone by the same pipeline and oracle. What it loses is the floor the oracle's
     imperfections set (with ``--jitter``: a one-pixel erosion of an object a few pixels wide
     keeps under half of it), not tracking. Labels and seconds as :func:`track`."""
-    options = SegmentOptions(run=RunOptions(progress=False), model=ModelOptions(
-        name="oracle", oracle={"boundary_jitter": jitter} if jitter else None, seed=seed))
+    options = options_for(jitter, seed, consensus)
     labels, seconds = [], []
     for lf in frames:
         prompts = []
@@ -111,7 +134,8 @@ def clicked_every_frame(frames, truth: dict[int, int], jitter: int, seed: int):
             prompts.append(ObjectPrompts(obj_id, (PointPrompt(click.x, click.y, True, view),)))
         start = time.perf_counter()
         if prompts:
-            tracker = OnlineTracker("oracle", disparity="gt", options=options)
+            tracker = OnlineTracker(segmenter or "oracle", disparity="gt", options=options,
+                                    memory=False)
             tracker.add_prompts(prompts)
             labels.append(tracker.track(lf).labels)
         else:
@@ -120,14 +144,16 @@ def clicked_every_frame(frames, truth: dict[int, int], jitter: int, seed: int):
     return labels, seconds, [0.0] * len(frames)
 
 
-def track(frames, prompts, search: bool, jitter: int, seed: int, repeat: int = 1):
+def track(frames, prompts, search: bool, jitter: int, seed: int, repeat: int = 1,
+          consensus: bool = False, segmenter=None):
     """Labels of every frame, the seconds of each ``track`` call and of its carrying (the
-    least over ``repeat`` runs, frame by frame: the labels are the same every run)."""
-    options = SegmentOptions(run=RunOptions(progress=False), model=ModelOptions(
-        name="oracle", oracle={"boundary_jitter": jitter} if jitter else None, seed=seed))
+    least over ``repeat`` runs, frame by frame: the labels are the same every run).
+    ``segmenter``: a ready model tracked with constrained prompts (default: the oracle)."""
+    options = options_for(jitter, seed, consensus)
     best_seconds = best_carrying = None
     for _ in range(repeat):
-        tracker = OnlineTracker("oracle", disparity="gt", options=options, search=search)
+        tracker = OnlineTracker(segmenter or "oracle", disparity="gt", options=options,
+                                search=search, memory=False)
         tracker.add_prompts(prompts)
         labels, seconds, carrying = [], [], []
         for lf in frames:
@@ -190,14 +216,19 @@ def _ids(labels: np.ndarray) -> frozenset[int]:
     return frozenset(int(i) for i in np.unique(labels) if i > 0)
 
 
-def timing(totals: dict, mode: str, jitter: int) -> dict:
-    """The cost figures of one run against ``before`` with the same jitter (see the module
-    docstring): whole frame, carrying, the search's own extra as a share of the earlier
-    frame, and the whole frame over the frames where both placed the same objects."""
-    total, base = totals[(mode, jitter)], totals.get(("before", jitter))
+def timing(totals: dict, key: tuple) -> dict:
+    """The cost figures of one run against ``before`` with the same jitter and consensus (see
+    the module docstring): whole frame, carrying, the search's own extra as a share of the
+    earlier frame, and the whole frame over the frames where both placed the same objects;
+    with the consensus, its cost: the whole frame against the same mode without it."""
+    mode, jitter, consensus = key
+    total, base = totals[key], totals.get(("before", jitter, consensus))
     ms = 1000 * float(np.mean(total["seconds"]))
     carry_ms = 1000 * float(np.mean(total["carrying"]))
     out = {"ms_per_frame": ms, "carrying_ms_per_frame": carry_ms}
+    plain = totals.get((mode, jitter, False))
+    if consensus and plain is not None:
+        out["consensus_ratio"] = ms / (1000 * float(np.mean(plain["seconds"])))
     if base is None or mode == "clicked":  # no tracking: its cost is not the search's
         return out
     base_ms = 1000 * float(np.mean(base["seconds"]))
@@ -218,7 +249,12 @@ def main() -> None:
         description=__doc__.split("\n\n")[0],
         epilog="examples: OMP_NUM_THREADS=1 python benchmarks/bench_tracking.py --seeds 1,2 "
                "--jitter 0\n  python benchmarks/bench_tracking.py --easy --repeat 2 "
-               "--modes search,before --jitter 0   # the search's cost where nothing is lost",
+               "--modes search,before --jitter 0   # the search's cost where nothing is lost"
+               "\n  python benchmarks/bench_tracking.py --consensus on --modes search,clicked "
+               "--jitter 1   # with the multi-view consensus (and its floor)"
+               "\n  python benchmarks/bench_tracking.py --seeds 1001 --consensus both "
+               "--modes search --repeat 2 --model edgetam-tiny-test   # the consensus's "
+               "cost per frame with a real architecture",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", default="101,102,103")
     parser.add_argument("--frames", type=int, default=12)
@@ -230,12 +266,25 @@ def main() -> None:
                         help="search: the tracking of issue 47; before: the tracking before "
                              "it; clicked: no tracking, every object clicked afresh in every "
                              "frame (the floor the oracle's imperfections set)")
+    parser.add_argument("--consensus", choices=list(CONSENSUS), default="off",
+                        help="every mode with the multi-view consensus (docs/design.md "
+                             "section 3.9), without it, or both, one after the other per "
+                             "video (its cost per frame: 'consensus cost', a ratio in one run)")
+    parser.add_argument("--model", default="oracle",
+                        help="the segmenter (default the oracle); another model, e.g. "
+                             "edgetam-tiny-test or sam2-tiny-test (random weights), is loaded "
+                             "once and tracked with constrained prompts: its timings count, "
+                             "its scores mean nothing; --jitter must then be 0")
+    parser.add_argument("--random-weights", action="store_true",
+                        help="with --model: the named architecture with random weights (e.g. "
+                             "--model edgetam: EdgeTAM's full-size encoder, no checkpoint)")
     parser.add_argument("--min-pixels", type=int, default=100)
     parser.add_argument("--easy", action="store_true",
                         help="videos without the hard cases (hard=False), where the earlier "
                              "tracking loses few objects: the search's cost on the same work")
     parser.add_argument("--repeat", type=int, default=1,
-                        help="track each video this many times; each frame's least time counts")
+                        help="track each video this many times (with --consensus both the two "
+                             "settings alternate); each frame's least time counts")
     parser.add_argument("--json", default=None, help="also write the numbers here")
     args = parser.parse_args()
     grid = tuple(int(x) for x in args.grid.lower().split("x"))
@@ -243,59 +292,80 @@ def main() -> None:
     seeds = [int(s) for s in args.seeds.split(",")]
     jitters = [int(j) for j in args.jitter.split(",")]
     modes = args.modes.split(",")
-    totals: dict[tuple[str, int], dict] = {}
+    if args.model != "oracle" and any(jitters):
+        parser.error("--jitter is the oracle's: give --jitter 0 with --model")
+    totals: dict[tuple[str, int, bool], dict] = {}
+    segmenter = None
     for seed in seeds:
         frames = list(generate_video(grid=grid, size=size, frames=args.frames, seed=seed,
                                      num_objects=args.objects, hard=not args.easy))
         prompts, truth = clicks(frames[0], args.min_pixels)
+        if args.model != "oracle" and segmenter is None:  # loaded once, outside the timing
+            segmenter = load_segmenter(args.model, random_weights=args.random_weights,
+                                       device="cpu", keep_decoder_state=False)
         for jitter in jitters:
             for mode in modes:
-                if mode == "clicked":
-                    labels, seconds, carrying = clicked_every_frame(frames, truth, jitter, seed)
-                else:
-                    labels, seconds, carrying = track(frames, prompts, MODES[mode], jitter,
-                                                      seed, args.repeat)
-                row = score(frames, labels, truth, args.min_pixels)
-                row["seconds"] = seconds
-                row["carrying"] = carrying
-                row["ids"] = [_ids(x) for x in labels]
-                total = totals.setdefault((mode, jitter), {
-                    "visible": 0, "lost": 0, "iou_sum": 0.0, "switches": 0,
-                    "shown_switches": 0, "returns": 0,
-                    "latencies": [], "never": 0, "seconds": [], "carrying": [], "ids": []})
-                for key, value in row.items():
-                    total[key] = total[key] + value
-                print(f"seed {seed} jitter {jitter} {mode:>6}: {row['lost']}/{row['visible']} "
-                      f"lost, mean IoU {row['iou_sum'] / max(row['visible'], 1):.4f}, "
-                      f"{row['switches']} switches ({row['shown_switches']} shown), "
-                      f"returns {row['returns']} latencies "
-                      f"{row['latencies']} never {row['never']}, "
-                      f"{1000 * np.mean(seconds):.0f} ms/frame "
-                      f"({1000 * np.mean(carrying):.0f} carrying)", flush=True)
+                runs: dict[bool, tuple] = {}
+                for _ in range(args.repeat):  # the consensus settings alternate, run by run
+                    for consensus in CONSENSUS[args.consensus]:
+                        if mode == "clicked":
+                            got = clicked_every_frame(frames, truth, jitter, seed, consensus,
+                                                      segmenter)
+                        else:
+                            got = track(frames, prompts, MODES[mode], jitter, seed, 1,
+                                        consensus, segmenter)
+                        old = runs.get(consensus)
+                        runs[consensus] = got if old is None else (
+                            old[0], list(np.minimum(old[1], got[1])),
+                            list(np.minimum(old[2], got[2])))
+                for consensus, (labels, seconds, carrying) in runs.items():
+                    row = score(frames, labels, truth, args.min_pixels)
+                    row["seconds"] = seconds
+                    row["carrying"] = carrying
+                    row["ids"] = [_ids(x) for x in labels]
+                    total = totals.setdefault((mode, jitter, consensus), {
+                        "visible": 0, "lost": 0, "iou_sum": 0.0, "switches": 0,
+                        "shown_switches": 0, "returns": 0,
+                        "latencies": [], "never": 0, "seconds": [], "carrying": [],
+                        "ids": []})
+                    for key, value in row.items():
+                        total[key] = total[key] + value
+                    name = mode + ("+cons" if consensus else "")
+                    print(f"seed {seed} jitter {jitter} {name:>12}: {row['lost']}/"
+                          f"{row['visible']} lost, mean IoU "
+                          f"{row['iou_sum'] / max(row['visible'], 1):.4f}, "
+                          f"{row['switches']} switches ({row['shown_switches']} shown), "
+                          f"returns {row['returns']} latencies "
+                          f"{row['latencies']} never {row['never']}, "
+                          f"{1000 * np.mean(seconds):.0f} ms/frame "
+                          f"({1000 * np.mean(carrying):.0f} carrying)", flush=True)
     print()
     print(f"{len(seeds)} videos (seeds {args.seeds}{', easy' if args.easy else ''}), "
           f"{args.frames} frames of {grid[0]}x{grid[1]} views of {size[0]}x{size[1]}, "
-          f"{args.objects} objects, oracle, gt disparity, least of {args.repeat} timing(s)")
-    header = ("mode", "jitter", "visible", "lost %", "mean IoU", "switches",
+          f"{args.objects} objects, {args.model}, gt disparity, least of {args.repeat} "
+          f"timing(s)")
+    header = ("mode", "jitter", "consensus", "visible", "lost %", "mean IoU", "switches",
               "switches (shown)", "returns",
               "latency mean", "latency max", "never", "ms/frame", "ratio", "carrying ms/frame",
               "carrying ratio", "search extra % of before frame",
-              "same-objects frames", "same-objects ratio")
+              "same-objects frames", "same-objects ratio", "consensus cost")
     print(" | ".join(header))
     out = []
-    for (mode, jitter), total in totals.items():
+    for (mode, jitter, consensus), total in totals.items():
         lat = total["latencies"]
-        row = {"mode": mode, "jitter": jitter, "visible": total["visible"],
+        row = {"mode": mode, "jitter": jitter, "consensus": consensus,
+               "visible": total["visible"],
                "lost_pct": 100 * total["lost"] / max(total["visible"], 1),
                "mean_iou": total["iou_sum"] / max(total["visible"], 1),
                "switches": total["switches"], "shown_switches": total["shown_switches"],
                "returns": total["returns"],
                "latency_mean": float(np.mean(lat)) if lat else None,
                "latency_max": max(lat) if lat else None, "never": total["never"],
-               **timing(totals, mode, jitter)}
+               **timing(totals, (mode, jitter, consensus))}
         out.append(row)
         nan = float("nan")
-        print(f"{mode} | {jitter} | {row['visible']} | {row['lost_pct']:.2f} | "
+        print(f"{mode} | {jitter} | {'on' if consensus else 'off'} | {row['visible']} | "
+              f"{row['lost_pct']:.2f} | "
               f"{row['mean_iou']:.4f} | {row['switches']} | {row['shown_switches']} | "
               f"{row['returns']} | "
               f"{row['latency_mean'] if lat else '-'} | {row['latency_max'] if lat else '-'} | "
@@ -303,7 +373,8 @@ def main() -> None:
               f"{row['carrying_ms_per_frame']:.0f} | {row.get('carrying_ratio', nan):.2f} | "
               f"{100 * row.get('search_extra_share', nan):.1f} | "
               f"{row.get('same_objects_frames', '-')}/{row.get('frames', '-')} | "
-              f"{row.get('same_objects_ratio', nan):.2f}")
+              f"{row.get('same_objects_ratio', nan):.2f} | "
+              f"{row.get('consensus_ratio', nan):.2f}")
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1), encoding="utf-8")
 

@@ -186,7 +186,9 @@ def add_consensus_argument(parser: argparse.ArgumentParser | argparse._ArgumentG
         help="multi-view consensus: after refinement, each view's mask of each object is voted "
         "with the refined masks of the nearest views, carried by disparity (a segmenter's "
         "error in one view is outvoted; result meta consensus_replaced counts the masks it "
-        "replaced); about 2x the work of a sparse fill",
+        "replaced); about 2x the work of a sparse fill. Recommended for videos tracked "
+        "with a segmenter whose answers are not exact (fewer objects lost; docs/design.md "
+        "3.9)",
     )
 
 

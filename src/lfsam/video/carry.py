@@ -8,7 +8,9 @@ overlapping pixel wins; part of the template may fall outside the frame (objects
 coming back through the border). The shifted mask, kept where the new pixels still look like
 the template (not covered by something that moved in front), gives the prompt: a positive
 point at its deepest pixel (away from negative clicks given in that frame), and a box around
-the shifted mask widened by a margin.
+the shifted mask widened by a margin. The search of issue 47 (:mod:`lfsam.video.search`)
+prompts with :func:`positive_points` (several, apart) and :func:`neighbour_points` (negative
+points on objects placed earlier) and compares colours with :func:`looks_alike`.
 """
 
 from __future__ import annotations
@@ -19,8 +21,8 @@ import numpy as np
 from scipy import ndimage, signal
 
 __all__ = [
-    "Carried", "Template", "carry", "cost_map", "locate", "masked_cost", "search_window",
-    "shifted", "window_within",
+    "Carried", "Template", "carry", "cost_map", "locate", "looks_alike", "masked_cost",
+    "neighbour_points", "positive_points", "search_window", "shifted", "window_within",
 ]
 
 #: Fraction of the carried mask (inside the frame) that must still look like the template.
@@ -237,3 +239,58 @@ def carry(template: Template, image: np.ndarray, radius: int | None,
             seeds[row, col] = False
     row, col, _ = deepest(seeds)
     return Carried((float(col), float(row)), box_around(mask, box_margin), mask, cost)
+
+
+def positive_points(support: np.ndarray, count: int = 3) -> list[tuple[float, float]]:
+    """Up to ``count`` ``(x, y)`` points at the deepest supported pixels, apart."""
+    rows, cols = np.nonzero(support)
+    if rows.size == 0:
+        return []
+    r0, c0 = rows.min(), cols.min()
+    seeds = support[r0:rows.max() + 1, c0:cols.max() + 1].copy()
+    grid_r, grid_c = np.indices(seeds.shape)
+    points: list[tuple[float, float]] = []
+    for _ in range(count):
+        if not seeds.any():
+            break
+        row, col, depth = deepest(seeds)
+        if points and depth < 2.5:
+            break
+        points.append((float(col + c0), float(row + r0)))
+        seeds &= (grid_r - row) ** 2 + (grid_c - col) ** 2 > (2 * max(depth, 2.0)) ** 2
+    return points
+
+
+def neighbour_points(carried: np.ndarray, support: np.ndarray, placed_ids: np.ndarray | None
+                      ) -> list[tuple[float, float]]:
+    """A negative ``(x, y)`` point on each object placed earlier that touches ``carried``."""
+    if placed_ids is None or not carried.any():
+        return []
+    rows, cols = np.nonzero(carried)
+    r0, c0 = max(rows.min() - 5, 0), max(cols.min() - 5, 0)
+    crop = (slice(r0, rows.max() + 6), slice(c0, cols.max() + 6))
+    near = ndimage.binary_dilation(carried[crop], iterations=4)  # the same, in its crop
+    points = []
+    for other in np.unique(placed_ids[crop][near]):
+        if other == 0:
+            continue
+        region = (placed_ids == other) & ~support
+        if region.sum() >= MIN_PIXELS:
+            rows, cols = np.nonzero(region)  # the deepest pixel found in the region's crop
+            r0, c0 = rows.min(), cols.min()
+            row, col, _ = deepest(region[r0:rows.max() + 1, c0:cols.max() + 1])
+            points.append((float(col + c0), float(row + r0)))
+    return points
+
+
+def looks_alike(a: np.ndarray, b: np.ndarray, bins: int = 6) -> float:
+    """Intersection of the joint RGB histograms of two pixel sets ``(N, 3)`` (1: equal)."""
+    if len(a) == 0 or len(b) == 0:
+        return 0.0
+
+    def hist(x: np.ndarray) -> np.ndarray:
+        q = np.clip((x.astype(np.float64) * bins / 256.0).astype(int), 0, bins - 1)
+        h = np.bincount((q[:, 0] * bins + q[:, 1]) * bins + q[:, 2], minlength=bins**3)
+        return h / h.sum()
+
+    return float(np.minimum(hist(a), hist(b)).sum())

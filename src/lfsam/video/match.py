@@ -115,7 +115,7 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
 
 
 #: Colour bins per channel of :func:`likely_shifts`' look-up (as
-#: :func:`lfsam.video.search.looks_alike`'s histograms).
+#: :func:`lfsam.video.carry.looks_alike`'s histograms).
 BINS = 6
 #: :func:`likely_shifts` keeps the shifts this nearly as likely as the likeliest.
 ALMOST = 0.9

@@ -1,0 +1,60 @@
+"""An answer refused at the predicted place does not hide the object there (issue 47,
+seventh pass; docs/design.md section 10, "Tracking", step 5): where a mostly covered object
+sits beside a wide background of its own colours, the template's match lies on that
+background, its answer (the background) is refused, and the object was hidden although it
+showed itself at its predicted place (seed 802: 174 pixels in the center view, hidden for
+its last three frames, 61 lost triples). The view is matched once more with the refused
+answer's pixels counted as not the object."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lfsam.prompts import ObjectPrompts
+from lfsam.video import search
+from lfsam.video.carry import Template
+from lfsam.video.search import Track, search_object
+
+CENTER = (2, 2)
+
+
+def _scene():
+    rng = np.random.default_rng(8)
+    colour = np.array([200.0, 60.0, 60.0])
+
+    def alike(shape):
+        return (colour + rng.uniform(-5, 5, (*shape, 3))).astype(np.float32)
+
+    image = rng.uniform(0, 40, (60, 80, 3)).astype(np.float32)
+    labels = np.ones((60, 80), np.int64)
+    image[:27] = alike((27, 80))  # a background band of the object's colours
+    labels[:27] = 4
+    look = alike((12, 12))
+    image[30:42, 40:52] = look  # the object, 3 px below the band
+    labels[30:42, 40:52] = 2
+    image[33:45, 36:56] = 0.0  # a cover over all but its top 3 rows
+    labels[33:45, 36:56] = 3
+    return image, labels, Template(look, np.ones((12, 12), bool), (30, 40))
+
+
+def _search():
+    image, labels, template = _scene()
+
+    def answer(obj: ObjectPrompts):
+        point = next(p for p in obj.points if p.positive)
+        return CENTER, labels == labels[round(point.y), round(point.x)]
+
+    track = Track(CENTER, template, area=144, sightings=3, state="tracked")
+    return search_object(1, track, lambda v: image, CENTER, [], answer, lambda v: None,
+                         None, (), False)
+
+
+def test_a_refused_answer_is_not_the_object_when_its_view_is_matched_again(monkeypatch):
+    found = _search()
+    assert found is not None
+    view, mask, shift, _ = found
+    _, labels, _ = _scene()
+    assert view == CENTER and shift == (0, 0)
+    assert mask.sum() == 36 and (labels[mask] == 2).all()  # its 3 visible rows
+    monkeypatch.setattr(search, "REFUSED_AGAIN", False)
+    assert _search() is None  # the band's answer refused, the object hidden
