@@ -144,28 +144,24 @@ def clicked_every_frame(frames, truth: dict[int, int], jitter: int, seed: int,
     return labels, seconds, [0.0] * len(frames)
 
 
-def track(frames, prompts, search: bool, jitter: int, seed: int, repeat: int = 1,
-          consensus: bool = False, segmenter=None):
-    """Labels of every frame, the seconds of each ``track`` call and of its carrying (the
-    least over ``repeat`` runs, frame by frame: the labels are the same every run).
-    ``segmenter``: a ready model tracked with constrained prompts (default: the oracle)."""
+def track(frames, prompts, search: bool, jitter: int, seed: int, consensus: bool = False,
+          segmenter=None):
+    """Labels of every frame, the seconds of each ``track`` call and of its carrying (one
+    run; ``main`` keeps each frame's least time over ``--repeat`` runs: the labels are the
+    same every run). ``segmenter``: a ready model tracked with constrained prompts (default:
+    the oracle)."""
     options = options_for(jitter, seed, consensus)
-    best_seconds = best_carrying = None
-    for _ in range(repeat):
-        tracker = OnlineTracker(segmenter or "oracle", disparity="gt", options=options,
-                                search=search, memory=False)
-        tracker.add_prompts(prompts)
-        labels, seconds, carrying = [], [], []
-        for lf in frames:
-            start, carried = time.perf_counter(), tracker.carry_seconds
-            result = tracker.track(lf)
-            seconds.append(time.perf_counter() - start)
-            carrying.append(tracker.carry_seconds - carried)
-            labels.append(result.labels)
-        best_seconds = seconds if best_seconds is None else np.minimum(best_seconds, seconds)
-        best_carrying = (carrying if best_carrying is None
-                         else np.minimum(best_carrying, carrying))
-    return labels, list(best_seconds), list(best_carrying)
+    tracker = OnlineTracker(segmenter or "oracle", disparity="gt", options=options,
+                            search=search, memory=False)
+    tracker.add_prompts(prompts)
+    labels, seconds, carrying = [], [], []
+    for lf in frames:
+        start, carried = time.perf_counter(), tracker.carry_seconds
+        result = tracker.track(lf)
+        seconds.append(time.perf_counter() - start)
+        carrying.append(tracker.carry_seconds - carried)
+        labels.append(result.labels)
+    return labels, seconds, carrying
 
 
 def score(frames, labels, truth: dict[int, int], min_pixels: int) -> dict:
@@ -312,7 +308,7 @@ def main() -> None:
                             got = clicked_every_frame(frames, truth, jitter, seed, consensus,
                                                       segmenter)
                         else:
-                            got = track(frames, prompts, MODES[mode], jitter, seed, 1,
+                            got = track(frames, prompts, MODES[mode], jitter, seed,
                                         consensus, segmenter)
                         old = runs.get(consensus)
                         runs[consensus] = got if old is None else (

@@ -8,30 +8,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from lfsam.prompts import ObjectPrompts
 from lfsam.video.carry import Template
 from lfsam.video.search import (
     EXPLAINED,
     Track,
     _accept,
     explaining_shift,
-    search_object,
 )
+from search_oracle import label_answer, search_one_image
 
 SIZE, CENTER = (40, 50), (2, 2)
 
 
 def _background(seed: int = 5) -> np.ndarray:
     return np.random.default_rng(seed).uniform(0, 110, (*SIZE, 3)).astype(np.float32)
-
-
-def _answer(labels: np.ndarray):
-    """The oracle of one view: the label under the first positive point."""
-    def answer(obj: ObjectPrompts):
-        point = next(p for p in obj.points if p.positive)
-        view = point.view or CENTER
-        return view, labels == labels[round(point.y), round(point.x)]
-    return answer
 
 
 def test_an_object_leaving_the_frame_is_found_by_its_part_inside():
@@ -45,8 +35,7 @@ def test_an_object_leaving_the_frame_is_found_by_its_part_inside():
     labels[5:35, 48:50] = 2
     template = Template(look, np.ones((30, 30), bool), (5, 48))
     track = Track(CENTER, template, area=900, sightings=2)
-    found = search_object(1, track, lambda v: image, CENTER, [], _answer(labels),
-                          lambda v: None, None, (), False)
+    found = search_one_image(track, image, label_answer(labels))
     assert found is not None
     view, mask, shift, _ = found
     assert view == CENTER and shift == (0, 0)
@@ -137,14 +126,12 @@ def test_a_sliver_at_the_border_far_from_the_prediction_does_not_take_a_hidden_o
     labels[10:30, 45:50] = 2
     template = Template(look, np.ones((20, 20), bool), (10, 10))
     track = Track(CENTER, template, area=400, sightings=3, unseen=1)
-    found = search_object(1, track, lambda v: image, CENTER, [], _answer(labels),
-                          lambda v: None, None, (), False)
+    found = search_one_image(track, image, label_answer(labels))
     assert found is None
     # the same sliver where the object is predicted (it is leaving the frame there): found
     near = Track(CENTER, Template(look, np.ones((20, 20), bool), (10, 45)), area=400,
                  sightings=3)
-    found = search_object(1, near, lambda v: image, CENTER, [], _answer(labels),
-                          lambda v: None, None, (), False)
+    found = search_one_image(near, image, label_answer(labels))
     assert found is not None
     np.testing.assert_array_equal(found[1], labels == 2)
 
@@ -167,8 +154,8 @@ def test_an_object_first_seen_mostly_covered_is_kept_as_it_is_uncovered():
                   disparity=1.4)
 
     def search(disparity):
-        return search_object(1, track, lambda v: image, CENTER, [], _answer(labels),
-                             lambda v: None, None, (), False, disparities=lambda v: disparity,
+        return search_one_image(track, image, label_answer(labels),
+                                disparities=lambda v: disparity,
                              depth=lambda v, m: float(np.median(disparity[m])))
 
     near = np.where(labels == 2, 1.5, -1.0).astype(np.float32)

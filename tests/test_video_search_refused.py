@@ -10,12 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from lfsam.prompts import ObjectPrompts
 from lfsam.video import search
 from lfsam.video.carry import Template
-from lfsam.video.search import Track, search_object
-
-CENTER = (2, 2)
+from lfsam.video.search import Track
+from search_oracle import CENTER, label_answer, search_one_image
 
 
 def _scene():
@@ -40,13 +38,8 @@ def _scene():
 def _search():
     image, labels, template = _scene()
 
-    def answer(obj: ObjectPrompts):
-        point = next(p for p in obj.points if p.positive)
-        return CENTER, labels == labels[round(point.y), round(point.x)]
-
     track = Track(CENTER, template, area=144, sightings=3, state="tracked")
-    return search_object(1, track, lambda v: image, CENTER, [], answer, lambda v: None,
-                         None, (), False)
+    return search_one_image(track, image, label_answer(labels, CENTER))
 
 
 def test_a_refused_answer_is_not_the_object_when_its_view_is_matched_again(monkeypatch):

@@ -10,8 +10,7 @@ import pytest
 
 from lfsam.video.carry import Template
 from lfsam.video.search import VELOCITY_SUPPORT, Track, update
-
-CENTER = (2, 2)
+from search_oracle import CENTER, label_answer, search_one_image
 
 
 def _track(support: float) -> Track:
@@ -38,9 +37,6 @@ def test_a_poorly_supported_match_moves_the_velocity_by_its_share(support):
 
 
 def test_the_search_records_the_share_of_the_template_its_match_supports():
-    from lfsam.prompts import ObjectPrompts
-    from lfsam.video.search import search_object
-
     rng = np.random.default_rng(5)
     look = rng.uniform(130, 255, (14, 14, 3)).astype(np.float32)
     image = rng.uniform(40, 100, (60, 80, 3)).astype(np.float32)
@@ -50,13 +46,8 @@ def test_the_search_records_the_share_of_the_template_its_match_supports():
     image[25:40, 26:48] = 0.0  # a cover over all but its top 5 rows
     labels[25:40, 26:48] = 3
 
-    def answer(obj: ObjectPrompts):
-        point = next(p for p in obj.points if p.positive)
-        return CENTER, labels == labels[round(point.y), round(point.x)]
-
     track = Track(CENTER, Template(look, np.ones((14, 14), bool), (20, 30)), area=196,
                   sightings=3, state="tracked")
-    found = search_object(1, track, lambda v: image, CENTER, [], answer, lambda v: None,
-                          None, (), False)
+    found = search_one_image(track, image, label_answer(labels, CENTER))
     assert found is not None and found[1].sum() == 5 * 14
     assert track.support == pytest.approx(5 / 14, abs=0.05)

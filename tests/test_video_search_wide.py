@@ -10,20 +10,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lfsam.prompts import ObjectPrompts
 from lfsam.video.carry import Template
 from lfsam.video.match import likely_shifts, robust_costs, with_depth
-from lfsam.video.search import Track, search_object, update
+from lfsam.video.search import Track, update
+from search_oracle import label_answer, search_one_image
 
 SIZE, CENTER = (60, 80), (2, 2)
-
-
-def _answer(labels: np.ndarray):
-    """The oracle of one view: the label under the first positive point."""
-    def answer(obj: ObjectPrompts):
-        point = next(p for p in obj.points if p.positive)
-        return point.view or CENTER, labels == labels[round(point.y), round(point.x)]
-    return answer
 
 
 def _scene(shift=(13, -16), rows=4):
@@ -47,9 +39,8 @@ def _scene(shift=(13, -16), rows=4):
 
 
 def _search(image, labels, track, placed=None):
-    return search_object(1, track, lambda v: image, CENTER, [], _answer(labels),
-                         lambda v: placed, None, (), False,
-                         disparities=lambda v: np.ones(SIZE, np.float32),
+    return search_one_image(track, image, label_answer(labels), placed=placed,
+                            disparities=lambda v: np.ones(SIZE, np.float32),
                          depth=lambda v, m: 1.0)
 
 

@@ -1,0 +1,33 @@
+"""An oracle of one image for the search's unit tests (tests/test_video_search_*.py;
+docs/design.md section 10, "Tracking"): each answer is the label under the first positive
+point, and the search runs over that image alone, the same in every view (disparity 0)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from lfsam.prompts import ObjectPrompts
+from lfsam.video.search import Track, search_object
+
+CENTER = (2, 2)
+
+
+def label_answer(labels: np.ndarray, view: tuple[int, int] | None = None) -> Callable:
+    """The oracle of one image: the label under the first positive point, answered as
+    ``view`` (default: the point's view, else the center view)."""
+
+    def answer(obj: ObjectPrompts):
+        point = next(p for p in obj.points if p.positive)
+        return view or point.view or CENTER, labels == labels[round(point.y), round(point.x)]
+
+    return answer
+
+
+def search_one_image(track: Track, image: np.ndarray, answer: Callable, **options):
+    """:func:`search_object` for object 1 over ``image`` in every view, no other view
+    searched, nothing placed, no negative or fresh clicks, no box."""
+    placed = options.pop("placed", None)
+    return search_object(1, track, lambda v: image, CENTER, [], answer, lambda v: placed,
+                         None, (), False, **options)
