@@ -177,6 +177,12 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
                shift is not None)
         states[obj_id] = track.state
         place(obj_id, view, mask)
+    def shadow_image(view: tuple[int, int]) -> np.ndarray:
+        """A view with the objects placed in this frame read as not the object (a shadow's
+        search, consistency.look_again: the look-alike its id holds is no candidate)."""
+        return np.where(placed_in(view)[..., None], np.float32(search.REFUSED_VALUE),
+                        lf.views[view].astype(np.float32))
+
     for obj_id in carried if consistency.CHECK else ():
         if tracks[obj_id].shadow is None:
             continue
@@ -187,7 +193,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         def shadow_search(shadow_id: int, shadow: Track, negatives=negatives, fresh=fresh
                           ) -> tuple | None:
             asked.clear()
-            return search_object(shadow_id, shadow, lambda v: lf.views[v], center, ring,
+            return search_object(shadow_id, shadow, shadow_image, center, ring,
                                  answer, placed_in, placed_ids, negatives, use_box, None,
                                  fresh, disparity_of if search.DEPTH_GATE else None,
                                  lambda v, m: median_disparity(disparity_of(v), m))
