@@ -102,3 +102,51 @@ def test_a_jump_needs_both_place_and_depth():
     assert shadow is not None and shadow.template is template and shadow.shadow is None
     consistency.doubt(track)  # an older shadow stays
     assert track.shadow is shadow
+
+
+class _Predictor:
+    """What :func:`consistency.look_again` asks of the frame's predictor."""
+
+    def __init__(self):
+        self.object_ids, self.set = [], []
+
+    def remove_object(self, obj_id):
+        self.object_ids.remove(obj_id)
+
+    def set_object(self, prompts):
+        self.set.append(prompts)
+
+
+def test_a_shadow_found_takes_the_id_back_and_one_never_found_is_forgotten():
+    """:func:`consistency.look_again`: where the shadow's search accepts an answer, the
+    object's prompts become the shadow's (under its own id), the track becomes the updated
+    shadow; a shadow not found for DOUBT_FRAMES frames is forgotten."""
+    template = Template(np.zeros((4, 4, 3), np.float32), np.ones((4, 4), bool), (10, 10))
+    track = Track(CENTER, template, velocity=(0.0, 3.0), sightings=3)
+    consistency.doubt(track)
+    tracks, predictor = {1: track}, _Predictor()
+    mask = np.zeros(SIZE, bool)
+    mask[10:14, 13:17] = True
+    shadow_prompts = ObjectPrompts(consistency.SHADOW_ID + 1, (PointPrompt(14.0, 12.0),))
+
+    def search(shadow_id, shadow):
+        predictor.object_ids.append(shadow_id)
+        return CENTER, mask, (0, 0), Template(template.image, template.mask, (10, 13))
+
+    back = consistency.look_again(1, tracks, search, predictor, lambda: shadow_prompts,
+                                  lambda v, m: 0.0, lambda v: np.zeros((*SIZE, 3)), CENTER)
+    assert back is not None and back[0] == CENTER and back[1] is mask
+    assert tracks[1] is not track and tracks[1].shadow is None
+    assert tracks[1].template.origin == (10, 13) and tracks[1].state == "tracked"
+    assert predictor.set == [ObjectPrompts(1, shadow_prompts.points)]
+    assert predictor.object_ids == []  # the shadow's own id is gone
+
+    consistency.doubt(track)
+    tracks = {1: track}
+    for _ in range(consistency.DOUBT_FRAMES):
+        assert consistency.look_again(1, tracks, lambda i, s: None, predictor, lambda: None,
+                                      lambda v, m: 0.0, lambda v: None, CENTER) is None
+        assert track.shadow is not None
+    consistency.look_again(1, tracks, lambda i, s: None, predictor, lambda: None,
+                           lambda v, m: 0.0, lambda v: None, CENTER)
+    assert track.shadow is None and tracks[1] is track

@@ -36,7 +36,13 @@ import numpy as np
 
 from lfsam.prompts import ObjectPrompts
 from lfsam.video.carry import Template
-from lfsam.video.search import Track, predicted, search_object, search_radius, update
+from lfsam.video.search import (
+    Track,
+    predicted,
+    predicted_disparity,
+    search_radius,
+    update,
+)
 
 __all__ = ["CHECK", "DEPTH_JUMP", "DOUBT_FRAMES", "JUMP_SHARE", "doubt", "jumped",
            "look_again"]
@@ -64,6 +70,9 @@ def jumped(track: Track, view: tuple[int, int], located: Template, disparity: fl
     beyond :data:`DEPTH_JUMP` from the track's disparity."""
     if track.template is None or track.sightings < 1:
         return False
+    expected, tolerance = predicted_disparity(track)
+    if abs(disparity - expected) > tolerance:
+        return True  # beyond the depth gate: its pixels there are not the object's
     place = predicted(track, view, center).origin
     far = float(np.hypot(located.origin[0] - place[0], located.origin[1] - place[1]))
     return (far > JUMP_SHARE * search_radius(track)
