@@ -2,7 +2,9 @@
 section 10, "Tracking"): the user's prompted objects first, then every carried object, the
 surest first, each searched for by :func:`lfsam.video.search.search_object` and placed in the
 frame's predictor where it is found; the bookkeeping of what is placed where (its masks
-carried between views by disparity)."""
+carried between views by disparity). An answer that jumped (:func:`lfsam.video.consistency.
+jumped`) keeps the track before it as a shadow, searched for after every object is placed
+(:func:`lfsam.video.consistency.look_again`)."""
 
 from __future__ import annotations
 
