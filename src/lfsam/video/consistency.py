@@ -17,11 +17,10 @@ against every onset of a look-alike), so a jump does not refuse the answer: it r
 * :func:`jumped`: the accepted answer lies more than :data:`JUMP_SHARE` of the search radius
   from the prediction and its median disparity more than :data:`DEPTH_JUMP` pixels from the
   track's last disparity (motion and depth both inconsistent with the track's history; once
-  a velocity is measured, after two sightings), or
-  its median disparity alone lies beyond the depth gate's tolerance
-  (:func:`lfsam.video.search.predicted_disparity`: the gate reads such pixels as not the
-  object; a sliver of background answered under jitter set a track's depth 2.9 px away, and
-  the object, back at its own depth, was refused for good).
+  a velocity is measured, after two sightings), or its median disparity alone lies beyond
+  the depth gate's tolerance (:func:`lfsam.video.search.predicted_disparity`: the gate reads
+  such pixels as not the object; a sliver of background answered under jitter set a track's
+  depth 2.9 px away, and the object, back at its own depth, was refused for good).
 * :func:`doubt`: the track before the jump is kept as its *shadow* (template, motion,
   disparity of the object as it was last trusted).
 * :func:`look_again`: every frame, after every object is placed, each shadow is searched for
