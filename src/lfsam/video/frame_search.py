@@ -2,7 +2,9 @@
 section 10, "Tracking"): the user's prompted objects first, then every carried object, the
 surest first, each searched for by :func:`lfsam.video.search.search_object` and placed in the
 frame's predictor where it is found; the bookkeeping of what is placed where (its masks
-carried between views by disparity)."""
+carried between views by disparity). An answer that jumped (:func:`lfsam.video.consistency.
+jumped`) keeps the track before it as a shadow, searched for after every object is placed
+(:func:`lfsam.video.consistency.look_again`)."""
 
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ from scipy import ndimage
 
 from lfsam.pipeline.references import reference_views
 from lfsam.prompts import ObjectPrompts
-from lfsam.video import search
+from lfsam.video import consistency, search
 from lfsam.video.carry import Template
 from lfsam.video.prompts import negatives_since, prompts_at, start_frame
 from lfsam.video.search import Track, first_look, search_object, update
@@ -103,7 +105,10 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             cache[key] = out
         return cache[key]
 
+    asked: list[ObjectPrompts] = []  # the latest prompts answered (consistency.look_again)
+
     def answer(obj: ObjectPrompts) -> tuple[tuple[int, int], np.ndarray]:
+        asked[:] = [obj]
         predictor.set_object(obj)
         view, mask, _ = predictor.predict_reference(obj.obj_id)
         return view, mask
@@ -164,10 +169,43 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             states[obj_id] = track.state = "hidden"
             continue
         view, mask, shift, located = found
-        update(track, view, mask, located, lf.views[view],
-               object_disparity(disparity_of(view), mask), center, shift is not None)
+        disparity = object_disparity(disparity_of(view), mask)
+        # an answer far from the prediction and at another depth: the track before it is
+        # kept as its shadow and searched for (consistency.look_again, below)
+        if consistency.CHECK and shift is not None and consistency.jumped(
+                track, view, located, disparity, center):
+            consistency.doubt(track)
+        update(track, view, mask, located, lf.views[view], disparity, center,
+               shift is not None)
         states[obj_id] = track.state
         place(obj_id, view, mask)
+    def shadow_image(view: tuple[int, int]) -> np.ndarray:
+        """A view with the objects placed in this frame read as not the object (a shadow's
+        search, consistency.look_again: the look-alike its id holds is no candidate)."""
+        return np.where(placed_in(view)[..., None], np.float32(search.REFUSED_VALUE),
+                        lf.views[view].astype(np.float32))
+
+    for obj_id in carried if consistency.CHECK else ():
+        if tracks[obj_id].shadow is None:
+            continue
+        negatives = () if prompts.get(obj_id) is None else negatives_since(prompts[obj_id], index)
+        own = own_prompts[obj_id]
+        fresh = () if own is None else tuple(p for p in own.points if not p.positive)
+
+        def shadow_search(shadow_id: int, shadow: Track, negatives=negatives, fresh=fresh
+                          ) -> tuple | None:
+            asked.clear()
+            return search_object(shadow_id, shadow, shadow_image, center, ring,
+                                 answer, placed_in, placed_ids, negatives, use_box, None,
+                                 fresh, disparity_of if search.DEPTH_GATE else None,
+                                 lambda v, m: median_disparity(disparity_of(v), m))
+
+        back = consistency.look_again(
+            obj_id, tracks, shadow_search, predictor, lambda: asked[-1] if asked else None,
+            lambda v, m: object_disparity(disparity_of(v), m), lambda v: lf.views[v], center)
+        if back is not None:
+            states[obj_id] = tracks[obj_id].state
+            place(obj_id, *back)
     for obj_id in order:
         states.setdefault(obj_id, "waiting")
     return states

@@ -205,6 +205,8 @@ class Track:
     support: float = 1.0
     state: str = "waiting"
     history: list[str] = field(default_factory=list)
+    #: The track before a jump, searched for while it is doubted (:mod:`.consistency`).
+    shadow: Track | None = None
 
 
 def search_radius(track: Track) -> int:
