@@ -179,6 +179,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
                shift is not None)
         states[obj_id] = track.state
         place(obj_id, view, mask)
+
     def shadow_image(view: tuple[int, int]) -> np.ndarray:
         """A view with the objects placed in this frame read as not the object (a shadow's
         search, consistency.look_again: the look-alike its id holds is no candidate)."""
