@@ -15,7 +15,7 @@ from scipy import ndimage
 
 from lfsam.pipeline.references import reference_views
 from lfsam.prompts import ObjectPrompts
-from lfsam.video import consistency, search
+from lfsam.video import claims, consistency, search
 from lfsam.video.carry import Template
 from lfsam.video.prompts import negatives_since, prompts_at, start_frame
 from lfsam.video.search import Track, first_look, search_object, update
@@ -152,7 +152,9 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         tracks[obj_id] = track
         states[obj_id] = "prompted"
         place(obj_id, view, mask)
-    for obj_id in carried:
+    queue = list(carried)
+    while queue:
+        obj_id = queue.pop(0)
         track = tracks[obj_id]
         negatives = () if prompts.get(obj_id) is None else negatives_since(prompts[obj_id], index)
         own = own_prompts[obj_id]
@@ -169,6 +171,16 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             states[obj_id] = track.state = "hidden"
             continue
         view, mask, shift, located = found
+        # an answer found again that another hidden object explains clearly better: that
+        # object is searched first, this one again after it (claims.rival)
+        other = (claims.rival(obj_id, view, mask, lf.views[view], tracks, queue, center,
+                              lambda v, m: median_disparity(disparity_of(v), m))
+                 if claims.CHECK and track.unseen > 0 else None)
+        if other is not None:
+            predictor.remove_object(obj_id)
+            queue.remove(other)
+            queue[:0] = [other, obj_id]
+            continue
         disparity = object_disparity(disparity_of(view), mask)
         # an answer far from the prediction and at another depth: the track before it is
         # kept as its shadow and searched for (consistency.look_again, below)
