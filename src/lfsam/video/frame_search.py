@@ -4,7 +4,9 @@ surest first, each searched for by :func:`lfsam.video.search.search_object` and 
 frame's predictor where it is found; the bookkeeping of what is placed where (its masks
 carried between views by disparity). An answer that jumped (:func:`lfsam.video.consistency.
 jumped`) keeps the track before it as a shadow, searched for after every object is placed
-(:func:`lfsam.video.consistency.look_again`)."""
+(:func:`lfsam.video.consistency.look_again`). An answer found again that another hidden object,
+still to be searched, explains clearly better (:func:`lfsam.video.claims.rival`) is left to
+that object, searched first (each such rival once a frame)."""
 
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ from scipy import ndimage
 
 from lfsam.pipeline.references import reference_views
 from lfsam.prompts import ObjectPrompts
-from lfsam.video import consistency, search
+from lfsam.video import claims, consistency, search
 from lfsam.video.carry import Template
 from lfsam.video.prompts import negatives_since, prompts_at, start_frame
 from lfsam.video.search import Track, first_look, search_object, update
@@ -152,7 +154,9 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         tracks[obj_id] = track
         states[obj_id] = "prompted"
         place(obj_id, view, mask)
-    for obj_id in carried:
+    queue, moved = list(carried), set()  # moved: rivals searched first (claims.rival), once
+    while queue:
+        obj_id = queue.pop(0)
         track = tracks[obj_id]
         negatives = () if prompts.get(obj_id) is None else negatives_since(prompts[obj_id], index)
         own = own_prompts[obj_id]
@@ -169,6 +173,18 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             states[obj_id] = track.state = "hidden"
             continue
         view, mask, shift, located = found
+        # an answer found again that another hidden object explains clearly better: that
+        # object is searched first, this one again after it (claims.rival)
+        other = (claims.rival(obj_id, view, mask, lf.views[view], tracks,
+                              [i for i in queue if i not in moved], center,
+                              lambda v, m: median_disparity(disparity_of(v), m))
+                 if claims.CHECK and track.unseen > 0 else None)
+        if other is not None:  # each rival moved once: the frame's searches stay bounded
+            moved.add(other)
+            predictor.remove_object(obj_id)
+            queue.remove(other)
+            queue[:0] = [other, obj_id]
+            continue
         disparity = object_disparity(disparity_of(view), mask)
         # an answer far from the prediction and at another depth: the track before it is
         # kept as its shadow and searched for (consistency.look_again, below)
