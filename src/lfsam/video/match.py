@@ -183,7 +183,13 @@ def likely_shifts_many(templates: Sequence[Template], images: Sequence[np.ndarra
     for score, (top, left, bottom, right) in zip(scores, margins, strict=True):
         du, dv = np.mgrid[-top:bottom + 1, -left:right + 1]
         score = score.ravel()
-        order = np.lexsort(((du**2 + dv**2).ravel(), -score))[:count]
+        # only the shifts scoring at least the count-th best can be among the first count
+        # (the same order: the sort is stable, the keys the same)
+        order = np.arange(score.size)
+        if score.size > count:
+            order = np.flatnonzero(score >= np.partition(score, score.size - count)[
+                score.size - count])
+        order = order[np.lexsort(((du**2 + dv**2).ravel()[order], -score[order]))][:count]
         best = int(score[order[0]])
         # the bound is flat over a part of the object seen whole (every shift that lays the
         # template over it): all of that plateau, not only its nearest shifts
