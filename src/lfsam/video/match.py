@@ -183,7 +183,13 @@ def likely_shifts_many(templates: Sequence[Template], images: Sequence[np.ndarra
     for score, (top, left, bottom, right) in zip(scores, margins, strict=True):
         du, dv = np.mgrid[-top:bottom + 1, -left:right + 1]
         score = score.ravel()
-        order = np.lexsort(((du**2 + dv**2).ravel(), -score))[:count]
+        # only the shifts scoring at least the count-th best can be among the first count
+        # (the same order: the sort is stable, the keys the same)
+        order = np.arange(score.size)
+        if score.size > count:
+            order = np.flatnonzero(score >= np.partition(score, score.size - count)[
+                score.size - count])
+        order = order[np.lexsort(((du**2 + dv**2).ravel()[order], -score[order]))][:count]
         best = int(score[order[0]])
         # the bound is flat over a part of the object seen whole (every shift that lays the
         # template over it): all of that plateau, not only its nearest shifts
@@ -208,22 +214,27 @@ def cost_maps(templates: Sequence[Template], images: Sequence[np.ndarray], radiu
     shape = (fft.next_fast_len(rh, True), fft.next_fast_len(rw, True))
     kernels = np.concatenate([a, m[None], (a**2).sum(0)[None]])[:, ::-1, ::-1]
     k_hat = fft.rfft2(kernels, s=shape)
-    signals = np.stack([np.concatenate([np.moveaxis(win, -1, 0), (win**2).sum(-1)[None],
-                                        valid[None]]) for win, valid, _ in windows])
-    x_hat = fft.rfft2(signals, s=shape)  # (V, C + 2, ...)
+    # the windows laid straight into the transform's zero-padded input (what s=shape pads)
+    signals = np.zeros((len(windows), channels + 2, *shape), np.float32)
+    for k, (win, valid, _) in enumerate(windows):
+        signals[k, :channels, :rh, :rw] = np.moveaxis(win, -1, 0)
+        signals[k, channels, :rh, :rw] = (win**2).sum(-1)
+        signals[k, channels + 1, :rh, :rw] = valid
+    x_hat = fft.rfft2(signals)  # (V, C + 2, ...)
     products = np.stack([(x_hat[:, :channels] * k_hat[:channels]).sum(1),
                          x_hat[:, channels] * k_hat[channels],
                          x_hat[:, channels + 1] * k_hat[channels],
                          x_hat[:, channels + 1] * k_hat[channels + 1]], 1)
     out = fft.irfft2(products, s=shape)[..., h - 1:rh, w - 1:rw]
+    pixels, own_sum = m.sum(), (a**2).sum()
     results = []
     for k, (_, valid, margins) in enumerate(windows):
         cross, energy = out[k, 0], out[k, 1]
         if valid.all():  # as cost_map: the overlap terms are constants inside the frame
-            count, own = np.full(cross.shape, m.sum()), np.full(cross.shape, (a**2).sum())
+            count, own = np.full(cross.shape, pixels), np.full(cross.shape, own_sum)
         else:
             count, own = out[k, 2], out[k, 3]
-        results.append(masked_cost(own, cross, energy, count, float(m.sum()), margins))
+        results.append(masked_cost(own, cross, energy, count, float(pixels), margins))
     return results
 
 
