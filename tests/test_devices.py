@@ -50,6 +50,7 @@ def test_cuda_without_a_gpu_says_what_to_use_instead():
             resolve_device(spec)
 
 
+@pytest.mark.cuda  # run by make gpu-check
 @pytest.mark.skipif(not HAS_CUDA, reason="needs a CUDA device")
 def test_cuda_index_beyond_the_machine_is_an_error():
     assert resolve_device("cuda:0") == torch.device("cuda:0")
