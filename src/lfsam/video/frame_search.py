@@ -10,7 +10,7 @@ that object, searched first (each such rival once a frame)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from scipy import ndimage
@@ -154,17 +154,26 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         tracks[obj_id] = track
         states[obj_id] = "prompted"
         place(obj_id, view, mask)
+
+    def answer_depth(view: tuple[int, int], mask: np.ndarray) -> float | None:
+        return median_disparity(disparity_of(view), mask)
+
+    def search_for(obj_id: int, search_id: int, track: Track,
+                   image: Callable[[tuple[int, int]], np.ndarray], hint: object) -> tuple | None:
+        """:func:`search_object` for ``track``, prompted under ``search_id``, with
+        ``obj_id``'s negative clicks (those since its last prompt and this frame's own)."""
+        negatives = () if prompts.get(obj_id) is None else negatives_since(prompts[obj_id], index)
+        own = own_prompts[obj_id]
+        fresh = () if own is None else tuple(p for p in own.points if not p.positive)
+        return search_object(search_id, track, image, center, ring, answer, placed_in,
+                             placed_ids, negatives, use_box, hint, fresh,
+                             disparity_of if search.DEPTH_GATE else None, answer_depth)
+
     queue, moved = list(carried), set()  # moved: rivals searched first (claims.rival), once
     while queue:
         obj_id = queue.pop(0)
         track = tracks[obj_id]
-        negatives = () if prompts.get(obj_id) is None else negatives_since(prompts[obj_id], index)
-        own = own_prompts[obj_id]
-        fresh = () if own is None else tuple(p for p in own.points if not p.positive)
-        found = search_object(obj_id, track, lambda v: lf.views[v], center, ring, answer,
-                              placed_in, placed_ids, negatives, use_box, first[obj_id][1],
-                              fresh, disparity_of if search.DEPTH_GATE else None,
-                              lambda v, m: median_disparity(disparity_of(v), m))
+        found = search_for(obj_id, obj_id, track, lambda v: lf.views[v], first[obj_id][1])
         if found is None:
             if obj_id in predictor.object_ids:
                 predictor.remove_object(obj_id)
@@ -176,8 +185,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         # an answer found again that another hidden object explains clearly better: that
         # object is searched first, this one again after it (claims.rival)
         other = (claims.rival(obj_id, view, mask, lf.views[view], tracks,
-                              [i for i in queue if i not in moved], center,
-                              lambda v, m: median_disparity(disparity_of(v), m))
+                              [i for i in queue if i not in moved], center, answer_depth)
                  if claims.CHECK and track.unseen > 0 else None)
         if other is not None:  # each rival moved once: the frame's searches stay bounded
             moved.add(other)
@@ -205,17 +213,10 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
     for obj_id in carried if consistency.CHECK else ():
         if tracks[obj_id].shadow is None:
             continue
-        negatives = () if prompts.get(obj_id) is None else negatives_since(prompts[obj_id], index)
-        own = own_prompts[obj_id]
-        fresh = () if own is None else tuple(p for p in own.points if not p.positive)
 
-        def shadow_search(shadow_id: int, shadow: Track, negatives=negatives, fresh=fresh
-                          ) -> tuple | None:
+        def shadow_search(shadow_id: int, shadow: Track, obj_id: int = obj_id) -> tuple | None:
             asked.clear()
-            return search_object(shadow_id, shadow, shadow_image, center, ring,
-                                 answer, placed_in, placed_ids, negatives, use_box, None,
-                                 fresh, disparity_of if search.DEPTH_GATE else None,
-                                 lambda v, m: median_disparity(disparity_of(v), m))
+            return search_for(obj_id, shadow_id, shadow, shadow_image, None)
 
         back = consistency.look_again(
             obj_id, tracks, shadow_search, predictor, lambda: asked[-1] if asked else None,
