@@ -56,5 +56,4 @@ def test_search_tracking_on_cuda_matches_cpu():
         assert set(np.unique(a)) == set(np.unique(b)), f"frame {frame}: other objects tracked"
         agree = float(np.mean(a == b))
         assert agree > 0.999, f"frame {frame}: labels agree on only {agree:.4%} of the pixels"
-    truth = frames[-1].labels
-    assert any((cpu[-1] == p.obj_id).any() for p in prompts) and truth.max() > 1
+    assert any((cpu[-1] == p.obj_id).any() for p in prompts), "nothing tracked to the end"
