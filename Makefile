@@ -70,7 +70,8 @@ gpu-deps: $(STAMP)
 # environment instead), installs lfsam and exactly the wheels carried (no registry, and no
 # dependency resolution that could touch the machine's torch and its CUDA packages), checks
 # that torch sees the GPU, then runs the CUDA-marked tests and the GPU benchmark (with its
-# profile), which writes its numbers to docs/gpu_results.json.
+# profile), which writes its numbers to docs/gpu_results.json, and times the tracker's search
+# for lost objects at the full size (issue 47: whole frame and the search's own share).
 GPU_PYTHON ?= python3
 GPU_VENV ?= .venv-gpu
 GPU_PY := $(if $(GPU_VENV),$(GPU_VENV)/bin/python,$(GPU_PYTHON))
@@ -92,6 +93,8 @@ gpu-check:
 	$(GPU_PY) -c "import lfsam, sam2, transformers, timm, pycocotools, pytest; print('gpu-check: lfsam', lfsam.__version__, 'from', lfsam.__file__)"
 	$(GPU_PY) -m pytest -q -m cuda -rs $$(grep -l "pytest.mark.cuda" tests/test_*.py)
 	$(GPU_PY) benchmarks/bench_gpu.py --profile --json docs/gpu_results.json
+	$(GPU_PY) benchmarks/bench_tracking.py --device cuda --size 480x640 --min-pixels 2500 \
+	  --frames 8 --seeds 1301 --jitter 0 --modes search,before --repeat 2
 
 clean:
 	rm -rf $(VENV) $(GPU_VENV) gpu-deps demo_output .pytest_cache

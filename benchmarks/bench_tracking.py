@@ -53,7 +53,11 @@ Usage::
 
     OMP_NUM_THREADS=1 python benchmarks/bench_tracking.py [--seeds 101,102,103]
         [--frames 12] [--objects 5] [--jitter 0,1] [--modes search,before,clicked] [--easy]
-        [--repeat 2] [--consensus off|on|both] [--model oracle] [--json OUT]
+        [--repeat 2] [--consensus off|on|both] [--model oracle] [--device auto] [--json OUT]
+
+At the full size, on a GPU (``make gpu-check`` runs it): ``--size 480x640 --min-pixels 2500
+--frames 8 --seeds 1301 --jitter 0 --modes search,before --repeat 2 --device cuda``; the
+carrying columns then split the search's own time (on the CPU) from the pipeline's.
 """
 
 from __future__ import annotations
@@ -82,14 +86,19 @@ MODES = {"search": True, "before": False, "clicked": None}
 CONSENSUS = {"off": (False,), "on": (True,), "both": (False, True)}
 
 
+#: Where the segmenter and the pipeline run (``--device``; ``auto``: CUDA where present).
+DEVICE = "auto"
+
+
 def options_for(jitter: int, seed: int, consensus: bool = False,
                 model: str = "oracle") -> SegmentOptions:
-    """The run's options: ``model`` (the oracle with ``jitter``), the multi-view consensus
-    (docs/design.md section 3.9) on or off."""
+    """The run's options: ``model`` (the oracle with ``jitter``) on :data:`DEVICE`, the
+    multi-view consensus (docs/design.md section 3.9) on or off."""
     oracle = {"boundary_jitter": jitter} if jitter and model == "oracle" else None
     return SegmentOptions(pipeline=PipelineConfig(consensus=consensus),
                           run=RunOptions(progress=False),
-                          model=ModelOptions(name=model, oracle=oracle, seed=seed))
+                          model=ModelOptions(name=model, oracle=oracle, seed=seed,
+                                             device=DEVICE))
 
 
 def clicks(lf, min_pixels: int) -> tuple[list[ObjectPrompts], dict[int, int]]:
@@ -274,7 +283,12 @@ def main() -> None:
     parser.add_argument("--random-weights", action="store_true",
                         help="with --model: the named architecture with random weights (e.g. "
                              "--model edgetam: EdgeTAM's full-size encoder, no checkpoint)")
-    parser.add_argument("--min-pixels", type=int, default=100)
+    parser.add_argument("--min-pixels", type=int, default=100,
+                        help="an object shows in a view from this many pixels (clicks, scores; "
+                             "scale it with the view: 2500 at 480x640)")
+    parser.add_argument("--device", default="auto",
+                        help="where the segmenter and the pipeline run: auto (CUDA where "
+                             "present), cpu, cuda; the search's matching runs on the CPU")
     parser.add_argument("--easy", action="store_true",
                         help="videos without the hard cases (hard=False), where the earlier "
                              "tracking loses few objects: the search's cost on the same work")
@@ -283,6 +297,8 @@ def main() -> None:
                              "settings alternate); each frame's least time counts")
     parser.add_argument("--json", default=None, help="also write the numbers here")
     args = parser.parse_args()
+    global DEVICE
+    DEVICE = args.device
     grid = tuple(int(x) for x in args.grid.lower().split("x"))
     size = tuple(int(x) for x in args.size.lower().split("x"))
     seeds = [int(s) for s in args.seeds.split(",")]
@@ -298,7 +314,7 @@ def main() -> None:
         prompts, truth = clicks(frames[0], args.min_pixels)
         if args.model != "oracle" and segmenter is None:  # loaded once, outside the timing
             segmenter = load_segmenter(args.model, random_weights=args.random_weights,
-                                       device="cpu", keep_decoder_state=False)
+                                       device=args.device, keep_decoder_state=False)
         for jitter in jitters:
             for mode in modes:
                 runs: dict[bool, tuple] = {}

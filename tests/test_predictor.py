@@ -400,3 +400,42 @@ def test_incremental_edit_gives_the_labels_of_a_fresh_full_run():
     fresh = predictor_with_objects()
     fresh.add_prompts(2, points=[clicks[5]], labels=[0])
     assert np.array_equal(incremental, fresh.predict().labels)
+
+
+def test_source_features_are_computed_when_the_pipeline_needs_them(scene, monkeypatch):
+    """An object's source feature (paper 3.3) is computed when the occluding step first needs
+    it, for every reference decoded with it at once: a reference answer that is replaced
+    before the pipeline runs (the tracker's refused prompts, docs/design.md section 10)
+    never pays for it, and the features are those of the eager batch, number for number."""
+    import lfsam.pipeline.engine as engine_module
+    from lfsam.pipeline.occlusion import source_features
+
+    lf = scene
+    predictor = LightFieldPredictor(load_segmenter("oracle", lightfield=lf, device="cpu"))
+    predictor.set_lightfield(lf, disparity="gt")
+    batches = []
+    real = engine_module.source_features
+
+    def counted(segmenter, embedding, masks):
+        batches.append(masks.shape[0])
+        return real(segmenter, embedding, masks)
+
+    monkeypatch.setattr(engine_module, "source_features", counted)
+    labels = lf.labels[lf.center]
+    objects = [np.argwhere(labels == k)[0] for k in np.unique(labels)[1:4]]
+    for k, (row, col) in enumerate(objects):
+        predictor.add_prompts(k + 1, points=[(float(col), float(row))])
+    for _ in range(3):  # answers asked and replaced: no features for them
+        predictor.predict_reference(1)
+        predictor.add_prompts(1, points=[(float(objects[0][1]), float(objects[0][0]))])
+    assert batches == []
+    predictor.predict()
+    assert sum(batches) == len(objects)
+    table = predictor._table
+    refs = [table[i].reference for i in predictor.object_ids]
+    masks = torch.stack([r.mask for r in refs])
+    eager = source_features(predictor.engine.segmenter, predictor.engine.embedding(lf.center),
+                            masks)
+    for k, ref in enumerate(refs):
+        assert ref.pending is None
+        assert torch.equal(ref.feature, eager[k])

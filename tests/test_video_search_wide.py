@@ -115,3 +115,31 @@ def test_the_ring_views_masked_ssd_from_one_batch_gives_each_views_numbers():
             np.testing.assert_allclose(got[finite], alone.ravel()[finite], rtol=1e-4,
                                        atol=0.5)
             assert abs(du1).max() <= radius and abs(dv1).max() <= radius
+
+
+def test_the_batched_ffts_give_the_same_numbers_on_any_thread_count():
+    """:func:`lfsam.video.match.fft_threads` hands scipy PyTorch's thread count: the masked
+    SSD of several views and the likely shifts are bit for bit those of one thread (the
+    search's answers do not depend on the machine's cores)."""
+    import torch
+
+    from lfsam.video.match import cost_maps, likely_shifts_many
+
+    rng = np.random.default_rng(11)
+    look = rng.uniform(0, 255, (9, 11, 4)).astype(np.float32)
+    mask = rng.random((9, 11)) > 0.3
+    templates = [Template(look, mask, o) for o in [(12, 15), (1, 2), (50, 70), (-4, 44)]]
+    images = [rng.uniform(0, 255, (*SIZE, 4)).astype(np.float32) for _ in templates]
+    before = torch.get_num_threads()
+    runs = []
+    try:
+        for threads in (1, 3):
+            torch.set_num_threads(threads)
+            runs.append((cost_maps(templates, images, 20),
+                         likely_shifts_many(templates, images, 20, 40, [None] * 4)))
+    finally:
+        torch.set_num_threads(before)
+    (maps_1, likely_1), (maps_3, likely_3) = runs
+    for one, three in zip([*maps_1, *likely_1], [*maps_3, *likely_3], strict=True):
+        for a, b in zip(one[:2], three[:2], strict=True):
+            assert np.array_equal(a, b)

@@ -27,6 +27,7 @@ from lfsam.prompts import ObjectPrompts
 
 __all__ = [
     "Clicks",
+    "FeatureGroup",
     "ObjectTable",
     "ObjectViews",
     "Reference",
@@ -40,6 +41,19 @@ View = tuple[int, int]
 
 
 @dataclass
+class FeatureGroup:
+    """The references decoded together in one view, whose source features (paper 3.3) are
+    computed together on first use (:meth:`lfsam.pipeline.engine.StreamingEngine.
+    source_feature`): the same batch, so the same numbers, as when computed at once; an
+    answer that is replaced before the pipeline runs (the tracker's refused prompts,
+    docs/design.md section 10) never pays for them."""
+
+    view: View
+    masks: torch.Tensor  # (N, U, V) bool on the device
+    features: torch.Tensor | None = None  # (N, C), once computed
+
+
+@dataclass
 class Reference:
     """Step 1 of one object: its mask in its reference view."""
 
@@ -47,6 +61,8 @@ class Reference:
     mask: torch.Tensor  # (U, V) bool on the device
     score: float
     feature: torch.Tensor | None = None  # (C,) unit source feature (semantic occluding)
+    #: Where :attr:`feature` comes from while it is not computed yet: its group and row.
+    pending: tuple[FeatureGroup, int] | None = None
 
 
 @dataclass

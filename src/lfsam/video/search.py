@@ -456,7 +456,9 @@ def search_object(
                       _best_shift(*gated, radius, near_reach(track)))
 
     def share(stage: tuple) -> float:
-        return 0.0 if stage[4] is None else float(stage[5].sum()) / stage[3].mask.sum()
+        if stage[4] is None:
+            return 0.0
+        return np.count_nonzero(stage[5]) / np.count_nonzero(stage[3].mask)
 
     # 1. the predicted place in its own view; 2. in the center and the outer views, where
     # it is seen most first (an object hidden in one view is often visible in others: it is
@@ -539,11 +541,11 @@ def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, in
     # at the frame's border far from where the object should be is not enough to give its
     # id back (a look-alike entering there took a hidden object's id); in the ring's views
     # the template's interior (a border one pixel too wide was never the object)
-    inside = (int(carried.sum()) if widened or not CORE_SUPPORT or view == track.view
-              else int(ndimage.binary_erosion(carried).sum()))
+    inside = (np.count_nonzero(carried) if widened or not CORE_SUPPORT or view == track.view
+              else np.count_nonzero(ndimage.binary_erosion(carried)))
     needed = ((WIDE_SUPPORT if widened else NEAR_SUPPORT) * inside
               if radius is not None else FAR_SUPPORT * template.mask.sum())
-    if support.sum() < max(MIN_PIXELS, needed):
+    if np.count_nonzero(support) < max(MIN_PIXELS, needed):
         return None
     known = placed(view)
     seeds = support.copy()
@@ -568,7 +570,7 @@ def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, in
         at = _accept(mask, support, carried, track,
                      known if ref_view == view else placed(ref_view), image, template,
                      shift, None if widened else radius, judged, checked=widened)
-        track.support = float(support.sum()) / max(int(carried.sum()), 1)
+        track.support = np.count_nonzero(support) / max(np.count_nonzero(carried), 1)
         if at is not None and widened and mask.sum() < KEEP_TEMPLATE * track.area:
             # a part of the object found away from the prediction: the template fits that
             # part at a range of shifts, so the place it gives is no measure of the motion
@@ -595,7 +597,7 @@ def first_look(track: Track, image: np.ndarray, center: tuple[int, int],
                         search_radius(track), near_reach(track))
     if found is None:
         return 0.0, None
-    return float(found[1].sum()) / max(int(template.mask.sum()), 1), found
+    return np.count_nonzero(found[1]) / max(np.count_nonzero(template.mask), 1), found
 
 
 def explaining_shift(mask: np.ndarray, template: Template, image: np.ndarray, radius: int
