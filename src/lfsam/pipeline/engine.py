@@ -201,29 +201,18 @@ class StreamingEngine:
             with self.timer("initial"):
                 self._decode_references(objects, view, embedding, prompted, masks, scores)
             stacked = torch.stack([masks[i] for i in members]).to(torch.bool)
-            # the source features when first needed (source_feature), for the whole group
-            group = FeatureGroup(view, stacked) if self.config.semantic else None
+            group = FeatureGroup(view, stacked) if self.config.semantic else None  # on first use
             for k, i in enumerate(members):
                 objects[i].reference = Reference(
-                    view=view,
-                    mask=stacked[k],
-                    score=scores[i],
-                    pending=None if group is None else (group, k),
-                )
+                    view, stacked[k], scores[i], pending=None if group is None else (group, k))
             self._surface_masks(objects, view)
 
-    def source_feature(self, reference: Reference) -> torch.Tensor | None:
-        """The reference's unit source feature (paper 3.3; None without semantic occluding),
-        computed on first use for its whole :class:`~lfsam.pipeline.objects.FeatureGroup`
-        (the references decoded with it: the same numbers as computing them at once)."""
-        if reference.feature is None and reference.pending is not None:
-            group, row = reference.pending
-            if group.features is None:
-                embedding = self.embedding(group.view)
-                with self.timer("occlude"):
-                    group.features = source_features(self.segmenter, embedding, group.masks)
-            reference.feature, reference.pending = group.features[row], None
-        return reference.feature
+    def source_features(self, view: View, masks: torch.Tensor) -> torch.Tensor:
+        """The unit source features (paper 3.3) of ``masks`` in ``view``: what
+        :meth:`~lfsam.pipeline.objects.Reference.source_feature` computes on first use."""
+        embedding = self.embedding(view)
+        with self.timer("occlude"):
+            return source_features(self.segmenter, embedding, masks)
 
     def _surface_masks(self, objects: Mapping[int, TrackedObject], view: View) -> None:
         """Keep the silhouettes of every object referenced in ``view`` for its disparity
@@ -528,7 +517,8 @@ class StreamingEngine:
             with self.timer("occlude"):
                 weights = None
                 if config.semantic:
-                    sources = torch.stack([self.source_feature(r) for r in refs])
+                    sources = torch.stack([r.source_feature(self.source_features)
+                                           for r in refs])
                     weights = semantic_occlusion(
                         self.segmenter, embedding, coarse, sources, config.t_sim
                     )

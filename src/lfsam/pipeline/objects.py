@@ -43,10 +43,10 @@ View = tuple[int, int]
 @dataclass
 class FeatureGroup:
     """The references decoded together in one view, whose source features (paper 3.3) are
-    computed together on first use (:meth:`lfsam.pipeline.engine.StreamingEngine.
-    source_feature`): the same batch, so the same numbers, as when computed at once; an
-    answer that is replaced before the pipeline runs (the tracker's refused prompts,
-    docs/design.md section 10) never pays for them."""
+    computed together on first use (:meth:`Reference.source_feature`): the same batch, so
+    the same numbers, as when computed at once; an answer that is replaced before the
+    pipeline runs (the tracker's refused prompts, docs/design.md sections 3.4 and 10) never
+    pays for them."""
 
     view: View
     masks: torch.Tensor  # (N, U, V) bool on the device
@@ -63,6 +63,19 @@ class Reference:
     feature: torch.Tensor | None = None  # (C,) unit source feature (semantic occluding)
     #: Where :attr:`feature` comes from while it is not computed yet: its group and row.
     pending: tuple[FeatureGroup, int] | None = None
+
+    def source_feature(
+        self, compute: Callable[[View, torch.Tensor], torch.Tensor]
+    ) -> torch.Tensor | None:
+        """The unit source feature (None without semantic occluding), computed on first use
+        by ``compute(view, masks)`` for the whole :class:`FeatureGroup` (e.g.
+        :meth:`lfsam.pipeline.engine.StreamingEngine.source_features`)."""
+        if self.feature is None and self.pending is not None:
+            group, row = self.pending
+            if group.features is None:
+                group.features = compute(group.view, group.masks)
+            self.feature, self.pending = group.features[row], None
+        return self.feature
 
 
 @dataclass
