@@ -251,6 +251,8 @@ def check_live_folder(path: str | os.PathLike) -> Path:
 
 #: Frames a live writer holds at most before :meth:`_LiveWriter.write` waits for the disk.
 QUEUE_FRAMES = 4
+#: Seconds the writer thread waits for a frame before it looks at its queue again.
+WAKE = 0.2
 #: The manifest is rewritten once the writer has caught up, or at the latest after this many
 #: frames (rewriting it costs in the number of frames so far).
 PUBLISH_EVERY = 8
@@ -351,9 +353,15 @@ class _LiveWriter(_Writer):
             raise self._error
 
     def _run(self) -> None:
-        """The writer thread: each frame's file, then the manifest once caught up."""
+        """The writer thread: each frame's file, then the manifest once caught up. It looks
+        at the queue again every :data:`WAKE` seconds: a Ctrl-C that stops the tracking
+        thread inside ``put``, after the frame is queued and before the wake-up call, must
+        not leave it waiting for ever (and the tracking thread in ``flush`` or ``close``)."""
         while True:
-            item = self._queue.get()
+            try:
+                item = self._queue.get(timeout=WAKE)
+            except queue.Empty:
+                continue
             try:
                 if item is _STOP:
                     return
