@@ -298,13 +298,16 @@ def test_follow_ctrl_c_exits_130_with_a_valid_folder(clip, tmp_path):
     folder.mkdir()
     frames = sorted(clip.glob("frame_*"))
     click = _click(read_video(clip).frame(0), OBJECT)
-    # Ctrl-C as a terminal gives it: SIGINT at its default in the child, whatever this test
-    # process inherited (an ignored SIGINT is inherited across exec, and Python then never
-    # raises KeyboardInterrupt: the child would follow on, as a background job should)
-    proc = subprocess.Popen(_follow_command(folder, out, click), stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "OMP_NUM_THREADS": "1"},
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    # Ctrl-C as a terminal gives it: the child starts with SIGINT not ignored, whatever this
+    # test process inherited (an ignored SIGINT passes across exec, a handler does not; a
+    # child that ignores it rightly follows on, as a background job should)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        proc = subprocess.Popen(_follow_command(folder, out, click), stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True,
+                                env={**os.environ, "OMP_NUM_THREADS": "1"})
+    finally:
+        signal.signal(signal.SIGINT, previous)
     try:
         land_frame(frames[0], folder)
         _wait_for(lambda: _frames_in(out) == 1 or proc.poll() is not None)

@@ -102,17 +102,18 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
     shape = (fft.next_fast_len(rh, True), fft.next_fast_len(rw, True))
     # correlation = convolution with the flipped kernel; the valid part is not wrapped
     kernels = np.concatenate([a, m[None], (a**2).sum(0)[None]])[:, ::-1, ::-1]
-    k_hat = fft.rfft2(kernels, s=shape, workers=fft_threads())
+    workers = fft_threads()
+    k_hat = fft.rfft2(kernels, s=shape, workers=workers)
     signals = [region, (region**2).sum(0)[None]]
     if not inside:
         signals.append(valid[None])
-    x_hat = fft.rfft2(np.concatenate(signals), s=shape, workers=fft_threads())
+    x_hat = fft.rfft2(np.concatenate(signals), s=shape, workers=workers)
     products = [(x_hat[:channels] * k_hat[:channels]).sum(0),
                 x_hat[channels] * k_hat[channels]]
     if not inside:
         products += [x_hat[channels + 1] * k_hat[channels], x_hat[channels + 1]
                      * k_hat[channels + 1]]
-    out = fft.irfft2(np.stack(products), s=shape, workers=fft_threads())[:, h - 1:rh, w - 1:rw]
+    out = fft.irfft2(np.stack(products), s=shape, workers=workers)[:, h - 1:rh, w - 1:rw]
     cross, energy = out[0], out[1]
     if inside:
         count = np.full(cross.shape, m.sum())
@@ -184,12 +185,10 @@ def likely_shifts_many(templates: Sequence[Template], images: Sequence[np.ndarra
     h, w = first.mask.shape
     rh, rw = coulds[0].shape
     shape = (fft.next_fast_len(rh, True), fft.next_fast_len(rw, True))
-    x_hat = fft.rfft2(np.stack(coulds).astype(np.float32), s=shape,
-                     workers=fft_threads())
-    k_hat = fft.rfft2(first.mask[::-1, ::-1].astype(np.float32), s=shape,
-                     workers=fft_threads())
-    scores = np.rint(fft.irfft2(x_hat * k_hat, s=shape, workers=fft_threads())[
-        :, h - 1:rh, w - 1:rw])
+    workers = fft_threads()
+    x_hat = fft.rfft2(np.stack(coulds).astype(np.float32), s=shape, workers=workers)
+    k_hat = fft.rfft2(first.mask[::-1, ::-1].astype(np.float32), s=shape, workers=workers)
+    scores = np.rint(fft.irfft2(x_hat * k_hat, s=shape, workers=workers)[:, h - 1:rh, w - 1:rw])
     out = []
     for score, (top, left, bottom, right) in zip(scores, margins, strict=True):
         du, dv = np.mgrid[-top:bottom + 1, -left:right + 1]
@@ -224,7 +223,8 @@ def cost_maps(templates: Sequence[Template], images: Sequence[np.ndarray], radiu
     a = np.moveaxis(first.image, -1, 0) * m  # (C, h, w)
     shape = (fft.next_fast_len(rh, True), fft.next_fast_len(rw, True))
     kernels = np.concatenate([a, m[None], (a**2).sum(0)[None]])[:, ::-1, ::-1]
-    k_hat = fft.rfft2(kernels, s=shape, workers=fft_threads())
+    workers = fft_threads()
+    k_hat = fft.rfft2(kernels, s=shape, workers=workers)
     # the windows laid straight into the transform's zero-padded input (what s=shape pads)
     signals = np.zeros((len(windows), channels + 2, *shape), np.float32)
     for k, (win, valid, _) in enumerate(windows):
@@ -237,12 +237,12 @@ def cost_maps(templates: Sequence[Template], images: Sequence[np.ndarray], radiu
         for plane in planes[1:]:
             energy += plane**2
         signals[k, channels + 1, :rh, :rw] = valid
-    x_hat = fft.rfft2(signals, workers=fft_threads())  # (V, C + 2, ...)
+    x_hat = fft.rfft2(signals, workers=workers)  # (V, C + 2, ...)
     products = np.stack([(x_hat[:, :channels] * k_hat[:channels]).sum(1),
                          x_hat[:, channels] * k_hat[channels],
                          x_hat[:, channels + 1] * k_hat[channels],
                          x_hat[:, channels + 1] * k_hat[channels + 1]], 1)
-    out = fft.irfft2(products, s=shape, workers=fft_threads())[..., h - 1:rh, w - 1:rw]
+    out = fft.irfft2(products, s=shape, workers=workers)[..., h - 1:rh, w - 1:rw]
     pixels, own_sum = m.sum(), (a**2).sum()
     results = []
     for k, (_, valid, margins) in enumerate(windows):
