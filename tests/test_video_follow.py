@@ -29,7 +29,12 @@ from lfsam.video import read_video
 from lfsam.video.follow import FrameFollower
 from lfsam.video.live import segment_stream
 from lfsam.video.online import OnlineTracker
-from lfsam.video.result import RESULT_MARKER, live_video_result_writer, load_video_result
+from lfsam.video.result import (
+    RESULT_MARKER,
+    hidden_spans,
+    live_video_result_writer,
+    load_video_result,
+)
 from lfsam.video.synth import generate_video, write_video_frames
 from lfsam.video.track import track_video
 from stream_files import land_frame
@@ -250,6 +255,7 @@ def test_follow_segments_frames_as_they_land_and_ends_at_END(clip, tmp_path):
     assert len(lines) == len(frames) and all("from arrival to result" in x for x in lines)
     summary = json.loads(stdout.strip().splitlines()[-1])
     assert summary["frames"] == len(frames) and summary["latency_worst_s"] is not None
+    assert summary["hidden"] == hidden_spans(result.meta["tracks"]) == {}  # never lost
     assert result.stored_prompts()[0].points[0].x == click.x
 
 

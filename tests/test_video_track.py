@@ -3,6 +3,10 @@ coming back, objects started at a later frame, exact against the synthetic groun
 
 from __future__ import annotations
 
+import contextlib
+import io
+import json
+
 import numpy as np
 import pytest
 
@@ -11,6 +15,7 @@ from lfsam.api import RunOptions, SegmentOptions
 from lfsam.cli.main import main
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.video import read_video
+from lfsam.video.result import hidden_spans
 from lfsam.video.synth import generate_video, write_video_frames
 
 QUIET = SegmentOptions(run=RunOptions(progress=False))
@@ -33,14 +38,16 @@ def tracked(tmp_path_factory):
     x4, y4 = _inner_point(third == 4)
     out = folder / "out"
     args = ["segment", str(folder / "clip"), "--point", f"{x2},{y2}", "--point", f"{x3},{y3}",
-            "--point", f"{x4},{y4}#3", "--model", "oracle", "--disparity", "gt", "--quiet",
+            "--point", f"{x4},{y4}#3", "--model", "oracle", "--disparity", "gt",
             "--out", str(out)]
-    assert main(args) == 0
-    return video, lfsam.load_result(out)
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        assert main(args) == 0
+    return video, lfsam.load_result(out), json.loads(stdout.getvalue().strip().splitlines()[-1])
 
 
 def test_ids_stable_and_accurate_where_the_object_shows(tracked):
-    video, result = tracked
+    video, result, _ = tracked
     assert result.shape == (6, 3, 3, 48, 64) and result.object_ids == [1, 2, 3]
     for f in range(len(video)):
         truth, labels = video.frame(f).labels, result.labels[f]
@@ -54,14 +61,27 @@ def test_ids_stable_and_accurate_where_the_object_shows(tracked):
 
 
 def test_leaves_and_comes_back_with_its_id(tracked):
-    video, result = tracked
+    video, result, _ = tracked
     present = [bool((result.labels[f] == 1).any()) for f in range(6)]
     truth = [bool((video.frame(f).labels == 2).any()) for f in range(6)]
     assert present == truth == [True, True, False, False, False, True]
 
 
+def test_the_summary_names_the_frames_each_object_was_hidden(tracked):
+    """Issue 47: the command's JSON line gives each object's runs of hidden frames, the
+    manifest's states (``meta["tracks"]``) read as runs: object 1 leaves the frame in frames
+    2-4 (the ground truth) and comes back; object 2, always in sight, is not listed."""
+    video, result, summary = tracked
+    gone = [f for f in range(len(video)) if not (video.frame(f).labels == 2).any()]
+    assert gone == [2, 3, 4]
+    assert summary["hidden"]["1"] == [[gone[0], gone[-1]]]
+    assert summary["hidden"] == hidden_spans(result.meta["tracks"])
+    assert result.meta["tracks"]["1"][gone[-1] + 1] == "found"
+    assert "2" not in summary["hidden"]
+
+
 def test_started_at_frame_3_and_equal_to_segmenting_each_frame(tracked):
-    video, result = tracked
+    video, result, _ = tracked
     # (at frame 5 it is all but hidden: 4 pixels in the center view, lost there)
     assert [bool((result.labels[f] == 3).any()) for f in range(5)] == [False] * 3 + [True] * 2
     for f in (3, 4):  # tracking gives exactly what a ground-truth click on that frame gives

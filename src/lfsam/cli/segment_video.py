@@ -14,7 +14,7 @@ from lfsam.cli.prompts import objects_from_items
 from lfsam.fileutil import check_cache_dir, check_writable
 from lfsam.prompts import load_prompts
 from lfsam.video import read_video
-from lfsam.video.result import check_result_folder
+from lfsam.video.result import check_result_folder, hidden_spans
 
 __all__ = ["run_video"]
 
@@ -53,6 +53,8 @@ def run_video(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
             "objects": result.object_ids,
             "views": int(result.grid_shape[0] * result.grid_shape[1]),
             "seconds": round(result.meta.get("seconds", float("nan")), 3),
+            # each object's frames not found ([first, last]; kept, searched, found again)
+            "hidden": hidden_spans(result.meta.get("tracks", {})),
         }
         print(json.dumps(summary), file=sys.stdout)
     return 0

@@ -40,7 +40,7 @@ from lfsam.version import __version__
 from lfsam.video.feed import NEWER_FRAME, FrameFeed
 from lfsam.video.follow import ArrivedFrame, FrameFollower
 from lfsam.video.online import OnlineTracker
-from lfsam.video.result import live_video_result_writer, record_states
+from lfsam.video.result import hidden_spans, live_video_result_writer, record_states
 
 __all__ = ["RETRY_SECONDS", "FrameTiming", "StreamReport", "segment_stream"]
 
@@ -84,6 +84,8 @@ class StreamReport:
     skipped: list[dict[str, str]] = field(default_factory=list)
     latencies: list[float] = field(default_factory=list)
     object_ids: list[int] = field(default_factory=list)
+    #: Each object's runs of hidden frames (:func:`lfsam.video.result.hidden_spans`).
+    hidden: dict[str, list[list[int]]] = field(default_factory=dict)
     #: Seconds each frame's file took to write (in the writer thread), in order.
     write_seconds: list[float] = field(default_factory=list)
     #: Seconds from each frame's arrival to its file on disk.
@@ -91,13 +93,14 @@ class StreamReport:
 
     def summary(self) -> dict[str, Any]:
         """Frames, skipped frames (of them ``superseded``: left out for a newer frame), how it
-        ended, latency median, 95th percentile and worst, and the result files' writing
-        (:meth:`write_summary`), in seconds."""
+        ended, the objects and their runs of hidden frames (``hidden``, as
+        :func:`lfsam.video.result.hidden_spans`), latency median, 95th percentile and worst,
+        and the result files' writing (:meth:`write_summary`), in seconds."""
         lat = self.latencies
         return {
             "out": str(self.out), "frames": self.frames, "skipped": len(self.skipped),
             "superseded": sum(s.get("reason") == NEWER_FRAME for s in self.skipped),
-            "ended_by": self.ended_by, "objects": self.object_ids,
+            "ended_by": self.ended_by, "objects": self.object_ids, "hidden": self.hidden,
             "latency_median_s": round(statistics.median(lat), 3) if lat else None,
             "latency_p95_s": round(percentile(lat, 95), 3) if lat else None,
             "latency_worst_s": round(max(lat), 3) if lat else None,
@@ -268,4 +271,5 @@ def segment_stream(
         meta["latency"] = {k: v for k, v in report.summary().items() if k.startswith("latency")}
         meta["write"] = report.write_summary()
         report.object_ids = sorted(writer.object_ids)
+        report.hidden = hidden_spans(meta["tracks"])
     return report

@@ -30,7 +30,7 @@ import queue
 import shutil
 import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -53,6 +53,7 @@ __all__ = [
     "FrameLabels",
     "VideoResult",
     "check_live_folder",
+    "hidden_spans",
     "is_video_result",
     "live_video_result_writer",
     "load_video_result",
@@ -173,6 +174,32 @@ class _Writer:
                 entry["category"] = self.categories[obj_id]
             entries.append(entry)
         return entries
+
+
+def hidden_spans(tracks: Mapping[str, Sequence[str]]) -> dict[str, list[list[int]]]:
+    """Each object's runs of frames where it was *hidden* (``meta["tracks"]``, docs/design.md
+    section 10), as ``[first, last]`` frame indices (inclusive); objects never hidden are left
+    out. A run ending before the last frame ended with the object found again (or prompted).
+
+    Examples
+    --------
+    >>> hidden_spans({"1": ["prompted", "tracked"],
+    ...               "2": ["prompted", "hidden", "hidden", "found", "hidden"]})
+    {'2': [[1, 2], [4, 4]]}
+    """
+    spans: dict[str, list[list[int]]] = {}
+    for key, states in tracks.items():
+        runs: list[list[int]] = []
+        for index, state in enumerate(states):
+            if state != "hidden":
+                continue
+            if runs and runs[-1][1] == index - 1:
+                runs[-1][1] = index
+            else:
+                runs.append([index, index])
+        if runs:
+            spans[key] = runs
+    return spans
 
 
 def record_states(history: dict[str, list[str]], states: dict[str, str], index: int) -> None:
