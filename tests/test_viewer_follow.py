@@ -205,6 +205,43 @@ def test_a_stream_already_in_the_folder_ends_at_END(make_napari_viewer, qtbot, s
     assert default_out(live) == tmp_path / "cam_live_2"  # cam_live is taken now
 
 
+
+def test_the_status_names_the_objects_searched_for_and_their_hidden_frames(
+        make_napari_viewer, qtbot, tmp_path):
+    """Issue 47: an object not found in a frame is named in that frame's status as searched
+    for, under its id, since the first frame of its run of hidden frames, and the end line
+    gives its hidden frames; checked against the result's states (``meta["tracks"]``) in a
+    video whose first object leaves the frame in frames 2-4 (the ground truth)."""
+    source = tmp_path / "source"
+    write_video_frames(generate_video(grid=(3, 3), size=(48, 64), frames=6, seed=0,
+                                      num_objects=3), source)
+    _viewer, widget, statuses = _dock(make_napari_viewer)
+    live = tmp_path / "cam"
+    live.mkdir()
+    frames = frame_folders(source)
+    widget.follow.start(live, auto=True)
+    writer = _land(frames, live, end=True)
+    _ended(qtbot, widget)
+    writer.join()
+    result = lfsam.load_result(widget.follow.out)
+    video = read_video(source)
+    gone = [f for f in range(6) if not (video.frame(f).labels == 2).any()]
+    assert gone == [2, 3, 4]
+    tracks = result.meta["tracks"]
+    hidden = {f: [int(i) for i, states in tracks.items() if states[f] == "hidden"]
+              for f in range(6)}
+    assert all(hidden[f] for f in gone)
+    for f, ids in hidden.items():
+        line = next(x for x in statuses if x.startswith(f"frame {f} ({frames[f].name}): "))
+        assert ("searching for" in line) == bool(ids), line
+        for i in ids:
+            since = min(g for g in range(f + 1)
+                        if all(tracks[str(i)][h] == "hidden" for h in range(g, f + 1)))
+            assert f"{i} (hidden since frame {since})" in line, line
+    end = next(x for x in statuses if x.startswith("stream ended (END file)"))
+    for i in {i for ids in hidden.values() for i in ids}:
+        assert f"object {i} in frame(s) " in end, end
+
 def test_newest_frame_only_skips_the_backlog(make_napari_viewer, qtbot, source, tmp_path):
     """The dock's "Newest frame only" (issue 44, --latest): with frames waiting, the newest is
     segmented and the older ones are listed as skipped, each by name."""

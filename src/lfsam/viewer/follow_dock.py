@@ -5,13 +5,16 @@
 with the dock's model, disparity and refine views in a thread of its own, never in the GUI
 thread; its events reach the GUI thread through a queued Qt signal. The latest frame is an RGB
 image layer ``(S, T, U, V, 3)`` (``s``, ``t`` on sliders), its masks a labels layer; the status
-line says ``frame N (name): X.XX s from arrival`` or why a frame was skipped. A click on the
+line says ``frame N (name): X.XX s from arrival``, the objects shown and those searched for
+(``searching for 2 (hidden since frame 5)``: not found, kept under their ids, issue 47), or why
+a frame was skipped. A click on the
 ``live clicks`` layer (polarity as elsewhere in the viewer, tagged with its view) is a new object
 posted with :meth:`~lfsam.video.online.OnlineTracker.post_prompts`, segmented from the next
 frame on with a stable id (a negative click corrects the object it lands on). Stop calls
 ``follower.stop()`` (the frame being segmented is kept); a file named ``END`` ends the stream
 too. The result folder is valid throughout; at the end the status says how and after how many
-frames (and how many clicks came after the last frame, unused), and a viewer with nothing else
+frames, which objects were hidden in which frames (and how many clicks came after the last
+frame, unused), and a viewer with nothing else
 open shows the frames segmented as a video with it. The box "Follow: everything in the first
 frame" follows in automatic mode; ``texts`` (``lfsam view --follow --text``) are found in the
 first frame and tracked. A fault of the setup (not of one frame) ends the stream with its one
@@ -62,14 +65,16 @@ _AXES = ("s", "t", "u", "v")
 @dataclass(frozen=True, eq=False)
 class FrameShown:
     """A frame is segmented and in the result folder: its timing, views ``(S, T, U, V, 3)``,
-    labels ``(S, T, U, V)``, the ids the tracker knows after it, and why clicks posted for it
-    were left out (``meta["refused_prompts"]``, or None)."""
+    labels ``(S, T, U, V)``, the ids the tracker knows after it, why clicks posted for it
+    were left out (``meta["refused_prompts"]``, or None) and the ids not found in it
+    (*hidden*: kept and searched for in the next frames, ``meta["tracks"]``)."""
 
     timing: FrameTiming
     views: np.ndarray
     labels: np.ndarray
     ids: tuple[int, ...]
     refused: str | None
+    hidden: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -168,6 +173,8 @@ class FollowController(QObject):
         self.names: list[str] = []
         self.layers: dict[str, Any] = {}
         self._next_id = 1
+        #: Each hidden object's first frame of its current run of hidden frames.
+        self._hidden_since: dict[int, int] = {}
         self._delivered.connect(self._on_event)  # queued: emitted in the stream's thread
 
     @property
@@ -212,7 +219,7 @@ class FollowController(QObject):
         follower = FrameFollower(folder, timeout=timeout, poll=poll)
         self._remove_layers()
         self.follower, self.tracker, self.folder, self.out = follower, tracker, folder, out
-        self.report, self.names, self._next_id = None, [], 1
+        self.report, self.names, self._next_id, self._hidden_since = None, [], 1, {}
         if latest is None:
             latest = self.widget.controls.latest_box.isChecked()
         self.thread = threading.Thread(target=self._run, args=(follower, tracker, out, latest),
@@ -272,8 +279,11 @@ class FollowController(QObject):
                 self._delivered.emit(event)
 
         def on_frame(timing: FrameTiming, result: SegmentationResult) -> None:
+            hidden = tuple(sorted(int(i) for i, state in result.meta.get("tracks", {}).items()
+                                  if state == "hidden"))
             emit(FrameShown(timing, tracker.last.views, result.labels,
-                            tuple(tracker.object_ids), result.meta.get("refused_prompts")))
+                            tuple(tracker.object_ids), result.meta.get("refused_prompts"),
+                            hidden))
 
         try:
             if tracker.name != ORACLE:
@@ -318,6 +328,10 @@ class FollowController(QObject):
                 + older
                 + (f"objects {ids}" if ids else "no object (click one: it is segmented from "
                    "the next frame on)"))
+        self._hidden_since = {i: self._hidden_since.get(i, timing.index) for i in event.hidden}
+        if event.hidden:  # kept, searched for in every frame, back under their ids
+            line += "; searching for " + ", ".join(
+                f"{i} (hidden since frame {self._hidden_since[i]})" for i in event.hidden)
         self._status(line + (f"; clicks left out: {event.refused}" if event.refused else ""))
 
     def _add_layers(self, views: np.ndarray, labels: np.ndarray) -> None:
@@ -395,6 +409,10 @@ class FollowController(QObject):
                 f"{report.frames} frame(s)"
                 + (f", {len(report.skipped)} skipped" if report.skipped else "")
                 + (f"; {self.out} holds them" if report.frames else "; nothing was written")
+                + ("; hidden: " + "; ".join(
+                    f"object {i} in frame(s) " + ", ".join(
+                        f"{a}-{b}" if b > a else f"{a}" for a, b in runs)
+                    for i, runs in report.hidden.items()) if report.hidden else "")
                 + (f"; {unused} click(s) came after the last frame and were not used (no "
                    "frame followed them)" if unused else ""))
         self._status(line)
