@@ -18,6 +18,7 @@ import pytest
 import torch
 
 import lfsam
+from hidden_status import check_hidden_lines
 from lfsam.api import RunOptions, SegmentOptions
 from lfsam.baseline.predictor import video_predictor_for
 from lfsam.cli.main import main
@@ -279,6 +280,27 @@ def test_follow_timeout_and_a_corrupt_frame(clip, tmp_path, capsys):
     assert [result.frame(f).meta["frame_source"] for f in range(2)] == [
         "frame_0000", "frame_0002"]
     assert all((labels == 1).any() for labels in result.labels)
+
+
+def test_follow_lines_name_the_objects_searched_for(clip, tmp_path, capsys):
+    """Issue 47: each frame's line names the objects not found there (searched for, under
+    their ids, since the first frame of their run of hidden frames) and the end line their
+    hidden frames, as the result's states (``meta["tracks"]``) say; in this clip the first
+    object leaves the frame in frame 2 (the ground truth), so one is hidden there."""
+    folder, out = tmp_path / "in", tmp_path / "out"
+    folder.mkdir()
+    frames = sorted(clip.glob("frame_*"))
+    for frame in frames:
+        land_frame(frame, folder)
+    (folder / "END").write_text("")
+    assert main(["segment", str(folder), "--follow", "--auto", "--model", "oracle",
+                 "--disparity", "gt", "--out", str(out), "--poll", "0.02"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    video = read_video(clip)
+    assert not (video.frame(2).labels == 2).any()
+    tracks = lfsam.load_result(out).meta["tracks"]
+    hidden = check_hidden_lines(err, [f.name for f in frames], tracks, "stream ended")
+    assert hidden[2]
 
 
 def test_follow_refuses_bad_places_before_work(tmp_path, capsys):

@@ -20,6 +20,7 @@ from qtpy.QtCore import QTimer
 from scipy import ndimage
 
 import lfsam
+from hidden_status import check_hidden_lines
 from lfsam.cli.main import main
 from lfsam.errors import LfsamError
 from lfsam.video import read_video
@@ -227,20 +228,9 @@ def test_the_status_names_the_objects_searched_for_and_their_hidden_frames(
     video = read_video(source)
     gone = [f for f in range(6) if not (video.frame(f).labels == 2).any()]
     assert gone == [2, 3, 4]
-    tracks = result.meta["tracks"]
-    hidden = {f: [int(i) for i, states in tracks.items() if states[f] == "hidden"]
-              for f in range(6)}
+    hidden = check_hidden_lines(statuses, [f.name for f in frames], result.meta["tracks"],
+                                "stream ended (END file)")
     assert all(hidden[f] for f in gone)
-    for f, ids in hidden.items():
-        line = next(x for x in statuses if x.startswith(f"frame {f} ({frames[f].name}): "))
-        assert ("searching for" in line) == bool(ids), line
-        for i in ids:
-            since = min(g for g in range(f + 1)
-                        if all(tracks[str(i)][h] == "hidden" for h in range(g, f + 1)))
-            assert f"{i} (hidden since frame {since})" in line, line
-    end = next(x for x in statuses if x.startswith("stream ended (END file)"))
-    for i in {i for ids in hidden.values() for i in ids}:
-        assert f"object {i} in frame(s) " in end, end
 
 def test_newest_frame_only_skips_the_backlog(make_napari_viewer, qtbot, source, tmp_path):
     """The dock's "Newest frame only" (issue 44, --latest): with frames waiting, the newest is

@@ -112,6 +112,7 @@ def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
     from lfsam.api import RunOptions, SegmentOptions
     from lfsam.video.follow import FrameFollower, check_follow_folder
     from lfsam.video.frames_folder import frame_entries
+    from lfsam.video.hidden_lines import HiddenSince, hidden_frames_text, hidden_now
     from lfsam.video.live import segment_stream
     from lfsam.video.online import OnlineTracker
     from lfsam.video.result import check_live_folder
@@ -160,15 +161,18 @@ def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
     if not frame_entries(follower.folder):
         announce()
 
+    hidden = HiddenSince()  # the objects searched for, since when (issue 47)
+
     def show(timing, result) -> None:
         if not args.quiet and "text" in result.meta:  # what the phrases found, first frame
             report_text(result.meta["text"], model_options.text_threshold)
         if not args.quiet:
             ids = [int(i) for i in np.unique(result.labels) if i > 0]
             older = f", {timing.superseded} older skipped" if timing.superseded else ""
+            searching = hidden.update(timing.index, hidden_now(result.meta.get("tracks", {})))
             print(f"frame {timing.index} ({timing.name}): {timing.latency:.2f} s from arrival "
-                  f"to result ({timing.seconds:.2f} s segmenting{older}), objects {ids}",
-                  file=sys.stderr, flush=True)
+                  f"to result ({timing.seconds:.2f} s segmenting{older}), objects {ids}"
+                  f"{searching}", file=sys.stderr, flush=True)
         announce()
 
     def skip(line: str) -> None:
@@ -183,7 +187,8 @@ def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
         how = {"END": "END file", "timeout": "no new frame for --follow-timeout",
                "interrupted": "Ctrl-C", "stopped": "stopped"}.get(report.ended_by, "")
         where = f"{args.out} holds them" if report.frames else "nothing was written"
-        print(f"stream ended ({how}) after {report.frames} frames; {where}", file=sys.stderr)
+        print(f"stream ended ({how}) after {report.frames} frames; {where}"
+              f"{hidden_frames_text(report.hidden)}", file=sys.stderr)
     if not args.quiet:
         print(json.dumps(summary), file=sys.stdout)
     return 130 if report.ended_by == "interrupted" else 0

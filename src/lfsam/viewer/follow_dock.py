@@ -45,6 +45,7 @@ from lfsam.prompts import ObjectPrompts, TextPrompt
 from lfsam.result import SegmentationResult
 from lfsam.segmenters.registry import ORACLE
 from lfsam.video.follow import FrameFollower, check_follow_folder
+from lfsam.video.hidden_lines import HiddenSince, hidden_frames_text, hidden_now
 from lfsam.video.result import check_live_folder, load_video_result
 from lfsam.video.source import LightFieldVideo, check_frame
 from lfsam.viewer import controls as C
@@ -174,7 +175,7 @@ class FollowController(QObject):
         self.layers: dict[str, Any] = {}
         self._next_id = 1
         #: Each hidden object's first frame of its current run of hidden frames.
-        self._hidden_since: dict[int, int] = {}
+        self._hidden = HiddenSince()
         self._delivered.connect(self._on_event)  # queued: emitted in the stream's thread
 
     @property
@@ -219,7 +220,7 @@ class FollowController(QObject):
         follower = FrameFollower(folder, timeout=timeout, poll=poll)
         self._remove_layers()
         self.follower, self.tracker, self.folder, self.out = follower, tracker, folder, out
-        self.report, self.names, self._next_id, self._hidden_since = None, [], 1, {}
+        self.report, self.names, self._next_id, self._hidden = None, [], 1, HiddenSince()
         if latest is None:
             latest = self.widget.controls.latest_box.isChecked()
         self.thread = threading.Thread(target=self._run, args=(follower, tracker, out, latest),
@@ -279,8 +280,7 @@ class FollowController(QObject):
                 self._delivered.emit(event)
 
         def on_frame(timing: FrameTiming, result: SegmentationResult) -> None:
-            hidden = tuple(sorted(int(i) for i, state in result.meta.get("tracks", {}).items()
-                                  if state == "hidden"))
+            hidden = tuple(hidden_now(result.meta.get("tracks", {})))
             emit(FrameShown(timing, tracker.last.views, result.labels,
                             tuple(tracker.object_ids), result.meta.get("refused_prompts"),
                             hidden))
@@ -328,10 +328,7 @@ class FollowController(QObject):
                 + older
                 + (f"objects {ids}" if ids else "no object (click one: it is segmented from "
                    "the next frame on)"))
-        self._hidden_since = {i: self._hidden_since.get(i, timing.index) for i in event.hidden}
-        if event.hidden:  # kept, searched for in every frame, back under their ids
-            line += "; searching for " + ", ".join(
-                f"{i} (hidden since frame {self._hidden_since[i]})" for i in event.hidden)
+        line += self._hidden.update(timing.index, event.hidden)  # kept, searched for
         self._status(line + (f"; clicks left out: {event.refused}" if event.refused else ""))
 
     def _add_layers(self, views: np.ndarray, labels: np.ndarray) -> None:
@@ -409,10 +406,7 @@ class FollowController(QObject):
                 f"{report.frames} frame(s)"
                 + (f", {len(report.skipped)} skipped" if report.skipped else "")
                 + (f"; {self.out} holds them" if report.frames else "; nothing was written")
-                + ("; hidden: " + "; ".join(
-                    f"object {i} in frame(s) " + ", ".join(
-                        f"{a}-{b}" if b > a else f"{a}" for a, b in runs)
-                    for i, runs in report.hidden.items()) if report.hidden else "")
+                + hidden_frames_text(report.hidden)
                 + (f"; {unused} click(s) came after the last frame and were not used (no "
                    "frame followed them)" if unused else ""))
         self._status(line)
