@@ -7,18 +7,17 @@ thread; its events reach the GUI thread through a queued Qt signal. The latest f
 image layer ``(S, T, U, V, 3)`` (``s``, ``t`` on sliders), its masks a labels layer; the status
 line says ``frame N (name): X.XX s from arrival``, the objects shown and those searched for
 (``searching for 2 (hidden since frame 5)``: not found, kept under their ids, issue 47), or why
-a frame was skipped. A click on the
-``live clicks`` layer (polarity as elsewhere in the viewer, tagged with its view) is a new object
-posted with :meth:`~lfsam.video.online.OnlineTracker.post_prompts`, segmented from the next
-frame on with a stable id (a negative click corrects the object it lands on). Stop calls
+a frame was skipped. A click on the ``live clicks`` layer (polarity as elsewhere in the viewer,
+tagged with its view) is a new object posted with
+:meth:`~lfsam.video.online.OnlineTracker.post_prompts`, segmented from the next frame on with
+a stable id (a negative click corrects the object it lands on). Stop calls
 ``follower.stop()`` (the frame being segmented is kept); a file named ``END`` ends the stream
 too. The result folder is valid throughout; at the end the status says how and after how many
 frames, which objects were hidden in which frames (and how many clicks came after the last
-frame, unused), and a viewer with nothing else
-open shows the frames segmented as a video with it. The box "Follow: everything in the first
-frame" follows in automatic mode; ``texts`` (``lfsam view --follow --text``) are found in the
-first frame and tracked. A fault of the setup (not of one frame) ends the stream with its one
-line (issue 46).
+frame, unused), and a viewer with nothing else open shows the frames segmented as a video with
+it. The box "Follow: everything in the first frame" follows in automatic mode; ``texts``
+(``lfsam view --follow --text``) are found in the first frame and tracked. A fault of the
+setup (not of one frame) ends the stream with its one line (issue 46).
 """
 
 from __future__ import annotations
