@@ -66,6 +66,15 @@ def test_evaluate_frames_exact():
     assert summary["mean_view_iou"] == pytest.approx(2.5 / 3)
     assert summary["view_iou_worst"] == 0.5
     assert summary["recall"] == pytest.approx((1 + 1 + 0.5) / 3)  # frame 2: 1 of 2 objects
+    # tracks (issue 47): the pairing covering most pixels is 1 -> 20 (frames 1 and 2: 144 +
+    # 72 px) and 2 -> 10 (frame 1: 144), not 1 -> 10, 2 -> 20 (144 + 144); each of the 2 x 9
+    # x 3 triples shows 16 px. Object 1 is missed in frame 0 (under 10), whole in frame 1,
+    # half in frame 2 (IoU 0.5, not lost); object 2 is missed in frames 0 and 2.
+    tracks = summary["tracks"]
+    assert tracks["tracks"] == {"1": 20, "2": 10} and tracks["untracked"] == []
+    assert tracks["visible"] == 2 * S * T * F
+    assert tracks["lost"] == pytest.approx(3 * S * T / (2 * S * T * F))
+    assert tracks["mean_iou"] == pytest.approx((S * T * (1 + 0.5) + S * T * 1) / (2 * S * T * F))
 
 
 def test_cli_metrics_of_a_video_result(tmp_path, capsys):
@@ -85,3 +94,33 @@ def test_cli_metrics_of_a_video_result(tmp_path, capsys):
              labels=gt[:2], disparity=np.zeros(gt[:2].shape, np.float32))
     assert main(["metrics", str(tmp_path / "result"), "--gt", str(tmp_path / "short.npz")]) != 0
     assert "is a video of (2, 3, 3, 4, 8)" in capsys.readouterr().err
+
+
+def test_track_scores_equal_the_tracking_benchmarks_own_count():
+    """The metric over a tracked hard video equals ``benchmarks/bench_tracking.py``'s lost
+    share and mean IoU (which score the clicked objects under their clicked ids): the pairing
+    finds the clicked ids, and the triples and IoUs are the same."""
+    import importlib.util
+    from pathlib import Path
+
+    from lfsam.metrics.tracks import frame_overlaps, track_scores
+    from lfsam.video.synth import generate_video
+
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_tracking.py"
+    spec = importlib.util.spec_from_file_location("bench_tracking_for_metrics", script)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    frames = list(generate_video(grid=(3, 3), size=(48, 64), frames=6, seed=3, num_objects=4,
+                                 hard=True))
+    prompts, truth = bench.clicks(frames[0], 20)
+    labels, _, _ = bench.track(frames, prompts, True, 0, 3)
+    expected = bench.score(frames, labels, truth, 20)
+    # the ground truth of the clicked objects only (the benchmark's): the background and
+    # objects not clicked are unlabeled here
+    clicked = [np.where(np.isin(lf.labels, list(truth.values())), lf.labels, 0) for lf in frames]
+    scores = track_scores([frame_overlaps(x, g) for x, g in zip(labels, clicked, strict=True)],
+                          min_pixels=20)
+    assert scores["tracks"] == {str(g): i for i, g in truth.items()}
+    assert scores["visible"] == expected["visible"] > 0
+    assert scores["lost"] == pytest.approx(expected["lost"] / expected["visible"])
+    assert scores["mean_iou"] == pytest.approx(expected["iou_sum"] / expected["visible"])

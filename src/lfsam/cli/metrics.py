@@ -51,6 +51,11 @@ all views of the frame)], "summary": {...}} with
                      per object)
   mean_view_iou      mean over frames of view_iou (the mean IoU over frames and views)
   view_iou_worst     the worst view of any frame
+  tracks             each ground-truth object's one track for the whole video (the predicted
+                     id of the one-to-one pairing covering most pixels; "untracked": objects
+                     without one) and, over the views of each frame where a tracked object
+                     shows at least "min_pixels" (100 at 96x128, scaled with the view's area),
+                     "lost": the share where its track's IoU is below 0.5, and "mean_iou"
 and the mean over frames of every other metric.
 """
 

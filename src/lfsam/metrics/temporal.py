@@ -11,7 +11,10 @@ metrics and the per-view IoU against the ground truth). Over time:
   best match changes between consecutive frames where it is visible and matched (frames where
   it is hidden or missed are skipped: a different id after a gap is a switch);
 - **mean IoU over frames and views** (``mean_view_iou``): the mean over frames of each frame's
-  ``view_iou`` (itself the mean over views); ``view_iou_worst`` is the worst view of any frame.
+  ``view_iou`` (itself the mean over views); ``view_iou_worst`` is the worst view of any frame;
+- **tracks** (:mod:`lfsam.metrics.tracks`, issue 47): each object's one predicted id over the
+  whole video, and the share of the (object, frame, view) triples where it shows that this id
+  misses (``lost``, IoU below 0.5).
 """
 
 from __future__ import annotations
@@ -23,6 +26,12 @@ from typing import Any
 import numpy as np
 
 from lfsam.lightfield import LightField
+from lfsam.metrics.tracks import (
+    FrameOverlaps,
+    default_track_pixels,
+    frame_overlaps,
+    track_scores,
+)
 from lfsam.result import SegmentationResult
 
 __all__ = ["evaluate_frames", "frame_matches", "identity_switches"]
@@ -107,6 +116,7 @@ def evaluate_frames(
     *,
     device: Any = None,
     min_area: int | None = None,
+    track_pixels: int | None = None,
 ) -> dict[str, Any]:
     """The metrics of every frame and over time (see the module docstring).
 
@@ -117,6 +127,9 @@ def evaluate_frames(
         read one at a time.
     device, min_area
         As :func:`lfsam.metrics.evaluate_result`.
+    track_pixels : int, optional
+        Pixels an object must show in a view to count in ``tracks`` (default
+        :func:`lfsam.metrics.tracks.default_track_pixels`).
 
     Returns
     -------
@@ -124,16 +137,22 @@ def evaluate_frames(
         ``frames``: per frame the metrics of :func:`lfsam.metrics.evaluate_result` plus
         ``frame`` and ``matches`` (ground-truth id -> best predicted id); ``summary``:
         ``frames``, ``identity_switches`` (total), ``switches`` (per ground-truth id),
-        ``mean_view_iou``, ``view_iou_worst`` and the mean over frames of every other
-        per-frame metric (``siou``, ``aa``, ...; undefined values left out, None if none).
+        ``mean_view_iou``, ``view_iou_worst``, the mean over frames of every other
+        per-frame metric (``siou``, ``aa``, ...; undefined values left out, None if none) and
+        ``tracks``: each object's one track over the video and the share of the views where
+        it shows that the track misses (:func:`lfsam.metrics.tracks.track_scores`, issue 47).
     """
     from lfsam.metrics import evaluate_result
 
     rows: list[dict[str, Any]] = []
     matches: list[dict[int, int | None]] = []
+    overlaps: list[FrameOverlaps] = []
     for index, (result, gt) in enumerate(frames):
         scores = evaluate_result(result, gt, device=device, min_area=min_area)
         found = frame_matches(result.labels, gt.labels)
+        overlaps.append(frame_overlaps(result.labels, gt.labels))
+        if track_pixels is None:
+            track_pixels = default_track_pixels(gt.view_shape)
         matches.append(found)
         rows.append({"frame": index, **scores,
                      "matches": {str(k): v for k, v in found.items()}})
@@ -150,4 +169,5 @@ def evaluate_frames(
     }
     summary.update({k: _mean(r[k] for r in rows) for k in keys if k not in summary
                     and k != "view_iou"})
+    summary["tracks"] = track_scores(overlaps, track_pixels or 1)
     return {"frames": rows, "summary": summary}

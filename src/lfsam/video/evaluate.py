@@ -50,8 +50,8 @@ def video_row_metrics(summary: dict[str, Any]) -> dict[str, Any]:
     ...                    "view_iou_worst": 0.8, "siou": 0.7})["view_iou"]
     0.9
     """
-    row = {key: value for key, value in summary.items()
-           if key not in ("switches", "mean_view_iou", "num_masks")}
+    row = {key: value for key, value in summary.items()  # tracks: nested, in `lfsam metrics`
+           if key not in ("switches", "mean_view_iou", "num_masks", "tracks")}
     row["view_iou"] = summary.get("mean_view_iou")
     return row
 
