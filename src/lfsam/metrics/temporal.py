@@ -34,7 +34,7 @@ from lfsam.metrics.tracks import (
 )
 from lfsam.result import SegmentationResult
 
-__all__ = ["evaluate_frames", "frame_matches", "identity_switches"]
+__all__ = ["best_matches", "evaluate_frames", "frame_matches", "identity_switches"]
 
 
 def frame_matches(labels: np.ndarray, gt_labels: np.ndarray) -> dict[int, int | None]:
@@ -59,19 +59,21 @@ def frame_matches(labels: np.ndarray, gt_labels: np.ndarray) -> dict[int, int | 
     >>> frame_matches(np.array([[[[0, 0, 7, 7]]]]), gt)
     {1: None, 2: 7}
     """
-    pred = np.asarray(labels).ravel().astype(np.int64)
-    truth = np.asarray(gt_labels).ravel().astype(np.int64)
-    gt_ids, gt_index = np.unique(truth, return_inverse=True)
-    pred_ids, pred_index = np.unique(pred, return_inverse=True)
-    joint = np.bincount(gt_index * len(pred_ids) + pred_index,
-                        minlength=len(gt_ids) * len(pred_ids)).reshape(len(gt_ids), len(pred_ids))
-    gt_area, pred_area = joint.sum(1), joint.sum(0)
-    union = gt_area[:, None] + pred_area[None, :] - joint
+    return best_matches(frame_overlaps(labels, gt_labels))
+
+
+def best_matches(overlaps: FrameOverlaps) -> dict[int, int | None]:
+    """:func:`frame_matches` from a frame's pixel counts (:func:`lfsam.metrics.tracks.
+    frame_overlaps`, read once for both the matches and the tracks): every view's pixels
+    together."""
+    if overlaps.pred_ids.size == 0:
+        return {int(g): None for g in overlaps.gt_ids}
+    joint = overlaps.joint.sum(-1)
+    union = overlaps.gt_area.sum(-1)[:, None] + overlaps.pred_area.sum(-1)[None, :] - joint
     iou = np.where(joint > 0, joint / np.maximum(union, 1), 0.0)
-    iou[:, pred_ids == 0] = 0.0
-    best = iou.argmax(1)
-    return {int(g): (int(pred_ids[best[n]]) if iou[n, best[n]] > 0 else None)
-            for n, g in enumerate(gt_ids) if g != 0}
+    best = iou.argmax(1)  # ties: the smaller id
+    return {int(g): int(overlaps.pred_ids[best[n]]) if iou[n, best[n]] > 0 else None
+            for n, g in enumerate(overlaps.gt_ids)}
 
 
 def identity_switches(matches: Sequence[dict[int, int | None]]) -> dict[int, int]:
@@ -149,8 +151,8 @@ def evaluate_frames(
     overlaps: list[FrameOverlaps] = []
     for index, (result, gt) in enumerate(frames):
         scores = evaluate_result(result, gt, device=device, min_area=min_area)
-        found = frame_matches(result.labels, gt.labels)
         overlaps.append(frame_overlaps(result.labels, gt.labels))
+        found = best_matches(overlaps[-1])
         if track_pixels is None:
             track_pixels = default_track_pixels(gt.view_shape)
         matches.append(found)
