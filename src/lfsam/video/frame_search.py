@@ -17,7 +17,7 @@ from scipy import ndimage
 
 from lfsam.pipeline.references import reference_views
 from lfsam.prompts import ObjectPrompts
-from lfsam.video import claims, consistency, search
+from lfsam.video import claims, consistency, placement, search
 from lfsam.video.carry import Template
 from lfsam.video.prompts import negatives_since, prompts_at, start_frame
 from lfsam.video.search import Track, first_look, search_object, update
@@ -199,6 +199,13 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         if consistency.CHECK and shift is not None and consistency.jumped(
                 track, view, located, disparity, center):
             consistency.doubt(track)
+        # a poorly supported match of a partly seen object: its template placed where it
+        # explains the answer (placement), whatever texture the match fitted
+        if (placement.CHECK and shift is not None and track.support < search.VELOCITY_SUPPORT
+                and mask.sum() < search.KEEP_TEMPLATE * track.area):
+            located = placement.placed_by_answer(located, mask, lf.views[view],
+                                                 disparity_of(view), disparity,
+                                                 search.search_radius(track))
         update(track, view, mask, located, lf.views[view], disparity, center,
                shift is not None)
         states[obj_id] = track.state
