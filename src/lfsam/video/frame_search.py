@@ -107,6 +107,14 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             cache[key] = out
         return cache[key]
 
+    floats: dict[tuple[int, int], np.ndarray] = {}
+
+    def view_of(view: tuple[int, int]) -> np.ndarray:
+        """A view as float32, converted once per frame (every search of the frame reads it)."""
+        if view not in floats:
+            floats[view] = lf.views[view].astype(np.float32)
+        return floats[view]
+
     asked: list[ObjectPrompts] = []  # the latest prompts answered (consistency.look_again)
 
     def answer(obj: ObjectPrompts) -> tuple[tuple[int, int], np.ndarray]:
@@ -130,7 +138,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
                and tracks[i].template is not None]
     # the surest first (most of the template still seen at its predicted place), so that an
     # object that went behind another cannot take that one's place
-    first = {i: first_look(tracks[i], lf.views[tracks[i].view], center,
+    first = {i: first_look(tracks[i], view_of(tracks[i].view), center,
                            disparity_of(tracks[i].view) if search.DEPTH_GATE else None)
              for i in carried}
     carried.sort(key=lambda i: (tracks[i].unseen > 0, -first[i][0], i))
@@ -173,7 +181,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
     while queue:
         obj_id = queue.pop(0)
         track = tracks[obj_id]
-        found = search_for(obj_id, obj_id, track, lambda v: lf.views[v], first[obj_id][1])
+        found = search_for(obj_id, obj_id, track, view_of, first[obj_id][1])
         if found is None:
             if obj_id in predictor.object_ids:
                 predictor.remove_object(obj_id)
@@ -215,7 +223,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         """A view with the objects placed in this frame read as not the object (a shadow's
         search, consistency.look_again: the look-alike its id holds is no candidate)."""
         return np.where(placed_in(view)[..., None], np.float32(search.REFUSED_VALUE),
-                        lf.views[view].astype(np.float32))
+                        view_of(view))
 
     for obj_id in carried if consistency.CHECK else ():
         if tracks[obj_id].shadow is None:
@@ -227,7 +235,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
 
         back = consistency.look_again(
             obj_id, tracks, shadow_search, predictor, lambda: asked[-1] if asked else None,
-            lambda v, m: object_disparity(disparity_of(v), m), lambda v: lf.views[v], center)
+            lambda v, m: object_disparity(disparity_of(v), m), view_of, center)
         if back is not None:
             states[obj_id] = tracks[obj_id].state
             place(obj_id, *back)

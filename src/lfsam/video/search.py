@@ -393,7 +393,7 @@ def search_object(
         """The view's image, the predicted template there and both gated by depth
         (:func:`with_depth`), once per view."""
         if view not in looks:
-            image = images(view).astype(np.float32)
+            image = np.asarray(images(view), np.float32)  # float32 views: not copied
             template = predicted(track, view, center)
             looks[view] = (image, template, with_depth(
                 template, image, None if disparities is None else disparities(view),
@@ -592,7 +592,7 @@ def first_look(track: Track, image: np.ndarray, center: tuple[int, int],
     view's map, :func:`with_depth`): the fraction of its template supported there, and the
     match (for :func:`search_object`'s ``first``)."""
     template = predicted(track, track.view, center)
-    found = _best_shift(*with_depth(template, image.astype(np.float32), disparity,
+    found = _best_shift(*with_depth(template, np.asarray(image, np.float32), disparity,
                                     *predicted_disparity(track)),
                         search_radius(track), near_reach(track))
     if found is None:
