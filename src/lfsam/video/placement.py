@@ -1,5 +1,5 @@
 """Where a partly seen object's template lies, from the answer that found it (issue 47;
-docs/design.md section 10, "Tracking": "An answer's place").
+docs/design.md section 10, "Tracking", step 8: an answer's place).
 
 A mostly hidden object is found by the part of its template that still shows, and that part
 often fits the template's texture at several shifts: the shift the match chose is then no
