@@ -91,3 +91,27 @@ def test_explained_counts_the_share_of_the_answer_the_template_covers():
                                  (ROW, 30)), sightings=2)
     assert claims.explained(far, CENTER, mask, image, CENTER, 5) < 0.5
     assert claims.explained(far, CENTER, mask, image, CENTER, None) == 1.0
+
+
+def test_a_grown_answer_that_covers_a_tracked_neighbour_goes_to_the_neighbour():
+    """:func:`claims.rival` with ``hidden_only=False`` (an answer grown past
+    :data:`claims.GROWN` times the object's largest area, seed 1801 under jitter): a small
+    tracked object's answer covers its tracked neighbour too; the neighbour, still to be
+    searched, explains it clearly better and is searched first. Among hidden objects only
+    (an answer found again), the tracked neighbour is no rival."""
+    look = _texture()
+    small = np.random.default_rng(5).uniform(0, 255, (6, 6, 3)).astype(np.float32)
+    image = np.zeros((*SIZE, 3), np.float32)
+    image[ROW:ROW + 10, 10:24] = look
+    image[ROW + 2:ROW + 8, 24:30] = small
+    mask = np.zeros(SIZE, bool)
+    mask[ROW:ROW + 10, 10:24] = True
+    mask[ROW + 2:ROW + 8, 24:30] = True
+    tracks = {1: Track(CENTER, Template(small, np.ones((6, 6), bool), (ROW + 2, 24)),
+                       sightings=2, area=36),
+              2: Track(CENTER, Template(look.astype(np.float32), np.ones((10, 14), bool),
+                                        (ROW, 10)), sightings=2, area=140)}
+    assert mask.sum() > claims.GROWN * tracks[1].area
+    args = (1, CENTER, mask, image, tracks, [2], CENTER, lambda view, m: None)
+    assert claims.rival(*args, hidden_only=False) == 2
+    assert claims.rival(*args) is None

@@ -30,13 +30,17 @@ import numpy as np
 from lfsam.video.carry import MAX_PIXEL_DIFFERENCE
 from lfsam.video.search import Track, predicted, predicted_disparity, search_radius
 
-__all__ = ["CHECK", "MAX_PAIRS", "RIVAL_MARGIN", "explained", "rival"]
+__all__ = ["CHECK", "GROWN", "MAX_PAIRS", "RIVAL_MARGIN", "explained", "rival"]
 
 #: Whether an answer found again is checked against the other hidden objects (:func:`rival`).
 CHECK = True
 #: A rival takes the answer where it explains this much more of it (a share of the answer's
 #: pixels, :func:`explained`) than the object that found it: a clearly better explanation.
 RIVAL_MARGIN = 0.1
+#: An answer larger than this many times the object's largest area is checked against every
+#: object still to be searched, tracked ones too (``rival(hidden_only=False)``): an answer
+#: that also covers a neighbour (the oracle's jitter, seed 1801) would take its pixels.
+GROWN = 1.5
 #: At most this many (answer pixel, template pixel) pairs are compared (:func:`explained`;
 #: beyond it every k-th answer pixel, the share unchanged in expectation).
 MAX_PAIRS = 2_000_000
@@ -83,12 +87,15 @@ def explained(track: Track, view: tuple[int, int], mask: np.ndarray, image: np.n
 
 def rival(obj_id: int, view: tuple[int, int], mask: np.ndarray, image: np.ndarray,
           tracks: dict[int, Track], pending: Iterable[int], center: tuple[int, int],
-          depth: Callable[[tuple[int, int], np.ndarray], float | None]) -> int | None:
+          depth: Callable[[tuple[int, int], np.ndarray], float | None],
+          hidden_only: bool = True) -> int | None:
     """The hidden object among ``pending`` (still to be searched in this frame) that explains
     the answer ``obj_id`` found again (``view``, ``mask``) clearly better (module docstring),
-    or None. ``depth(view, mask)``: the answer's median disparity (None: unknown)."""
+    or None. ``depth(view, mask)``: the answer's median disparity (None: unknown).
+    ``hidden_only`` False: tracked objects among ``pending`` too (an answer grown past
+    :data:`GROWN` times the object's largest area)."""
     hidden = [i for i in pending if i != obj_id and tracks[i].template is not None
-              and tracks[i].unseen > 0]
+              and (tracks[i].unseen > 0 or not hidden_only)]
     if not hidden:
         return None
     value = depth(view, mask)

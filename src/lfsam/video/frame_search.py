@@ -192,9 +192,11 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         view, mask, shift, located = found
         # an answer found again that another hidden object explains clearly better: that
         # object is searched first, this one again after it (claims.rival)
+        grown = bool(mask.sum() > claims.GROWN * max(track.area, 1))
         other = (claims.rival(obj_id, view, mask, lf.views[view], tracks,
-                              [i for i in queue if i not in moved], center, answer_depth)
-                 if claims.CHECK and track.unseen > 0 else None)
+                              [i for i in queue if i not in moved], center, answer_depth,
+                              hidden_only=not grown)
+                 if claims.CHECK and (track.unseen > 0 or grown) else None)
         if other is not None:  # each rival moved once: the frame's searches stay bounded
             moved.add(other)
             predictor.remove_object(obj_id)
