@@ -190,8 +190,10 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             states[obj_id] = track.state = "hidden"
             continue
         view, mask, shift, located = found
-        # an answer found again that another hidden object explains clearly better: that
-        # object is searched first, this one again after it (claims.rival)
+        # an answer found again that another hidden object explains clearly better, or an
+        # answer grown past claims.GROWN times the object's area that another object still to
+        # be searched (tracked too) explains so: that object is searched first, this one again
+        # after it (claims.rival)
         grown = bool(mask.sum() > claims.GROWN * max(track.area, 1))
         other = (claims.rival(obj_id, view, mask, lf.views[view], tracks,
                               [i for i in queue if i not in moved], center, answer_depth,
