@@ -11,12 +11,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy import ndimage
 
 from lfsam.api import RunOptions, SegmentOptions
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.video import placement
-from lfsam.video.carry import Template
+from lfsam.video.carry import Template, deepest
 from lfsam.video.online import OnlineTracker
 from lfsam.video.placement import answer_place, placed_by_answer
 from lfsam.video.synth import generate_video
@@ -104,8 +103,7 @@ def test_no_reach_no_answer_or_a_template_cut_by_the_border_moves_nothing():
 
 
 def _deepest(mask):
-    depth = ndimage.distance_transform_edt(np.pad(mask, 1))[1:-1, 1:-1]
-    row, col = np.unravel_index(int(np.argmax(depth)), depth.shape)
+    row, col, _ = deepest(mask)
     return PointPrompt(float(col), float(row))
 
 

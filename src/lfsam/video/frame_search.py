@@ -195,7 +195,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         # be searched (tracked too) explains so: that object is searched first, this one again
         # after it (claims.rival)
         grown = bool(mask.sum() > claims.GROWN * max(track.area, 1))
-        other = (claims.rival(obj_id, view, mask, lf.views[view], tracks,
+        other = (claims.rival(obj_id, view, mask, view_of(view), tracks,
                               [i for i in queue if i not in moved], center, answer_depth,
                               hidden_only=not grown)
                  if claims.CHECK and (track.unseen > 0 or grown) else None)
@@ -215,10 +215,10 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         # explains the answer (placement), whatever texture the match fitted
         if (placement.CHECK and shift is not None and track.support < search.VELOCITY_SUPPORT
                 and mask.sum() < search.KEEP_TEMPLATE * track.area):
-            located = placement.placed_by_answer(located, mask, lf.views[view],
+            located = placement.placed_by_answer(located, mask, view_of(view),
                                                  disparity_of(view), disparity,
                                                  search.search_radius(track))
-        update(track, view, mask, located, lf.views[view], disparity, center,
+        update(track, view, mask, located, view_of(view), disparity, center,
                shift is not None)
         states[obj_id] = track.state
         place(obj_id, view, mask)

@@ -25,7 +25,7 @@ from lfsam.video.carry import (
 
 __all__ = [
     "ALMOST", "BINS", "MAX_GATHER", "cost_map", "cost_maps", "fft_threads", "likely_shifts",
-    "likely_shifts_many", "pixel_costs", "placed_at", "robust_costs",
+    "likely_shifts_many", "pixel_costs", "placed_at", "robust_costs", "support_in_answer",
     "with_depth",
 ]
 
@@ -300,6 +300,16 @@ def robust_costs(template: Template, image: np.ndarray, du: np.ndarray, dv: np.n
     if step == 1:
         return diff.sum(1), (diff < MAX_PIXEL_DIFFERENCE).sum(1)
     return diff.sum(1) * scale, np.rint((diff < MAX_PIXEL_DIFFERENCE).sum(1) * scale).astype(int)
+
+
+def support_in_answer(template: Template, image: np.ndarray, mask: np.ndarray,
+                      du: np.ndarray, dv: np.ndarray) -> np.ndarray:
+    """:func:`robust_costs`' support count of the template's colours at each shift
+    ``(du[k], dv[k])``, the view read only inside the answer ``mask`` (a pixel outside it
+    never looks the same): how much of an answer the template explains there
+    (:func:`lfsam.video.search.explaining_shift`, :mod:`lfsam.video.placement`)."""
+    inside = np.where(mask[..., None], image[..., :3], np.float32(1e4)).astype(np.float32)
+    return robust_costs(replace(template, image=template.image[..., :3]), inside, du, dv)[1]
 
 
 def pixel_costs(values: np.ndarray, look: np.ndarray) -> np.ndarray:

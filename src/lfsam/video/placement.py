@@ -34,8 +34,8 @@ from dataclasses import replace
 import numpy as np
 from scipy import signal
 
-from lfsam.video.carry import Template
-from lfsam.video.match import robust_costs
+from lfsam.video.carry import Template, window_within
+from lfsam.video.match import support_in_answer
 
 __all__ = ["CHECK", "answer_place", "placed_by_answer"]
 
@@ -53,28 +53,18 @@ CANDIDATES = 12
 EXPLAINED = 0.5
 
 
-def _window(values: np.ndarray, template: Template, reach: int) -> np.ndarray:
-    """The view's ``values`` under the template and ``reach`` pixels around it (zero outside
-    the frame), as float32."""
-    height, width = values.shape
-    h, w = template.mask.shape
-    top, left = template.origin[0] - reach, template.origin[1] - reach
-    out = np.zeros((h + 2 * reach, w + 2 * reach), np.float32)
-    r0, c0 = max(top, 0), max(left, 0)
-    r1, c1 = min(top + h + 2 * reach, height), min(left + w + 2 * reach, width)
-    if r1 > r0 and c1 > c0:
-        out[r0 - top:r1 - top, c0 - left:c1 - left] = values[r0:r1, c0:c1]
-    return out
-
-
 def _inside_share(template: Template, shape: tuple[int, int]) -> float:
     """The share of the template's pixels inside a frame of ``shape``."""
-    height, width = shape
-    h, w = template.mask.shape
-    r0, c0 = template.origin
-    inside = template.mask[max(-r0, 0):max(min(height - r0, h), 0),
-                           max(-c0, 0):max(min(width - c0, w), 0)]
-    return float(inside.sum()) / max(int(template.mask.sum()), 1)
+    _, valid, _ = window_within(template, np.zeros((*shape, 1), np.float32), (0, 0, 0, 0))
+    return float((template.mask * valid).sum()) / max(int(template.mask.sum()), 1)
+
+
+def _counts(values: np.ndarray, template: Template, reach: int) -> np.ndarray:
+    """How many of the template's pixels land on ``values`` (a ``(U, V)`` bool map; none
+    outside the frame) at every shift within ``reach`` (rows first), one FFT correlation."""
+    window = window_within(template, values[..., None].astype(np.float32), (reach,) * 4)[0]
+    return np.rint(signal.correlate(window[..., 0], template.mask.astype(np.float32),
+                                    mode="valid", method="fft")).ravel()
 
 
 def answer_place(mask: np.ndarray, template: Template, image: np.ndarray,
@@ -106,24 +96,16 @@ def answer_place(mask: np.ndarray, template: Template, image: np.ndarray,
     total = int(mask.sum())
     if reach < 1 or total == 0 or _inside_share(template, mask.shape) < INSIDE:
         return None
-    kernel = template.mask.astype(np.float32)
     with np.errstate(invalid="ignore"):
         farther = ~mask & (np.asarray(disparity) < object_disparity - FARTHER)
-    covered = np.rint(signal.correlate(_window(mask.astype(np.float32), template, reach),
-                                       kernel, mode="valid", method="fft")).ravel()
-    contradicted = np.rint(signal.correlate(_window(farther.astype(np.float32), template,
-                                                    reach),
-                                            kernel, mode="valid", method="fft")).ravel()
+    covered, contradicted = _counts(mask, template, reach), _counts(farther, template, reach)
     du, dv = (g.ravel() for g in np.mgrid[-reach:reach + 1, -reach:reach + 1])
     distance = du**2 + dv**2
     where = 2 * covered - total - contradicted
     ranked = np.lexsort((distance, -where))[:CANDIDATES]
     zero = int(np.flatnonzero(distance == 0)[0])
     chosen = np.unique(np.append(ranked, zero))
-    # the look, read only inside the answer (a pixel outside it never looks the same)
-    inside = np.where(mask[..., None], image[..., :3], np.float32(1e4)).astype(np.float32)
-    _, explained = robust_costs(replace(template, image=template.image[..., :3]), inside,
-                                du[chosen], dv[chosen])
+    explained = support_in_answer(template, image, mask, du[chosen], dv[chosen])
     score = explained - (total - covered[chosen]) - contradicted[chosen]
     best = int(np.lexsort((distance[chosen], -score))[0])
     here = int(np.flatnonzero(chosen == zero)[0])

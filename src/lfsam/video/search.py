@@ -86,6 +86,7 @@ from lfsam.video.match import (
     margins_in,
     placed_at,
     robust_costs,
+    support_in_answer,
     with_depth,
 )
 
@@ -611,9 +612,7 @@ def explaining_shift(mask: np.ndarray, template: Template, image: np.ndarray, ra
     object's match may lie on look-alike pixels beside it."""
     du, dv = np.mgrid[-radius:radius + 1, -radius:radius + 1]
     du, dv = du.ravel(), dv.ravel()
-    # pixels outside the answer never look like the template: the support counts only it
-    inside = np.where(mask[..., None], image[..., :3], np.float32(1e4)).astype(np.float32)
-    _, counts = robust_costs(replace(template, image=template.image[..., :3]), inside, du, dv)
+    counts = support_in_answer(template, image, mask, du, dv)
     if counts.max() < max(MIN_PIXELS, EXPLAINED * mask.sum()):
         return None
     # a part of the object fits the template at a range of shifts: of those within
