@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.lfsam-installed
 
-.PHONY: install demo test lint bench clean system-deps gpu-deps gpu-check
+.PHONY: install demo test lint bench clean system-deps gpu-deps gpu-env gpu-check gpu-track
 
 install: $(STAMP)
 
@@ -80,7 +80,7 @@ SITE_DIRS := import sysconfig; print(*sorted({sysconfig.get_path(k) for k in ('p
 CUDA_OK := import sys, torch; ok = torch.cuda.is_available(); \
 	print('torch', torch.__version__, '| CUDA build', torch.version.cuda, '| GPU:', \
 	torch.cuda.get_device_name(0) if ok else 'none visible'); sys.exit(0 if ok else 1)
-gpu-check:
+gpu-env:
 	@test -f gpu-deps/constraints.txt || { echo "gpu-check: no gpu-deps/ here: run make gpu-deps" \
 	  "on a machine with a package registry and bring the folder along" >&2; exit 1; }
 	-nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv
@@ -91,10 +91,20 @@ gpu-check:
 	$(GPU_PY) -m pip install --quiet --no-index --find-links gpu-deps --no-deps \
 	  -r gpu-deps/constraints.txt -e .
 	$(GPU_PY) -c "import lfsam, sam2, transformers, timm, pycocotools, pytest; print('gpu-check: lfsam', lfsam.__version__, 'from', lfsam.__file__)"
+
+gpu-check: gpu-env
 	$(GPU_PY) -m pytest -q -m cuda -rs $$(grep -l "pytest.mark.cuda" tests/test_*.py)
 	$(GPU_PY) benchmarks/bench_gpu.py --profile --json docs/gpu_results.json
+	$(MAKE) --no-print-directory gpu-track
+
+# The tracker's search for lost objects at the full size, on the GPU (issue 47's cost split:
+# the whole frame and the search's own share); `make gpu-track GPU_TRACK_SEEDS=1301,1701`
+# runs it alone after `make gpu-env`.
+GPU_TRACK_SEEDS ?= 1301
+gpu-track: gpu-env
 	$(GPU_PY) benchmarks/bench_tracking.py --device cuda --size 480x640 --min-pixels 2500 \
-	  --frames 8 --seeds 1301 --jitter 0 --modes search,before --repeat 2
+	  --frames 8 --seeds $(GPU_TRACK_SEEDS) --jitter 0 --modes search,before --repeat 2 \
+	  $(if $(GPU_TRACK_JSON),--json $(GPU_TRACK_JSON))
 
 clean:
 	rm -rf $(VENV) $(GPU_VENV) gpu-deps demo_output .pytest_cache

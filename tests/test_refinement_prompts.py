@@ -101,3 +101,53 @@ def test_chunked_refinement_equals_one_batch():
     many = refine_masks(segmenter, embedding, coarse, weights, chunk_size=1)
     assert torch.equal(one.masks, many.masks) and torch.equal(one.fallback, many.fallback)
     assert torch.allclose(one.iou, many.iou, equal_nan=True)
+
+
+def test_groups_of_carried_clicks_are_chosen_among_once_per_view(monkeypatch):
+    """Prompts with different numbers of carried clicks are decoded apart (one call per group)
+    but chosen among together (docs/design.md section 3.5): one choice per view, with the
+    outcome of refining each mask alone."""
+    from lfsam.pipeline import refinement
+    from lfsam.segmenters import load_segmenter
+    from lfsam.synth import generate_scene
+
+    lf = generate_scene(grid=(3, 3), size=(48, 64), seed=1, num_objects=4)
+    segmenter = load_segmenter("oracle", lightfield=lf)
+    embedding = segmenter.encode(lf.views[0, 0][None], keys=[(0, 0)])[0]
+    ids = np.unique(lf.labels[1, 1])[1:]
+    coarse = torch.as_tensor(np.stack([lf.labels[1, 1] == k for k in ids]))
+    weights = uniform_weights(coarse)
+    n = len(ids)
+    # Mask k carries k % 3 clicks of its own (0, 1 or 2), padded with label -1.
+    points = np.zeros((n, 2, 2), np.float32)
+    labels = np.full((n, 2), -1, np.int64)
+    for k in range(n):
+        rows, cols = np.nonzero(coarse[k].numpy())
+        for j in range(k % 3):
+            points[k, j] = (cols[j], rows[j])
+            labels[k, j] = 1
+    assert len(set((labels != -1).sum(1).tolist())) == 3  # three groups
+
+    calls = {"decode": 0, "choose": 0}
+    predict, choose = segmenter.predict, refinement._choose
+
+    def counted_predict(*args, **kwargs):
+        calls["decode"] += 1
+        return predict(*args, **kwargs)
+
+    def counted_choose(*args, **kwargs):
+        calls["choose"] += 1
+        return choose(*args, **kwargs)
+
+    monkeypatch.setattr(segmenter, "predict", counted_predict)
+    monkeypatch.setattr(refinement, "_choose", counted_choose)
+    together = refinement.refine_masks(segmenter, embedding, coarse, weights,
+                                       extra_points=(points, labels))
+    assert calls == {"decode": 3, "choose": 1}
+    for k in range(n):  # each mask refined alone
+        alone = refinement.refine_masks(segmenter, embedding, coarse[k : k + 1],
+                                        uniform_weights(coarse[k : k + 1]),
+                                        extra_points=(points[k : k + 1], labels[k : k + 1]))
+        assert torch.equal(together.masks[k], alone.masks[0])
+        assert together.fallback[k] == alone.fallback[0]
+        assert torch.allclose(together.iou[k : k + 1], alone.iou, equal_nan=True)

@@ -346,9 +346,11 @@ def refine_many(
     Each view's prompts are cut into the chunks :func:`refine_masks` decodes (at most
     ``chunk_size`` prompts, one group of carried clicks each); one call of
     :meth:`~lfsam.segmenters.base.Segmenter.predict_many` takes one chunk of every view whose
-    prompts have the same shape, so memory stays bounded by ``chunk_size`` candidates per view.
-    A view's outcome does not depend on which views share its calls (on a CPU, bit for bit:
-    tests/test_batched_decoder.py).
+    prompts have the same shape. A view's candidates of several groups are chosen among
+    together (:func:`_choose` once per view where its prompts number fewer than
+    ``chunk_size``: fewer kernel launches on a GPU), so memory stays bounded by
+    ``2 * chunk_size`` candidates per view. A view's outcome does not depend on which views
+    share its calls (on a CPU, bit for bit: tests/test_batched_decoder.py).
 
     Returns
     -------
@@ -376,6 +378,16 @@ def refine_many(
             for start in range(0, len(positions), chunk_size):
                 chunk = slice(start, start + chunk_size)
                 jobs[shape][k].append((index[positions[chunk]], group.subset(chunk)))
+    # A view's candidates wait until ``chunk_size`` rows are in (or the last call), then are
+    # chosen among at once: one choice per view, not per group of carried clicks.
+    waiting: dict[int, list[tuple[torch.Tensor, torch.Tensor]]] = defaultdict(list)
+
+    def choose_waiting(k: int) -> None:
+        parts = waiting.pop(k)
+        rows = torch.cat([r for r, _ in parts]) if len(parts) > 1 else parts[0][0]
+        masks = torch.cat([m for _, m in parts]) if len(parts) > 1 else parts[0][1]
+        _choose(outcomes[k], requests[k], rows, masks, t_iou)
+
     for per_view in jobs.values():
         while any(per_view.values()):
             views = [k for k, queue in per_view.items() if queue]
@@ -385,7 +397,11 @@ def refine_many(
                 multimask_output=True,
             )
             for k, (rows, _), prediction in zip(views, batch, predictions, strict=True):
-                _choose(outcomes[k], requests[k], rows, prediction.masks, t_iou)
+                waiting[k].append((rows, prediction.masks))
+                if sum(len(r) for r, _ in waiting[k]) >= chunk_size:
+                    choose_waiting(k)
+    for k in list(waiting):
+        choose_waiting(k)
     return outcomes
 
 
