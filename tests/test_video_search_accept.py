@@ -102,7 +102,7 @@ def test_the_objects_disparity_is_the_median_over_an_answer_spilling_onto_the_ba
     oracle's jitter): the median stays on the object (the mean, 0.3, was 1.7 off, beyond the
     depth gate's tolerance, so the gate refused the object's own pixels)."""
     from lfsam.video.frame_search import median_disparity, object_disparity
-    from lfsam.video.search import DISPARITY_TOLERANCE
+    from lfsam.video.motion import DISPARITY_TOLERANCE
 
     disparity = np.full(SIZE, -1.0, np.float32)
     disparity[10:16, 10:16] = 2.0
@@ -165,3 +165,38 @@ def test_an_object_first_seen_mostly_covered_is_kept_as_it_is_uncovered():
     far = near.copy()
     far[10:25, 20:40] = -1.0  # most of the answer at the background's depth
     assert search(far) is None
+
+
+def test_an_answer_found_again_that_holds_a_placed_neighbour_is_that_neighbour():
+    """Fresh seed 1802's case: a hidden object's answer lies on a neighbour's region, of
+    which an object placed earlier in the frame holds 46 % of the answer (under the limit of
+    half the answer) but most of its own mask: the answer is that object, so the hidden one
+    is not found there (:data:`lfsam.video.search.HELD`); an answer that only touches a
+    placed object, or a tracked object's answer, is not refused so."""
+    from lfsam.video import search
+
+    rng = np.random.default_rng(3)
+    look = (np.array([60.0, 200.0, 90.0]) + rng.uniform(-4, 4, (12, 16, 3))).astype(np.float32)
+    image, labels = _background(), np.ones(SIZE, np.int64)
+    image[12:24, 14:30] = look
+    labels[12:24, 14:30] = 2  # the neighbour's region: 192 pixels
+    template = Template(look, np.ones((12, 16), bool), (12, 14))
+    neighbour = np.zeros(SIZE, bool)
+    neighbour[12:24, 14:21] = True  # placed earlier: 84 pixels, 44 % of the answer
+    touched = np.zeros(SIZE, bool)
+    touched[22:30, 28:40] = True  # another placed object: 4 of its 96 pixels in the answer
+    answer = label_answer(labels)
+
+    def hidden() -> Track:
+        return Track(CENTER, template, area=192, sightings=3, unseen=2)
+
+    def find(track: Track, held: list[np.ndarray]):
+        return search_one_image(track, image, answer, placed=neighbour | touched,
+                                held=lambda view: held)
+
+    assert find(hidden(), []) is not None  # without the check: found on the neighbour
+    assert find(hidden(), [touched]) is not None
+    assert find(hidden(), [neighbour, touched]) is None
+    assert search.HELD * neighbour.sum() <= (neighbour & (labels == 2)).sum()
+    tracked = Track(CENTER, template, area=192, sightings=3)
+    assert find(tracked, [neighbour, touched]) is not None

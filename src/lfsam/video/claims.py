@@ -34,7 +34,7 @@ from collections.abc import Callable, Iterable
 import numpy as np
 
 from lfsam.video.carry import MAX_PIXEL_DIFFERENCE
-from lfsam.video.search import Track, predicted, predicted_disparity, search_radius
+from lfsam.video.motion import Track, predicted, predicted_disparity, search_radius
 
 __all__ = ["CHECK", "GROWN", "MAX_PAIRS", "RIVAL_MARGIN", "explained", "rival"]
 

@@ -94,16 +94,29 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
                                     else values, np.float32)
         return maps[view]
 
+    each: dict[tuple[int, tuple[int, int]], np.ndarray] = {}
+
+    def placed_one(k: int, view: tuple[int, int]) -> np.ndarray:
+        """The ``k``-th object placed in this frame, its mask in ``view`` (carried once)."""
+        if (k, view) not in each:
+            _, source, mask = done[k]
+            each[(k, view)] = mask if source == view else carried_to(
+                mask, disparity_of(source), source, view)
+        return each[(k, view)]
+
+    def placed_each(view: tuple[int, int]) -> list[np.ndarray]:
+        """Each object placed so far in this frame, its mask in ``view``."""
+        return [placed_one(k, view) for k in range(len(done))]
+
     def placed_in(view: tuple[int, int]) -> np.ndarray:
-        """Where the objects placed so far in this frame are in ``view`` (each object's
-        carried mask once per view: the union grows by the objects placed since)."""
+        """Where the objects placed so far in this frame are in ``view`` (the union grows by
+        the objects placed since it was last asked for)."""
         key = (view, len(done))
         if key not in cache:
             ready = max((n for v, n in cache if v == view), default=0)
             out = (cache[(view, ready)] if ready else np.zeros(lf.view_shape, bool)).copy()
-            for _, source, mask in done[ready:]:
-                out |= mask if source == view else carried_to(
-                    mask, disparity_of(source), source, view)
+            for k in range(ready, len(done)):
+                out |= placed_one(k, view)
             cache[key] = out
         return cache[key]
 
@@ -175,7 +188,8 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         fresh = () if own is None else tuple(p for p in own.points if not p.positive)
         return search_object(search_id, track, image, center, ring, answer, placed_in,
                              placed_ids, negatives, use_box, hint, fresh,
-                             disparity_of if search.DEPTH_GATE else None, answer_depth)
+                             disparity_of if search.DEPTH_GATE else None, answer_depth,
+                             placed_each)
 
     queue, moved = list(carried), set()  # moved: rivals searched first (claims.rival), once
     while queue:
