@@ -51,3 +51,46 @@ def test_a_refused_answer_is_not_the_object_when_its_view_is_matched_again(monke
     assert mask.sum() == 36 and (labels[mask] == 2).all()  # its 3 visible rows
     monkeypatch.setattr(search, "REFUSED_AGAIN", False)
     assert _search() is None  # the band's answer refused, the object hidden
+
+
+def test_the_widening_reads_refused_answers_as_not_the_object(monkeypatch):
+    """Fresh seed 1801's case (thirteenth pass): a hidden object of the background's colours
+    is not in its own view any more but shows, partly covered, beside its prediction in
+    another view; every match there lies on the background (more of the template supported
+    than on the object's visible part), whose answer is refused. The widening reads those
+    refused answers as not the object, as it reads placed objects, and finds it."""
+    from lfsam.prompts import ObjectPrompts
+    from lfsam.video.search import search_object
+
+    rng = np.random.default_rng(4)
+    colour = np.array([120.0, 110.0, 90.0])
+
+    def alike(shape):
+        return (colour + rng.uniform(-4, 4, (*shape, 3))).astype(np.float32)
+
+    size, own = (48, 64), (4, 0)
+    images = {own: alike(size), CENTER: alike(size)}  # the background: the object's colours
+    labels = {own: np.ones(size, np.int64), CENTER: np.ones(size, np.int64)}
+    images[CENTER][20:30, 30:40] = alike((10, 10))  # the object, moved while hidden
+    labels[CENTER][20:30, 30:40] = 2
+    images[CENTER][26:30, 28:42] = 0.0  # covered below its top 6 rows
+    labels[CENTER][26:30, 28:42] = 3
+    template = Template(np.full((10, 10, 3), colour, np.float32), np.ones((10, 10), bool),
+                        (12, 20))
+
+    def answer(obj: ObjectPrompts):
+        point = next(p for p in obj.points if p.positive)
+        view = point.view or CENTER
+        return view, labels[view] == labels[view][round(point.y), round(point.x)]
+
+    def find():
+        track = Track(own, template, area=100, sightings=3, unseen=2, state="hidden")
+        return search_object(1, track, images.__getitem__, CENTER, [], answer,
+                             lambda view: None, None, (), False)
+
+    found = find()
+    assert found is not None
+    view, mask, _, _ = found
+    assert view == CENTER and mask.sum() == 60 and (labels[CENTER][mask] == 2).all()
+    monkeypatch.setattr(search, "WIDE_REFUSED", False)
+    assert find() is None  # every match on the background, refused: hidden

@@ -20,9 +20,10 @@ later frame and comes back under its own id (*found*). The search of one object 
    first, each within :func:`search_radius` pixels (growing with every frame unseen); then the
    *widening*: where the prediction missed (the object turned while hidden, or was hidden
    before its velocity was known), the shifts within the radius where most of the template
-   could be by colour and depth (:func:`lfsam.video.match.likely_shifts_many`, every view
-   at once), scored exactly, the :data:`WIDE_VIEWS` views showing most of it prompted (a
-   part found there keeps the predicted place and velocity); then the whole of its own view
+   could be by colour and depth, not on objects placed nor on answers refused there
+   (:func:`lfsam.video.match.likely_shifts_many`, every view at once), scored exactly, the
+   :data:`WIDE_VIEWS` views showing most of it prompted (a part found there keeps the
+   predicted place and velocity); then the whole of its own view
    and of the center view where the radius did not cover it.
 3. **Matching.** The masked SSD of the template at every shift (:func:`lfsam.video.match.
    cost_map`, one batch of FFTs); of its :data:`CANDIDATES` cheapest shifts the one whose
@@ -186,6 +187,13 @@ REFUSED_VALUE = -255.0
 #: neighbour's place (81 lost triples, a swap). Tracked objects are not checked: their
 #: answers beside a neighbour are checked by the half-the-answer limit alone.
 HELD = 0.5
+#: The widening stage reads the answers refused in a view this frame (the object's own view
+#: and the ring's) as not the object, as it reads the objects placed: a hidden object of the
+#: background's colours, within the depth gate, had every match, the widening's too, on the
+#: background, whose answers were refused, while it showed 113 pixels in a corner view
+#: (fresh seed 1801 without jitter, its return a frame late; over the 15 earlier sets and
+#: 1801-1803 with jitter 1: 925 -> 906 lost triples, shown switches 13 -> 10).
+WIDE_REFUSED = True
 
 
 def near_support(template: Template, image: np.ndarray, reach: int
@@ -365,7 +373,8 @@ def search_object(
         whose match shows most of the template, the most first."""
         ready = [prepared(v) for v in views]
         likely = likely_shifts_many([r[2][0] for r in ready], [r[2][1] for r in ready],
-                                    radius, WIDE_CANDIDATES, [placed(v) for v in views])
+                                    radius, WIDE_CANDIDATES,
+                                    [not_the_object(v) for v in views])
         # every view where some shift could hold MIN_PIXELS is scored exactly: ranked by the
         # bound alone, the view showing the object was left out on seed 703 (its return a
         # frame late)
@@ -390,6 +399,18 @@ def search_object(
         placed_there = placed_at(gated, view_image, int(du[k]), int(dv[k]))
         return staged(view, radius, image, template, None if placed_there is None
                       else (*placed_there, (int(du[k]), int(dv[k]))))
+
+    def not_the_object(view: tuple[int, int]) -> np.ndarray | None:
+        """What the widening reads as not the object in ``view``: the objects placed earlier
+        in the frame and, with :data:`WIDE_REFUSED`, the answers refused there."""
+        known = placed(view)
+        extra = [m[view] for m in (refused, refused_ring) if view in m] if WIDE_REFUSED else []
+        if not extra:
+            return known
+        out = np.zeros(extra[0].shape, bool) if known is None else known.copy()
+        for mask in extra:
+            out |= mask
+        return out
 
     def rematch(view: tuple[int, int], refused: np.ndarray) -> tuple:
         """:func:`match` in ``view`` once more, its ``refused`` pixels (answers refused
@@ -428,9 +449,11 @@ def search_object(
     near = sorted([*ranked(others), *([first_stage] * cut)], key=lambda st: -share(st))
     near = (st if share(st) >= SURE or rank >= RESCORED else match(st[0], radius)
             for rank, st in enumerate(near))
+    refused_ring: dict[tuple[int, int], np.ndarray] = {}  # the answers refused in the ring
     for stage in near:
         found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
-                              negatives, use_box, fresh, depth, held)
+                              negatives, use_box, fresh, depth, held,
+                              refused=refused_ring if WIDE_REFUSED else None)
         if found is not None:
             return found
     # the answers refused in its own view were not the object: that view matched again
