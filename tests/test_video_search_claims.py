@@ -115,3 +115,41 @@ def test_a_grown_answer_that_covers_a_tracked_neighbour_goes_to_the_neighbour():
     args = (1, CENTER, mask, image, tracks, [2], CENTER, lambda view, m: None)
     assert claims.rival(*args, hidden_only=False) == 2
     assert claims.rival(*args) is None
+
+
+def test_explained_is_the_best_shifts_truncated_colour_agreement():
+    """:func:`claims.explained` against its definition, shift by shift: the largest, over the
+    template's shifts within the radius of its predicted place, of the summed
+    ``MAX_PIXEL_DIFFERENCE - distance`` (truncated at 0) over template pixels landing on the
+    answer, over ``MAX_PIXEL_DIFFERENCE`` times the answer's area."""
+    from lfsam.video.carry import MAX_PIXEL_DIFFERENCE
+    from lfsam.video.motion import predicted
+
+    rng = np.random.default_rng(11)
+    for case in range(12):
+        height, width = (int(x) for x in rng.integers(8, 16, 2))
+        image = (rng.integers(0, 5, (height, width, 3)) * 15).astype(np.float32)
+        t_h, t_w = (int(x) for x in rng.integers(2, 6, 2))
+        template = Template(image[:t_h, :t_w].copy() + rng.integers(0, 2, (t_h, t_w, 3)),
+                            rng.random((t_h, t_w)) > 0.2,
+                            (int(rng.integers(0, height)), int(rng.integers(0, width))))
+        track = Track(CENTER, template, velocity=(float(rng.normal()), 0.0))
+        answer = rng.random((height, width)) > 0.6
+        answer[0, 0] = True
+        radius = None if case % 2 else int(rng.integers(0, 8))
+        placed = predicted(track, CENTER, CENTER)
+        best = 0.0
+        for du in range(-height - t_h, height + t_h):
+            for dv in range(-width - t_w, width + t_w):
+                if radius is not None and du * du + dv * dv > radius * radius:
+                    continue
+                total = 0.0
+                for r, c in zip(*np.nonzero(placed.mask), strict=True):
+                    u, v = placed.origin[0] + r + du, placed.origin[1] + c + dv
+                    if 0 <= u < height and 0 <= v < width and answer[u, v]:
+                        distance = np.abs(image[u, v] - placed.image[r, c]).sum()
+                        total += max(MAX_PIXEL_DIFFERENCE - distance, 0.0)
+                best = max(best, total)
+        expected = best / (MAX_PIXEL_DIFFERENCE * answer.sum())
+        got = claims.explained(track, CENTER, answer, image, CENTER, radius)
+        assert abs(got - expected) < 1e-9, (case, got, expected)

@@ -75,20 +75,23 @@ def explained(track: Track, view: tuple[int, int], mask: np.ndarray, image: np.n
     rows, cols = rows[::step], cols[::step]
     look = template.image[t_rows, t_cols, :3].astype(np.float32)  # (M, 3)
     seen = image[rows, cols, :3].astype(np.float32)  # (N, 3)
-    distance = np.abs(seen[:, None, :] - look[None, :, :]).sum(-1)  # (N, M)
-    gain = MAX_PIXEL_DIFFERENCE - np.minimum(distance, MAX_PIXEL_DIFFERENCE)
-    du = rows[:, None] - (template.origin[0] + t_rows[None, :])
-    dv = cols[:, None] - (template.origin[1] + t_cols[None, :])
-    keep = gain > 0
+    # (N, M) pairs, one channel at a time (no (N, M, 3) temporary)
+    distance = np.abs(seen[:, None, 0] - look[None, :, 0])
+    for channel in range(1, look.shape[1]):
+        distance += np.abs(seen[:, None, channel] - look[None, :, channel])
+    gain = np.minimum(distance, MAX_PIXEL_DIFFERENCE, out=distance)
+    np.subtract(MAX_PIXEL_DIFFERENCE, gain, out=gain)
+    # each pair votes for its shift (answer pixel - template pixel), as one index: rows and
+    # columns apart by more than either extent, so no two shifts share an index
+    t_rows, t_cols = t_rows + template.origin[0], t_cols + template.origin[1]
+    lo_u, lo_v = int(rows.min() - t_rows.max()), int(cols.min() - t_cols.max())
+    width = int(cols.max() - t_cols.min()) - lo_v + 1
+    shift = ((rows - lo_u) * width + cols - lo_v)[:, None] - (t_rows * width + t_cols)[None, :]
+    votes = np.bincount(shift.ravel(), weights=gain.ravel())
     if radius is not None:
-        keep &= du**2 + dv**2 <= radius**2
-    if not keep.any():
-        return 0.0
-    du, dv, gain = du[keep], dv[keep], gain[keep]
-    lo_u, lo_v = du.min(), dv.min()
-    width = int(dv.max() - lo_v + 1)
-    votes = np.bincount((du - lo_u) * width + (dv - lo_v), weights=gain)
-    return float(votes.max()) * step / (MAX_PIXEL_DIFFERENCE * area)
+        du, dv = np.divmod(np.arange(votes.size), width)
+        votes[(du + lo_u) ** 2 + (dv + lo_v) ** 2 > radius**2] = 0.0
+    return float(max(votes.max(), 0.0)) * step / (MAX_PIXEL_DIFFERENCE * area)
 
 
 def rival(obj_id: int, view: tuple[int, int], mask: np.ndarray, image: np.ndarray,
