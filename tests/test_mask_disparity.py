@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 import lfsam
@@ -47,17 +47,23 @@ def _bar_views(d, x0, width, occluder, steps=(0, 1, 2, 3, 4), size=(6, 48)):
     width=st.floats(2.0, 8.0),
     occluder=st.one_of(st.none(), st.tuples(st.floats(14.0, 30.0), st.floats(1.0, 4.0))),
 )
+@example(d=0.046875, x0=18.125, width=2.0, occluder=(14.0, 1.0))
 def test_matched_disparity_moves_the_masks_onto_each_other(d, x0, width, occluder):
     """As close to the truth as the masks can tell, also when a closer bar hides part of the
-    object in some views: binary masks seen ``n`` steps apart at most cannot tell disparities
-    less than ``1 / n`` apart (the masks of both are the same)."""
+    object in some views. Masks sampled at pixel centres ``n`` steps apart at most move by a
+    whole number of pixels within one of ``d n`` (an edge crosses a pixel centre anywhere
+    between), and the match moves masks by ``d n`` rounded (half a pixel more): within
+    ``1.5 / n`` of the truth. (The bound was ``1 / n``: the example above, a 2-pixel bar whose
+    edges sit an eighth of a pixel from the centres, moves by one pixel between views 2 and 3
+    and by none before; the rounded shifts fit 0.31 better than the true 0.047, 0.263 off
+    where ``1 / n`` allowed 0.26. Over 4,000 random cases the error reached 1.17 / n.)"""
     masks, disparities, views = _bar_views(d, x0, width, occluder)
     seen = [t for (_, t), m in zip(views, masks, strict=True) if bool(m.any())]
     if len(seen) < 3:
         return  # hidden nearly everywhere: not what this tests
     found = matched_disparity(masks, disparities, views, tolerance=0.2)
     assert found is not None
-    assert abs(found - d) <= 1 / (max(seen) - min(seen)) + 0.01
+    assert abs(found - d) <= 1.5 / (max(seen) - min(seen))
 
 
 def test_matched_disparity_needs_two_views():
