@@ -91,7 +91,7 @@ def explained(track: Track, view: tuple[int, int], mask: np.ndarray, image: np.n
     if radius is not None:
         du, dv = np.divmod(np.arange(votes.size), width)
         votes[(du + lo_u) ** 2 + (dv + lo_v) ** 2 > radius**2] = 0.0
-    return float(max(votes.max(), 0.0)) * step / (MAX_PIXEL_DIFFERENCE * area)
+    return float(votes.max()) * step / (MAX_PIXEL_DIFFERENCE * area)  # gains are >= 0
 
 
 def rival(obj_id: int, view: tuple[int, int], mask: np.ndarray, image: np.ndarray,

@@ -452,8 +452,7 @@ def search_object(
     refused_ring: dict[tuple[int, int], np.ndarray] = {}  # the answers refused in the ring
     for stage in near:
         found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
-                              negatives, use_box, fresh, depth, held,
-                              refused=refused_ring if WIDE_REFUSED else None)
+                              negatives, use_box, fresh, depth, held, refused=refused_ring)
         if found is not None:
             return found
     # the answers refused in its own view were not the object: that view matched again
