@@ -17,7 +17,11 @@ against every onset of a look-alike), so a jump does not refuse the answer: it r
 * :func:`jumped`: the accepted answer lies more than :data:`JUMP_SHARE` of the search radius
   from the prediction and its median disparity more than :data:`DEPTH_JUMP` pixels from the
   track's last disparity (motion and depth both inconsistent with the track's history; once
-  a velocity is measured, after two sightings), or its median disparity alone lies beyond
+  a velocity is measured, after two sightings), or it lies that far from the prediction on a
+  poorly supported match (:data:`POORLY_SUPPORTED`: under
+  :data:`lfsam.video.search.VELOCITY_SUPPORT` of the template; a sliver that fits the
+  template at a range of shifts, whose place is no measure of the motion), or its median
+  disparity alone lies beyond
   the depth gate's tolerance (:func:`lfsam.video.search.predicted_disparity`: the gate reads
   such pixels as not the object; a sliver of background answered under jitter set a track's
   depth 2.9 px away, and the object, back at its own depth, was refused for good).
@@ -42,6 +46,7 @@ import numpy as np
 from lfsam.prompts import ObjectPrompts
 from lfsam.video.carry import Template
 from lfsam.video.search import (
+    VELOCITY_SUPPORT,
     Track,
     predicted,
     predicted_disparity,
@@ -49,8 +54,8 @@ from lfsam.video.search import (
     update,
 )
 
-__all__ = ["CHECK", "DEPTH_JUMP", "DOUBT_FRAMES", "JUMP_SHARE", "doubt", "jumped",
-           "look_again"]
+__all__ = ["CHECK", "DEPTH_JUMP", "DOUBT_FRAMES", "JUMP_SHARE", "POORLY_SUPPORTED", "doubt",
+           "jumped", "look_again"]
 
 #: Whether the tracker raises doubts and searches for shadows (:func:`look_again`).
 CHECK = True
@@ -60,6 +65,14 @@ JUMP_SHARE = 0.6
 #: An accepted answer whose median disparity is farther than this (pixels) from the track's
 #: last disparity is a jump in depth (with :data:`JUMP_SHARE`, a doubt).
 DEPTH_JUMP = 0.6
+#: An accepted answer farther than :data:`JUMP_SHARE` of the search radius from the
+#: prediction on a match supporting under :data:`lfsam.video.search.VELOCITY_SUPPORT` of the
+#: template is a jump whatever its depth (fourteenth pass): seed 401, an object behind an
+#: occluder showing 97 pixels in a corner view, matched there on 81 of its 485 carried
+#: pixels 16 px from the prediction at the object's depth; its velocity jumped from (0.4,
+#: -4.8) to (9.6, -14.3) px a frame and it was lost the next frame, where the shadow (the
+#: track before the jump) is found.
+POORLY_SUPPORTED = True
 #: A shadow not found for this many frames is forgotten: searched in the ``DOUBT_FRAMES + 1``
 #: frames after the jump, so an object hidden for up to 5 frames (issue 47's target) is
 #: still looked for in the first frame it shows again. Was 6 (a frame more than the target
@@ -77,7 +90,8 @@ def jumped(track: Track, view: tuple[int, int], located: Template, disparity: fl
     """Whether an answer accepted for ``track`` (before :func:`lfsam.video.search.update`;
     ``located``: its template where it was found in ``view``, ``disparity``: its median
     disparity) jumped: beyond :data:`JUMP_SHARE` of the search radius from the prediction and
-    beyond :data:`DEPTH_JUMP` from the track's disparity."""
+    beyond :data:`DEPTH_JUMP` from the track's disparity or on a poorly supported match
+    (:data:`POORLY_SUPPORTED`; ``track.support``, set by the search for this answer)."""
     if track.template is None or track.sightings < 1:
         return False
     expected, tolerance = predicted_disparity(track)
@@ -87,8 +101,9 @@ def jumped(track: Track, view: tuple[int, int], located: Template, disparity: fl
         return False  # no velocity measured yet: the prediction is the last place
     place = predicted(track, view, center).origin
     far = float(np.hypot(located.origin[0] - place[0], located.origin[1] - place[1]))
+    poor = POORLY_SUPPORTED and track.support < VELOCITY_SUPPORT
     return (far > JUMP_SHARE * search_radius(track)
-            and abs(disparity - track.disparity) > DEPTH_JUMP)
+            and (poor or abs(disparity - track.disparity) > DEPTH_JUMP))
 
 
 def doubt(track: Track) -> None:
