@@ -34,6 +34,9 @@ all seeds:
   frame over only the frames where both placed the same object ids (the pipeline's work
   alike, so the difference is the search's). ``--easy`` tracks videos without the hard cases,
   where ``before`` loses few objects, so the whole-frame ratio there is the search's cost;
+* ``--stages``: the pipeline's stages (ms a frame per tracking mode: encode, initial,
+  propagate, occlude, refine, fuse...), where the whole frame's extra goes (``make
+  gpu-track`` prints them);
 * ``clicked`` (a third mode, no tracking): every object clicked afresh in every frame at the
   deepest pixel of the view where it shows most, each frame segmented alone by the same
   pipeline and oracle. Its lost share is the floor that the oracle's imperfections set: with
@@ -68,6 +71,7 @@ import argparse
 import json
 import sys
 import time
+from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
@@ -159,11 +163,12 @@ def clicked_every_frame(frames, truth: dict[int, int], jitter: int, seed: int,
 
 
 def track(frames, prompts, search: bool, jitter: int, seed: int, consensus: bool = False,
-          segmenter=None):
+          segmenter=None, stages: list | None = None):
     """Labels of every frame, the seconds of each ``track`` call and of its carrying (one
     run; ``main`` keeps each frame's least time over ``--repeat`` runs: the labels are the
     same every run). ``segmenter``: a ready model tracked with constrained prompts (default:
-    the oracle)."""
+    the oracle). ``stages``: each frame's pipeline stage seconds (the frame result's
+    ``timings``) are appended to it."""
     options = options_for(jitter, seed, consensus)
     tracker = OnlineTracker(segmenter or "oracle", disparity="gt", options=options,
                             search=search, memory=False)
@@ -175,6 +180,8 @@ def track(frames, prompts, search: bool, jitter: int, seed: int, consensus: bool
         seconds.append(time.perf_counter() - start)
         carrying.append(tracker.carry_seconds - carried)
         labels.append(result.labels)
+        if stages is not None:
+            stages.append(dict(result.timings))
     return labels, seconds, carrying
 
 
@@ -307,6 +314,9 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=1,
                         help="track each video this many times (with --consensus both the two "
                              "settings alternate); each frame's least time counts")
+    parser.add_argument("--stages", action="store_true",
+                        help="also print each tracking mode's pipeline stages (ms a frame, the "
+                             "mean over every run): where the whole frame's extra goes")
     parser.add_argument("--json", default=None, help="also write the numbers here")
     args = parser.parse_args()
     global DEVICE
@@ -319,6 +329,7 @@ def main() -> None:
     if args.model != "oracle" and any(jitters):
         parser.error("--jitter is the oracle's: give --jitter 0 with --model")
     totals: dict[tuple[str, int, bool], dict] = {}
+    stage_runs: dict[tuple[str, int, bool], list[dict]] = defaultdict(list)
     segmenter = None
     for seed in seeds:
         frames = list(generate_video(grid=grid, size=size, frames=args.frames, seed=seed,
@@ -337,7 +348,8 @@ def main() -> None:
                                                       segmenter)
                         else:
                             got = track(frames, prompts, MODES[mode], jitter, seed,
-                                        consensus, segmenter)
+                                        consensus, segmenter,
+                                        stage_runs[(mode, jitter, consensus)])
                         old = runs.get(consensus)
                         runs[consensus] = got if old is None else (
                             old[0], list(np.minimum(old[1], got[1])),
@@ -404,8 +416,31 @@ def main() -> None:
               f"{row.get('same_objects_frames', '-')}/{row.get('frames', '-')} | "
               f"{row.get('same_objects_ratio', nan):.2f} | "
               f"{row.get('consensus_ratio', nan):.2f}")
+    if args.stages:
+        print_stages(stage_runs, out)
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1), encoding="utf-8")
+
+
+def print_stages(stage_runs: dict[tuple[str, int, bool], list[dict]], out: list[dict]) -> None:
+    """The pipeline's stage seconds per tracking mode, ms a frame (the mean over every run and
+    frame; ``total``: the pipeline's own, the search's answers included in ``initial`` and
+    ``refine``, its matching not): added to ``out``'s rows as ``stages_ms``."""
+    names = sorted({name for runs in stage_runs.values() for frame in runs for name in frame})
+    if not names:
+        return
+    print()
+    print("stage ms/frame (mean over runs) | " + " | ".join(names))
+    for row in out:
+        runs = stage_runs.get((row["mode"], row["jitter"], row["consensus"]), [])
+        if not runs:
+            continue
+        means = {name: 1000 * float(np.mean([frame.get(name, 0.0) for frame in runs]))
+                 for name in names}
+        row["stages_ms"] = means
+        label = (f"{row['mode']} jitter {row['jitter']}"
+                 f"{' +cons' if row['consensus'] else ''}")
+        print(label + " | " + " | ".join(f"{means[name]:.0f}" for name in names))
 
 
 if __name__ == "__main__":

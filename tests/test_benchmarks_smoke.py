@@ -67,8 +67,8 @@ CASES = {
     ),
     "bench_tracking.py": (
         ["--seeds", "1", "--frames", "3", "--grid", "3x3", "--size", "48x64", "--objects", "3",
-         "--jitter", "0", "--min-pixels", "20", "--consensus", "both"],
-        "| same-objects frames | same-objects ratio | consensus cost",
+         "--jitter", "0", "--min-pixels", "20", "--consensus", "both", "--stages"],
+        "stage ms/frame (mean over runs) | ",
     ),
     "bench_consensus.py": (
         ["--seeds", "1", "--hidden", "0", "--size", "32x48", "--answers", "exact",
