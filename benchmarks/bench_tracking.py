@@ -58,10 +58,11 @@ Usage::
 
     OMP_NUM_THREADS=1 python benchmarks/bench_tracking.py [--seeds 101,102,103]
         [--frames 12] [--objects 5] [--jitter 0,1] [--modes search,before,clicked] [--easy]
-        [--repeat 2] [--consensus off|on|both] [--model oracle] [--device auto] [--json OUT]
+        [--repeat 2] [--consensus off|on|both] [--model oracle] [--device auto] [--stages]
+        [--json OUT]
 
 At the full size, on a GPU (``make gpu-check`` runs it): ``--size 480x640 --min-pixels 2500
---frames 8 --seeds 1301 --jitter 0 --modes search,before --repeat 2 --device cuda``; the
+--frames 8 --seeds 1301 --jitter 0 --modes search,before --repeat 2 --device cuda --stages``; the
 carrying columns then split the search's own time (on the CPU) from the pipeline's.
 """
 
