@@ -11,13 +11,12 @@ import itertools
 
 import numpy as np
 import pytest
-from scipy import ndimage
 
 from lfsam.api import RunOptions, SegmentOptions
 from lfsam.lightfield import LightField
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.video import consistency
-from lfsam.video.carry import Template
+from lfsam.video.carry import Template, deepest
 from lfsam.video.online import OnlineTracker
 from lfsam.video.search import VELOCITY_SUPPORT, Track, search_radius
 from lfsam.video.synth import generate_video
@@ -138,8 +137,7 @@ def _returned(frames, label: int, obj_id: int) -> float:
     for value in np.unique(labels[labels > 1]):
         mask = labels == value
         if mask.sum() >= 100:
-            dist = ndimage.distance_transform_edt(mask)
-            row, col = np.unravel_index(int(np.argmax(dist)), dist.shape)
+            row, col, _ = deepest(mask)
             prompts.append(ObjectPrompts(len(prompts) + 1, (PointPrompt(float(col), float(row)),)))
     tracker = OnlineTracker("oracle", disparity="gt", options=QUIET, search=True, memory=False)
     tracker.add_prompts(prompts)
