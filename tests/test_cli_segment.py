@@ -80,7 +80,6 @@ def test_missing_out_folder(scene_dir, tmp_path, capsys):
 
 
 def test_interrupted_run_leaves_no_file(scene_dir, tmp_path, monkeypatch, capsys):
-    import lfsam.pipeline.engine as engine_module
     import lfsam.pipeline.fusion as fusion_module
 
     def interrupted(*args, **kwargs):
@@ -88,7 +87,6 @@ def test_interrupted_run_leaves_no_file(scene_dir, tmp_path, monkeypatch, capsys
 
     # the labels are fused view by view during the run (fusion.ViewLabels) or at its end
     monkeypatch.setattr(fusion_module, "fuse_labels", interrupted)
-    monkeypatch.setattr(engine_module, "fuse_labels", interrupted)
     out = tmp_path / "r.npz"
     code = main(["segment", str(scene_dir), "--auto", "--model", "oracle", "--disparity", "gt",
                  "--out", str(out), "--quiet"])

@@ -13,6 +13,8 @@ disparity is known, not only the center) is warped into a *target* view at offse
   in a :class:`ForwardWarp`, which answers visibility (:meth:`ForwardWarp.visible`,
   :meth:`ForwardWarp.hides`), hole filling (:meth:`ForwardWarp.fill_holes`) and which target
   pixels the source sees at all (:meth:`ForwardWarp.seen`, :meth:`ForwardWarp.frame_runs`);
+* :func:`forward_warps` — several (source, target) pairs in one batched pass, hole indices
+  included (docs/design.md section 3.5, "batched warps");
 * :func:`shift_masks` — the whole-mask alternative: each mask translated by one sub-pixel shift,
   optionally carrying its own disparity along (:func:`shift_masks_with_disparity`);
 * :func:`shift_whole_pixels` — one plane translated by whole pixels (exact, by slicing).
@@ -25,6 +27,7 @@ half-pixel shift a translation); both are kept so that results are unchanged
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import torch
@@ -38,6 +41,7 @@ __all__ = [
     "FrameRuns",
     "fill_warp_holes",
     "forward_warp",
+    "forward_warps",
     "landing_pixels",
     "shift_masks",
     "shift_masks_with_disparity",
@@ -127,12 +131,45 @@ class FrameRuns:
         Unseen pixels from the top / bottom edge, per column.
     left, right : (U,) int tensor
         Unseen pixels from the left / right edge, per row.
+
+    Masks propagated from several source views into one target view each have their own
+    runs: then every field has one row per mask, ``(N, V)`` or ``(N, U)`` (:meth:`stack`).
     """
 
     top: torch.Tensor
     bottom: torch.Tensor
     left: torch.Tensor
     right: torch.Tensor
+
+    @property
+    def per_mask(self) -> bool:
+        """Whether each field holds one row per mask (:meth:`stack`), ``(N, V)`` / ``(N, U)``."""
+        return self.top.dim() == 2
+
+    def rows(self, index: torch.Tensor) -> FrameRuns:
+        """The rows ``index`` of per-mask runs (:meth:`stack`)."""
+        return FrameRuns(self.top[index], self.bottom[index], self.left[index],
+                         self.right[index])
+
+    @staticmethod
+    def stack(runs: list[FrameRuns], counts: list[int]) -> FrameRuns:
+        """Per-mask runs of masks from several source views: ``runs[k]`` repeated for the
+        ``counts[k]`` masks of source view ``k``, in order (one row per mask).
+
+        Examples
+        --------
+        >>> import torch
+        >>> a = FrameRuns(*(torch.zeros(2, dtype=torch.int64) for _ in range(4)))
+        >>> b = FrameRuns(*(torch.ones(2, dtype=torch.int64) for _ in range(4)))
+        >>> FrameRuns.stack([a, b], [1, 2]).top.tolist()
+        [[0, 0], [1, 1], [1, 1]]
+        """
+
+        def rows(name: str) -> torch.Tensor:
+            return torch.cat([getattr(r, name)[None].expand(c, -1)
+                              for r, c in zip(runs, counts, strict=True)])
+
+        return FrameRuns(rows("top"), rows("bottom"), rows("left"), rows("right"))
 
 
 @dataclass
@@ -176,12 +213,7 @@ class ForwardWarp:
         -------
         (U, V) float tensor
         """
-        zbuffer = self.zbuffer.reshape(view_size)
-        landed = torch.isfinite(zbuffer)
-        # Min over landed neighbours = -max over -z, with unlanded pixels at -inf (ignored).
-        negated = torch.where(landed, -zbuffer, torch.full_like(zbuffer, float("-inf")))
-        neighbour_min = -F.max_pool2d(negated[None, None], 3, stride=1, padding=1)[0, 0]
-        return torch.where(landed, zbuffer, neighbour_min.nan_to_num(neginf=float("-inf")))
+        return _hole_disparity(self.zbuffer.reshape(1, *view_size))[0]
 
     def hole_sources(
         self, view_size: tuple[int, int]
@@ -227,17 +259,7 @@ class ForwardWarp:
         """
         key = (int(view_size[0]), int(view_size[1]))
         if key not in self._index:
-            height, width = key
-            filled = self.hole_disparity(key)
-            landed = torch.isfinite(self.zbuffer).reshape(key)
-            hole = ~landed & torch.isfinite(filled)
-            d = torch.where(hole, filled, torch.zeros_like(filled))
-            rows = torch.arange(height, device=d.device)[:, None]
-            cols = torch.arange(width, device=d.device)[None, :]
-            src_u = torch.round(rows + d * self.ds).long()
-            src_v = torch.round(cols + d * self.dt).long()
-            hole &= (src_u >= 0) & (src_u < height) & (src_v >= 0) & (src_v < width)
-            self._index[key] = torch.where(hole, src_u * width + src_v, -1).reshape(-1)
+            self._index[key] = _hole_index(self.zbuffer.reshape(1, *key), self.ds, self.dt)[0]
         return self._index[key]
 
     def seen(self, view_size: tuple[int, int]) -> torch.Tensor:
@@ -334,6 +356,43 @@ class ForwardWarp:
         return fill_warp_holes(coarse, masks, self, keep)
 
 
+def _max3x3(planes: torch.Tensor) -> torch.Tensor:
+    """Maximum over each pixel's 3 x 3 neighbourhood of ``(B, U, V)`` planes, ``-inf`` beyond
+    the border: ``max_pool2d(planes, 3, stride=1, padding=1)``, as a maximum over rows then
+    over columns (four elementwise maxima; a tenth of the pooling's time on a CPU)."""
+    padded = F.pad(planes, (1, 1, 1, 1), value=float("-inf"))
+    rows = torch.maximum(torch.maximum(padded[:, :-2], padded[:, 1:-1]), padded[:, 2:])
+    return torch.maximum(torch.maximum(rows[..., :-2], rows[..., 1:-1]), rows[..., 2:])
+
+
+def _hole_disparity(zbuffer: torch.Tensor) -> torch.Tensor:
+    """:meth:`ForwardWarp.hole_disparity` of ``(B, U, V)`` z-buffers at once."""
+    landed = torch.isfinite(zbuffer)
+    # Min over landed neighbours = -max over -z, with unlanded pixels at -inf (ignored).
+    negated = torch.where(landed, -zbuffer, torch.full_like(zbuffer, float("-inf")))
+    neighbour_min = -_max3x3(negated)
+    return torch.where(landed, zbuffer, neighbour_min.nan_to_num(neginf=float("-inf")))
+
+
+def _hole_index(
+    zbuffer: torch.Tensor, ds: float | torch.Tensor, dt: float | torch.Tensor
+) -> torch.Tensor:
+    """:meth:`ForwardWarp.hole_index` of ``(B, U, V)`` z-buffers at once, ``(B, U * V)``;
+    tensor offsets broadcast as ``(B, 1, 1)``."""
+    batch, height, width = zbuffer.shape
+    filled = _hole_disparity(zbuffer)
+    hole = ~torch.isfinite(zbuffer) & torch.isfinite(filled)
+    d = torch.where(hole, filled, torch.zeros_like(filled))
+    rows = torch.arange(height, device=d.device)[:, None]
+    cols = torch.arange(width, device=d.device)[None, :]
+    if isinstance(ds, torch.Tensor):
+        ds, dt = ds.to(d), torch.as_tensor(dt).to(d)
+    src_u = torch.round(rows + d * ds).long()
+    src_v = torch.round(cols + d * dt).long()
+    hole &= (src_u >= 0) & (src_u < height) & (src_v >= 0) & (src_v < width)
+    return torch.where(hole, src_u * width + src_v, -1).reshape(batch, -1)
+
+
 def forward_warp(
     disparity: torch.Tensor, ds: float, dt: float, *, halves: str = "even"
 ) -> ForwardWarp:
@@ -376,6 +435,71 @@ def forward_warp(
     )
     return ForwardWarp(target=target, valid=valid, zbuffer=zbuffer[:size], ds=float(ds),
                        dt=float(dt))
+
+
+def forward_warps(
+    disparity: torch.Tensor,
+    ds: Sequence[float],
+    dt: Sequence[float],
+    *,
+    halves: str = "even",
+    holes: bool = True,
+) -> list[ForwardWarp]:
+    """:func:`forward_warp` of several (source, target) pairs in one batched pass.
+
+    The same warps as one :func:`forward_warp` per pair, element for element, with each
+    warp's :meth:`ForwardWarp.hole_index` computed in the same pass: a streamed light field
+    warps every reference view into every view, and on a GPU the pairs' kernel launches, not
+    their arithmetic, are the cost (docs/design.md section 3.5, "batched warps").
+
+    Parameters
+    ----------
+    disparity : (B, U, V) float tensor
+        The source disparity of each pair (the same source may appear several times).
+    ds, dt : sequences of B floats
+        Offset of each pair's target view from its source view.
+    halves : {"even", "up"}
+        Rounding of exact halves (:func:`landing_pixels`).
+    holes : bool
+        Also compute each warp's hole index (kept with the warp).
+
+    Returns
+    -------
+    list of B ForwardWarp
+        Their tensors are views into batched ones (treat them as read-only).
+
+    Examples
+    --------
+    >>> import torch
+    >>> disparity = torch.tensor([[[0.0, 0.0, 2.0]]]).expand(2, -1, -1)
+    >>> one, two = forward_warps(disparity, [0, 0], [1, -1])
+    >>> one.target.tolist() == forward_warp(disparity[0], 0, 1).target.tolist()
+    True
+    >>> two.zbuffer.tolist()  # the close pixel lands outside the view
+    [0.0, 0.0, -inf]
+    """
+    batch, height, width = disparity.shape
+    device = disparity.device
+    dtype = disparity.dtype if disparity.is_floating_point() else torch.float32
+    offsets = torch.tensor([list(ds), list(dt)], dtype=dtype).to(device)[:, :, None, None]
+    target, valid = landing_pixels(disparity, offsets[0], offsets[1], halves=halves)
+    size = height * width
+    zbuffer = torch.full((batch, size + 1), float("-inf"), device=device, dtype=disparity.dtype)
+    zbuffer.scatter_reduce_(
+        1, torch.where(valid, target, size), disparity.reshape(batch, size), reduce="amax",
+        include_self=True,
+    )
+    zbuffer = zbuffer[:, :size]
+    index = _hole_index(zbuffer.reshape(batch, height, width), offsets[0], offsets[1]) \
+        if holes else None
+    warps = []
+    for k in range(batch):
+        warp = ForwardWarp(target=target[k], valid=valid[k], zbuffer=zbuffer[k],
+                           ds=float(ds[k]), dt=float(dt[k]))
+        if index is not None:
+            warp._index[(height, width)] = index[k]
+        warps.append(warp)
+    return warps
 
 
 def splat_masks(

@@ -6,13 +6,13 @@ most once (:class:`lfsam.embeddings.EmbeddingStore`), and in each view steps 2-4
 all prompts of a view decoded together per reference view (:meth:`StreamingEngine.view_step`);
 masks kept bit-packed, and labels fused view by view on the device when every object is in the
 pass. The engine owns what a light field's objects share: embeddings, disparities, forward warps
-(an LRU within :data:`WARP_CACHE_BYTES`) and the stage timer. Which objects exist, and which of
+(:class:`lfsam.pipeline.warps.WarpCache`) and the stage timer. Which objects exist, and which of
 their stages are up to date, is the caller's (:class:`lfsam.predictor.LightFieldPredictor`).
 """
 
 from __future__ import annotations
 
-from collections import Counter, OrderedDict, defaultdict
+from collections import Counter, defaultdict
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
@@ -25,7 +25,7 @@ from lfsam.disparity.views import ViewDisparities
 from lfsam.embeddings import EmbeddingStore
 from lfsam.lightfield import LightField
 from lfsam.pipeline.config import PipelineConfig
-from lfsam.pipeline.fusion import ViewLabels, fuse_labels
+from lfsam.pipeline.fusion import ViewLabels, fuse_packed
 from lfsam.pipeline.initial import initial_segmentation
 from lfsam.pipeline.objects import (
     Clicks,
@@ -38,11 +38,23 @@ from lfsam.pipeline.objects import (
     agreeing_clicks,
     clicks_in_view,
 )
-from lfsam.pipeline.occlusion import semantic_occlusion, source_features, uniform_weights
-from lfsam.pipeline.propagation import ForwardWarp, forward_warp, propagate_masks
-from lfsam.pipeline.refinement import RefinementOutcome, RefineRequest, read_back, refine_many
+from lfsam.pipeline.occlusion import (
+    semantic_occlusion,
+    source_features,
+    stack_source_features,
+    uniform_weights,
+)
+from lfsam.pipeline.propagation import ForwardWarp, propagate_masks
+from lfsam.pipeline.refinement import (
+    RefinementOutcome,
+    RefineRequest,
+    read_back,
+    refine_many,
+    seen_per_mask,
+)
 from lfsam.pipeline.sparse import nearest_sources, refined_views
 from lfsam.pipeline.voting import ViewVoter
+from lfsam.pipeline.warps import WARP_CACHE_BYTES, WarpCache
 from lfsam.result import pack_masks
 from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
 from lfsam.timing import StageTimer
@@ -51,17 +63,6 @@ __all__ = ["WARP_CACHE_BYTES", "StreamingEngine"]
 
 #: What becomes of a view's refinement outcome (:meth:`StreamingEngine._refined_writer`).
 Writer = Callable[[RefinementOutcome, np.ndarray, np.ndarray], None]
-
-#: Forward warps (reference view, target view) kept for reuse across edits, in bytes.
-WARP_CACHE_BYTES = 512 * 2**20
-
-
-def _warp_nbytes(warp: ForwardWarp) -> int:
-    """Memory of a cached warp: its arrays, plus the seen-pixel map it keeps once asked (the
-    holes it keeps are a small fraction of a view)."""
-    arrays = (warp.target, warp.valid, warp.zbuffer)
-    return sum(x.numel() * x.element_size() for x in arrays) + warp.valid.numel()
-
 
 class StreamingEngine:
     """The four steps over one light field's views (module docstring).
@@ -108,12 +109,12 @@ class StreamingEngine:
         #: Silhouettes of the objects referenced in a view (the surface depth of glass and
         #: mirrors, :meth:`_surface_masks`).
         self._surfaces: dict[View, np.ndarray] = {}
-        self._warps: OrderedDict[tuple[View, View, bool], ForwardWarp] = OrderedDict()
+        #: Forward warps, cached and built ahead (:mod:`lfsam.pipeline.warps`).
+        self.warps = WarpCache(lightfield.view_shape, self.device, self.timer)
         self._base: frozenset[View] | None = None
         #: The fill and the consensus: votes of refined views (:mod:`lfsam.pipeline.voting`).
         self.voter = ViewVoter(self)
         self._base_key: tuple[bool, str | int] | None = None
-        self._warp_bytes = 0
 
     # --- shared per-view data ----------------------------------------------------------------
     def embedding(self, view: View) -> ViewEmbedding:
@@ -149,20 +150,7 @@ class StreamingEngine:
         """The forward warp of ``source``'s disparity into ``target`` (cached, LRU); with
         ``carried``, of its disparity for carrying masks (:meth:`disparity`)."""
         carried = carried and self.disparities.warps_center(source)
-        key = (source, target, carried)
-        if key in self._warps:
-            self._warps.move_to_end(key)
-            return self._warps[key]
-        with self.timer("propagate"):
-            warp = forward_warp(
-                self.disparity(source, carried), target[0] - source[0], target[1] - source[1]
-            )
-        self._warps[key] = warp
-        self._warp_bytes += _warp_nbytes(warp)
-        while self._warp_bytes > WARP_CACHE_BYTES and len(self._warps) > 1:
-            _, old = self._warps.popitem(last=False)
-            self._warp_bytes -= _warp_nbytes(old)
-        return warp
+        return self.warps.get(self.disparity, source, target, carried)
 
     def clicks_in_view(
         self, obj: TrackedObject, view: View, zbuffer_test: bool = True
@@ -225,8 +213,7 @@ class StreamingEngine:
             return
         self._surfaces[view] = torch.stack(masks).bool().cpu().numpy()
         self._disp_tensors.pop((view, False), None)
-        for key in [key for key in self._warps if key[0] == view and not key[2]]:
-            self._warp_bytes -= _warp_nbytes(self._warps.pop(key))
+        self.warps.forget_source(view)
 
     def _decode_references(
         self,
@@ -402,6 +389,10 @@ class StreamingEngine:
         batches += [
             pending_views[k : k + batch_size] for k in range(0, len(pending_views), batch_size)
         ]
+        # every (reference view, view) pair is warped once, in this order: built ahead in
+        # batched passes
+        order = [v for batch in batches for v in batch] + filled_here
+        self.warps.plan((r, v) for v in order for r in sorted(references) if r != v)
         for batch in batches:
             # A view needs its embedding where some object is propagated into it and
             # refined or semantically occluded there.
@@ -423,19 +414,20 @@ class StreamingEngine:
             self._refine_deferred(deferred)
             for view, final in finals if not consensus else ():
                 done(view, final)
-        self._clear_sources()
+        self.voter.clear()  # forget the voting views' masks
         if consensus:  # every refined view is in: each is voted with its neighbours
             refined = {i: out[i].copy() for i in ids}
             for view in refined_here:
                 self.consensus_step(objects, view, ids, refined, out)
                 here = [i for i in ids if self.refines(view, objects[i].reference.view)]
                 done(view, self._unpacked(view, here, out))
-            self._clear_sources()
+            self.voter.clear()
         for view in filled_here:
             done(view, self.view_step(
                 objects, view, ids, None, refine, out, coarse_out, stage="fill"
             ))
-        self._clear_sources()
+        self.voter.clear()
+        self.warps.plan(())
         bar.close()
         labels = None
         if sink is not None:
@@ -475,10 +467,11 @@ class StreamingEngine:
         """
         final: dict[int, torch.Tensor] = {}
         config = self.config
-        height, width = self.lightfield.view_shape
         groups: dict[View, list[int]] = defaultdict(list)
         for i in ids:
             groups[objects[i].reference.view].append(i)
+        # (reference view, objects, references, warp, coarse masks): steps 3-4 all at once
+        propagated: list[tuple[View, list[int], list, ForwardWarp, torch.Tensor]] = []
         for ref_view, members in groups.items():
             if self.refines(view, ref_view) != (stage == "refine"):
                 continue
@@ -514,40 +507,67 @@ class StreamingEngine:
                 for k, i in enumerate(members):
                     final[i] = masks[k]
                 continue
-            with self.timer("occlude"):
-                weights = None
-                if config.semantic:
-                    sources = torch.stack([r.source_feature(self.source_features)
-                                           for r in refs])
-                    weights = semantic_occlusion(
-                        self.segmenter, embedding, coarse, sources, config.t_sim
-                    )
-                    coarse = weights.surviving_masks()
-                elif refine:
-                    weights = uniform_weights(coarse)
-            with self.timer("fuse"):
-                coarse_bits = pack_masks(coarse)
-            for k, i in enumerate(members):
-                coarse_out[i].bits[view] = coarse_bits[k]
-            if not refine:
-                for k, i in enumerate(members):
-                    final[i] = coarse[k]
-                continue
-            with self.timer("refine"):
-                seen = warp.seen((height, width))
-                carried = [self.clicks_in_view(objects[i], view, zbuffer_test=False)
-                           for i in members]
-                request = RefineRequest(
-                    embedding, coarse, weights, seen=seen,
-                    frame_runs=warp.frame_runs((height, width), seen),
-                    extra_points=agreeing_clicks(carried, coarse),
-                )
-            finish = self._refined_writer(view, members, out, final)
-            if deferred is None:
-                self._refine_deferred([(request, finish)])
-            else:
-                deferred.append((request, finish))
+            propagated.append((ref_view, members, refs, warp, coarse))
+        if propagated:
+            self._occlude_and_refine(objects, view, propagated, embedding, refine, out,
+                                     coarse_out, final, deferred)
         return final
+
+    def _occlude_and_refine(
+        self,
+        objects: Mapping[int, TrackedObject],
+        view: View,
+        propagated: list[tuple[View, list[int], list, ForwardWarp, torch.Tensor]],
+        embedding: ViewEmbedding | None,
+        refine: bool,
+        out: dict[int, ObjectViews],
+        coarse_out: dict[int, ObjectViews],
+        final: dict[int, torch.Tensor],
+        deferred: list[tuple[RefineRequest, Writer]] | None,
+    ) -> None:
+        """Steps 3-4 in ``view`` of the objects propagated into it from every reference view
+        at once (:meth:`view_step`; docs/design.md section 3.5, "one request per view").
+        Writes ``coarse_out``, and ``out`` and ``final`` (now, or with ``deferred`` when
+        :meth:`_refine_deferred` runs)."""
+        config = self.config
+        members = [i for _, group, _, _, _ in propagated for i in group]
+        refs = [r for _, _, group, _, _ in propagated for r in group]
+        coarse = (propagated[0][4] if len(propagated) == 1
+                  else torch.cat([masks for *_, masks in propagated]))
+        with self.timer("occlude"):
+            weights = None
+            if config.semantic:
+                sources = stack_source_features(
+                    [r.source_feature(self.source_features) for r in refs])
+                weights = semantic_occlusion(
+                    self.segmenter, embedding, coarse, sources, config.t_sim
+                )
+                coarse = weights.surviving_masks()
+            elif refine:
+                weights = uniform_weights(coarse)
+        with self.timer("fuse"):
+            coarse_bits = pack_masks(coarse)
+        for k, i in enumerate(members):
+            coarse_out[i].bits[view] = coarse_bits[k]
+        if not refine:
+            for k, i in enumerate(members):
+                final[i] = coarse[k]
+            return
+        with self.timer("refine"):
+            seen, runs = seen_per_mask([warp for *_, warp, _ in propagated],
+                                       [len(group) for _, group, *_ in propagated],
+                                       self.lightfield.view_shape)
+            carried = [self.clicks_in_view(objects[i], view, zbuffer_test=False)
+                       for i in members]
+            request = RefineRequest(
+                embedding, coarse, weights, seen=seen, frame_runs=runs,
+                extra_points=agreeing_clicks(carried, coarse),
+            )
+        finish = self._refined_writer(view, members, out, final)
+        if deferred is None:
+            self._refine_deferred([(request, finish)])
+        else:
+            deferred.append((request, finish))
 
     def _refine_deferred(self, deferred: list[tuple[RefineRequest, Writer]]) -> None:
         """Step 4 of the views in ``deferred`` together (:func:`~lfsam.pipeline.refinement.
@@ -613,10 +633,6 @@ class StreamingEngine:
         masks = torch.from_numpy(bits.reshape(len(ids), height, width)).to(self.device)
         return {i: masks[k] for k, i in enumerate(ids)}
 
-    def _clear_sources(self) -> None:
-        """Forget the voting views' masks (and what was matched from them)."""
-        self.voter.clear()
-
     def gray(self, view: View) -> torch.Tensor:
         """The view's gray image in [0, 1] on the device (the fill's guide)."""
         image = torch.as_tensor(np.asarray(self.lightfield.views[view]), device=self.device)
@@ -664,11 +680,11 @@ class StreamingEngine:
                 members = [i for i in ids if objects[i].reference.view == ref_view]
                 for target in targets:
                     self.consensus_step(objects, target, members, refined, out)
-            self._clear_sources()
+            self.voter.clear()
         if refine and not all(self.refines(view, r) for r in references):
-            self._clear_sources()
+            self.voter.clear()
             self.view_step(objects, view, ids, None, refine, out, coarse, stage="fill")
-            self._clear_sources()
+            self.voter.clear()
         final = out if refine else coarse
         packed = np.stack([final[i].bits[view] for i in ids])
         bits = np.unpackbits(packed, axis=1, count=height * width)
@@ -678,20 +694,6 @@ class StreamingEngine:
     def fuse(
         self, ids: list[int], bits: Mapping[int, np.ndarray], paint_order: list[int]
     ) -> np.ndarray:
-        """Label field of the objects ``ids`` (values = ids) from their packed masks, painted
-        in ``paint_order`` view by view (docs/design.md section 3.6)."""
-        lf = self.lightfield
-        height, width = lf.view_shape
-        labels = np.zeros((*lf.grid_shape, height, width), dtype=np.int32)
-        if not ids:
-            return labels
-        rank = {i: k for k, i in enumerate(ids)}
-        paint = torch.as_tensor([rank[i] for i in paint_order])
-        lookup = np.concatenate([[0], np.asarray(ids, dtype=np.int32)])
+        """:func:`lfsam.pipeline.fusion.fuse_packed` (docs/design.md section 3.6), timed."""
         with self.timer("fuse"):
-            for s, t in lf.view_indices(present_only=True):
-                packed = np.stack([bits[i][s, t] for i in ids])
-                masks = np.unpackbits(packed, axis=1, count=height * width).astype(bool)
-                fused = fuse_labels(torch.from_numpy(masks.reshape(-1, height, width)), paint)
-                labels[s, t] = lookup[fused.numpy()]
-        return labels
+            return fuse_packed(self.lightfield, ids, bits, paint_order)

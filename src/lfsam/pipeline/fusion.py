@@ -7,10 +7,16 @@ means unlabeled.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import TYPE_CHECKING
+
 import numpy as np
 import torch
 
-__all__ = ["ViewLabels", "fuse_labels"]
+if TYPE_CHECKING:
+    from lfsam.lightfield import LightField
+
+__all__ = ["ViewLabels", "fuse_labels", "fuse_packed"]
 
 _CHUNK = 32
 
@@ -101,3 +107,24 @@ class ViewLabels:
                 self._labels[view] = labels
             self._on_device.clear()
         return self._labels
+
+
+def fuse_packed(
+    lightfield: LightField, ids: list[int], bits: Mapping[int, np.ndarray], paint_order: list[int]
+) -> np.ndarray:
+    """Label field of the objects ``ids`` (values = ids) from their bit-packed masks
+    (``bits[i]``: ``(S, T, ceil(U V / 8))`` uint8, :func:`lfsam.result.pack_masks` per view),
+    painted in ``paint_order`` view by view; ``(S, T, U, V)`` int32, 0 where no object is."""
+    height, width = lightfield.view_shape
+    labels = np.zeros((*lightfield.grid_shape, height, width), dtype=np.int32)
+    if not ids:
+        return labels
+    rank = {i: k for k, i in enumerate(ids)}
+    paint = torch.as_tensor([rank[i] for i in paint_order])
+    lookup = np.concatenate([[0], np.asarray(ids, dtype=np.int32)])
+    for s, t in lightfield.view_indices(present_only=True):
+        packed = np.stack([bits[i][s, t] for i in ids])
+        masks = np.unpackbits(packed, axis=1, count=height * width).astype(bool)
+        fused = fuse_labels(torch.from_numpy(masks.reshape(-1, height, width)), paint)
+        labels[s, t] = lookup[fused.numpy()]
+    return labels

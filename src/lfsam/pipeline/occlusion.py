@@ -27,7 +27,13 @@ import torch.nn.functional as F
 
 from lfsam.segmenters.base import Segmenter, ViewEmbedding
 
-__all__ = ["OcclusionWeights", "semantic_occlusion", "source_features", "uniform_weights"]
+__all__ = [
+    "OcclusionWeights",
+    "semantic_occlusion",
+    "source_features",
+    "stack_source_features",
+    "uniform_weights",
+]
 
 
 
@@ -93,6 +99,18 @@ def source_features(
     mask_index, pixel_index = _pairs(masks)
     sums = segmenter.feature_sums(embedding, mask_index, pixel_index, masks.shape[0])
     return F.normalize(sums, dim=1)
+
+
+def stack_source_features(features: list[torch.Tensor]) -> torch.Tensor:
+    """The source features of masks from several reference views as one ``(N, C)`` tensor.
+
+    An empty source mask has a zero feature of width 1
+    (:meth:`~lfsam.segmenters.base.Segmenter.feature_sums`); it propagates nowhere, so it
+    becomes a zero row of the others' width.
+    """
+    channels = max(f.shape[-1] for f in features)
+    return torch.stack([f if f.shape[-1] == channels else f.new_zeros(channels)
+                        for f in features])
 
 
 def semantic_occlusion(

@@ -26,7 +26,7 @@ from lfsam.precision import wide_float
 from lfsam.result import pack_masks
 from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
 from lfsam.segments import segment_lengths, segment_reduce
-from lfsam.warp import FrameRuns
+from lfsam.warp import ForwardWarp, FrameRuns
 
 __all__ = [
     "RefineRequest",
@@ -36,6 +36,7 @@ __all__ = [
     "refine_many",
     "refine_masks",
     "refinement_prompts",
+    "seen_per_mask",
 ]
 
 
@@ -72,7 +73,9 @@ def refinement_prompts(
         (:meth:`lfsam.warp.ForwardWarp.frame_runs`). A box edge reaching such
         a strip within the box's extent is moved to the frame edge: the object may continue
         into content that was outside the center view's frame, which no propagated pixel can
-        reach (beyond the paper, which leaves the frame border implicit).
+        reach (beyond the paper, which leaves the frame border implicit). Masks propagated
+        from different reference views see different strips: then each field holds one row
+        per mask (:meth:`lfsam.warp.FrameRuns.stack`).
 
     Returns
     -------
@@ -137,6 +140,8 @@ def _prompts_of(
         dim=1,
     )[index]
     if frame_runs is not None:
+        if frame_runs.per_mask:
+            frame_runs = frame_runs.rows(index)
         boxes = _extend_to_unseen_edges(boxes, frame_runs, weights.view_size)
     points_xy = point_rc.flip(1)[:, None, :].to(torch.float32)
     return (
@@ -153,7 +158,8 @@ def _prompts_of(
 def _extend_to_unseen_edges(
     boxes: torch.Tensor, runs: FrameRuns, view_size: tuple[int, int]
 ) -> torch.Tensor:
-    """Move each box edge that reaches an unseen frame strip to the frame edge."""
+    """Move each box edge that reaches an unseen frame strip to the frame edge (``runs``
+    shared by every box, or one row per box)."""
     height, width = view_size
     device = boxes.device
     rows = torch.arange(height, device=device, dtype=boxes.dtype)[None]
@@ -162,7 +168,8 @@ def _extend_to_unseen_edges(
     in_cols = (cols >= boxes[:, 0:1]) & (cols <= boxes[:, 2:3])  # (N, V)
 
     def reach(run: torch.Tensor, inside: torch.Tensor) -> torch.Tensor:
-        return (run.to(device=device, dtype=boxes.dtype)[None] * inside).amax(dim=1)
+        run = run.to(device=device, dtype=boxes.dtype)
+        return ((run if run.dim() == 2 else run[None]) * inside).amax(dim=1)
 
     left, right = reach(runs.left, in_rows), reach(runs.right, in_rows)
     top, bottom = reach(runs.top, in_cols), reach(runs.bottom, in_cols)
@@ -190,8 +197,8 @@ def mask_iou(
     ----------
     candidates : (N, K, U, V) bool tensor
     reference : (N, U, V) bool tensor
-    region : (U, V) bool tensor, optional
-        Count only these pixels.
+    region : (U, V) or (N, U, V) bool tensor, optional
+        Count only these pixels (the same for every mask, or one region per mask).
     dense : bool, optional
         Count by dense ANDs of whole masks (no pixel lists, so the host never waits for the
         device) instead of gathering at the reference pixels; default on CUDA, where memory
@@ -210,14 +217,21 @@ def mask_iou(
         return bits.view(torch.uint8).sum(dim=-1, dtype=torch.int32)
 
     ref = reference.to(device).reshape(n, -1)
+    per_mask = region is not None and region.dim() == 3
     if device.type == "cuda" if dense is None else dense:
         if region is not None:
-            inside = region.to(device).reshape(1, -1)
+            inside = region.to(device).reshape(n if per_mask else 1, -1)
             flat, ref = flat & inside[:, None], ref & inside
         inter = count(flat & ref[:, None])
         union = count(flat) + count(ref)[:, None] - inter
         return inter.to(torch.float32) / union.clamp(min=1).to(torch.float32)
-    cand_area = count(flat)
+    if per_mask:  # one region per mask: the candidates' areas inside their own
+        inside = region.to(device).reshape(n, -1)
+        cand_area = count(flat & inside[:, None])
+        ref = ref & inside
+        region = None
+    else:
+        cand_area = count(flat)
     if region is not None:
         # Only pixels inside the region count; outside it is usually a thin strip, so remove
         # its pixels from the candidate areas by a gather instead of masking everything.
@@ -255,6 +269,36 @@ class RefineRequest:
     extra_points: tuple[np.ndarray, np.ndarray] | None = None
 
 
+def seen_per_mask(
+    warps: Sequence[ForwardWarp], counts: Sequence[int], view_size: tuple[int, int]
+) -> tuple[torch.Tensor, FrameRuns]:
+    """What the masks of one view, propagated from several reference views, each see there:
+    the pixels their own warp reaches (:meth:`~lfsam.warp.ForwardWarp.seen`) and the frame
+    strips it does not (:meth:`~lfsam.warp.ForwardWarp.frame_runs`), for a
+    :class:`RefineRequest` (docs/design.md section 3.5, "one request per view").
+
+    Parameters
+    ----------
+    warps : sequence of ForwardWarp
+        The warp of each reference view into this view.
+    counts : sequence of int
+        How many masks (in order) came through each warp.
+    view_size : (U, V)
+
+    Returns
+    -------
+    seen : (U, V) bool tensor with one warp, else (N, U, V)
+    runs : FrameRuns, shared with one warp, else one row per mask
+    """
+    seen = [warp.seen(view_size) for warp in warps]
+    runs = [warp.frame_runs(view_size, shown) for warp, shown in zip(warps, seen, strict=True)]
+    if len(warps) == 1:
+        return seen[0], runs[0]
+    return (torch.cat([shown[None].expand(c, -1, -1)
+                       for shown, c in zip(seen, counts, strict=True)]),
+            FrameRuns.stack(runs, list(counts)))
+
+
 def refine_masks(
     segmenter: Segmenter,
     embedding: ViewEmbedding,
@@ -279,9 +323,10 @@ def refine_masks(
         Surviving pixels and weights for the prompts.
     t_iou : float
         A refined mask is kept only if its IoU with the coarse mask exceeds this.
-    seen : (U, V) bool tensor, optional
+    seen : (U, V) or (N, U, V) bool tensor, optional
         View pixels the propagation reaches; the IoU with the coarse mask is measured there
-        only (the coarse mask knows nothing of content the center view does not see).
+        only (the coarse mask knows nothing of content the center view does not see). One
+        map per mask where the masks come from different reference views.
     frame_runs : FrameRuns, optional
         Unseen strips at the frame border; see :func:`refinement_prompts`.
     chunk_size : int
@@ -423,7 +468,10 @@ def _choose(
     that IoU exceeds ``t_iou`` (written into ``outcome``, without reading anything back)."""
     device = request.coarse.device
     candidates = candidates.to(device)
-    best_iou, best_k = mask_iou(candidates, request.coarse[rows], request.seen).max(dim=1)
+    seen = request.seen
+    if seen is not None and seen.dim() == 3:
+        seen = seen[rows]
+    best_iou, best_k = mask_iou(candidates, request.coarse[rows], seen).max(dim=1)
     chosen = candidates[torch.arange(len(rows), device=device), best_k]
     accept = best_iou > t_iou
     outcome.masks[rows] = torch.where(accept[:, None, None], chosen, outcome.masks[rows])

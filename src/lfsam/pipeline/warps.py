@@ -1,0 +1,132 @@
+"""The forward warps of a light field's run: cached, and built ahead in batched passes.
+
+Step 2 of the pipeline (paper section 3.2) warps each reference view's disparity into every view
+(:func:`lfsam.warp.forward_warp`); the warps are shared by the propagation, the refinement's
+unseen strips and the fill, and kept for reuse across the interactive predictor's edits (an LRU
+within :data:`WARP_CACHE_BYTES`). A streamed run knows every (reference view, view) pair it will
+warp, in order (:meth:`WarpCache.plan`), and builds them ahead several at a time
+(:func:`lfsam.warp.forward_warps`) within :data:`WARP_BATCH_BYTES` of working memory
+(docs/design.md section 3.5, "batched warps").
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from collections.abc import Callable, Iterable
+
+import torch
+
+from lfsam.timing import StageTimer
+from lfsam.warp import ForwardWarp, forward_warp, forward_warps
+
+__all__ = ["WARP_BATCH_BYTES", "WARP_CACHE_BYTES", "WarpCache", "warp_nbytes"]
+
+View = tuple[int, int]
+
+#: Forward warps (reference view, target view) kept for reuse across edits, in bytes.
+WARP_CACHE_BYTES = 512 * 2**20
+
+#: Working memory of one batched warp pass (:func:`lfsam.warp.forward_warps`) over the pairs a
+#: streamed run asks next, in bytes (about 64 bytes a pixel a pair), per device type: on a GPU
+#: the passes' kernel launches are the cost, so many pairs go together; on a CPU the
+#: arithmetic is, and a pass stays within the caches (a few pairs of small views, one of large).
+WARP_BATCH_BYTES = {"cuda": 256 * 2**20, "cpu": 4 * 2**20}
+
+
+def warp_nbytes(warp: ForwardWarp) -> int:
+    """Memory of a cached warp: its arrays, plus the seen-pixel map it keeps once asked (the
+    holes it keeps are a small fraction of a view)."""
+    arrays = (warp.target, warp.valid, warp.zbuffer)
+    return sum(x.numel() * x.element_size() for x in arrays) + warp.valid.numel()
+
+
+class WarpCache:
+    """Forward warps of one light field, keyed by (source view, target view, carried).
+
+    Parameters
+    ----------
+    view_shape : (U, V)
+    device : torch.device
+        Where the warps are built (picks the batch budget of :data:`WARP_BATCH_BYTES`).
+    timer : StageTimer
+        Building a warp counts as the ``propagate`` stage.
+    """
+
+    def __init__(
+        self, view_shape: tuple[int, int], device: torch.device, timer: StageTimer
+    ) -> None:
+        self._view_shape = view_shape
+        self._device = torch.device(device)
+        self._timer = timer
+        self._warps: OrderedDict[tuple[View, View, bool], ForwardWarp] = OrderedDict()
+        self._bytes = 0
+        #: The (source, target) pairs planned, in order -> position.
+        self._ahead: dict[tuple[View, View], int] = {}
+
+    def get(
+        self,
+        disparity: Callable[[View, bool], torch.Tensor],
+        source: View,
+        target: View,
+        carried: bool = False,
+    ) -> ForwardWarp:
+        """The warp of ``source``'s disparity (the carried one with ``carried``) into
+        ``target``: cached, else built (with the planned pairs that follow it) from
+        ``disparity(view, carried)``, the source disparity on the device
+        (:meth:`lfsam.pipeline.engine.StreamingEngine.disparity`; asked, not kept, so the
+        cache holds no reference to its engine)."""
+        key = (source, target, carried)
+        if key in self._warps:
+            self._warps.move_to_end(key)
+            return self._warps[key]
+        if not carried and (source, target) in self._ahead:
+            return self._build_ahead(disparity, source, target)
+        with self._timer("propagate"):
+            warp = forward_warp(
+                disparity(source, carried), target[0] - source[0], target[1] - source[1]
+            )
+        self._keep(key, warp)
+        return warp
+
+    def plan(self, pairs: Iterable[tuple[View, View]]) -> None:
+        """The (source, target) pairs the next steps ask, in order (each once; no pairs ends
+        the plan): a miss builds the following ones with it."""
+        self._ahead = {}
+        for pair in pairs:
+            self._ahead.setdefault(pair, len(self._ahead))
+
+    def forget_source(self, view: View) -> None:
+        """Drop the (not carried) warps out of ``view`` (its disparity changed)."""
+        for key in [key for key in self._warps if key[0] == view and not key[2]]:
+            self._bytes -= warp_nbytes(self._warps.pop(key))
+
+    def _keep(self, key: tuple[View, View, bool], warp: ForwardWarp) -> None:
+        """Cache a warp (LRU within :data:`WARP_CACHE_BYTES`)."""
+        self._warps[key] = warp
+        self._bytes += warp_nbytes(warp)
+        while self._bytes > WARP_CACHE_BYTES and len(self._warps) > 1:
+            _, old = self._warps.popitem(last=False)
+            self._bytes -= warp_nbytes(old)
+
+    def _build_ahead(
+        self, disparity: Callable[[View, bool], torch.Tensor], source: View, target: View
+    ) -> ForwardWarp:
+        """The warp of ``(source, target)``, built in one batched pass with the planned pairs
+        after it that are not cached (within :data:`WARP_BATCH_BYTES`): the same warps, a few
+        passes a frame instead of one per (reference view, view) pair."""
+        height, width = self._view_shape
+        budget = WARP_BATCH_BYTES.get(self._device.type, WARP_BATCH_BYTES["cpu"])
+        most = max(1, budget // (64 * height * width))
+        order = list(self._ahead)
+        chunk = [
+            pair for pair in order[self._ahead[(source, target)]:]
+            if (*pair, False) not in self._warps
+        ][:most]
+        with self._timer("propagate"):
+            sources = torch.stack([disparity(s, False) for s, _ in chunk])
+            warps = forward_warps(
+                sources, [t[0] - s[0] for s, t in chunk], [t[1] - s[1] for s, t in chunk]
+            )
+        for (s, t), warp in zip(chunk, warps, strict=True):
+            self._keep((s, t, False), warp)
+        return warps[0]
