@@ -3,11 +3,12 @@
 Paper section 3, streamed (docs/design.md sections 3 and 8): step 1 in each object's reference
 view (:meth:`StreamingEngine.ensure_references`); then the views in batches, each view encoded at
 most once (:class:`lfsam.embeddings.EmbeddingStore`), and in each view steps 2-4 for every object,
-all prompts of a view decoded together per reference view (:meth:`StreamingEngine.view_step`);
-masks kept bit-packed, and labels fused view by view on the device when every object is in the
-pass. The engine owns what a light field's objects share: embeddings, disparities, forward warps
-(:class:`lfsam.pipeline.warps.WarpCache`) and the stage timer. Which objects exist, and which of
-their stages are up to date, is the caller's (:class:`lfsam.predictor.LightFieldPredictor`).
+all prompts of a view decoded together, whatever their reference view
+(:meth:`StreamingEngine.view_step`); masks kept bit-packed, and labels fused view by view on
+the device when every object is in the pass. The engine owns what a light field's objects
+share: embeddings, disparities, forward warps (:class:`lfsam.pipeline.warps.WarpCache`) and the
+stage timer. Which objects exist, and which of their stages are up to date, is the caller's
+(:class:`lfsam.predictor.LightFieldPredictor`).
 """
 
 from __future__ import annotations
