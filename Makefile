@@ -103,7 +103,8 @@ gpu-check: gpu-env
 GPU_TRACK_SEEDS ?= 1301
 gpu-track: gpu-env
 	$(GPU_PY) benchmarks/bench_tracking.py --device cuda --size 480x640 --min-pixels 2500 \
-	  --frames 8 --seeds $(GPU_TRACK_SEEDS) --jitter 0 --modes search,before --repeat 2 --stages \
+	  --frames 8 --seeds $(GPU_TRACK_SEEDS) --jitter 0 --modes search,before --repeat 2 \
+	  --stages --ops \
 	  $(if $(GPU_TRACK_JSON),--json $(GPU_TRACK_JSON))
 
 clean:

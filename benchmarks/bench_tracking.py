@@ -37,6 +37,12 @@ all seeds:
 * ``--stages``: the pipeline's stages (ms a frame per tracking mode: encode, initial,
   propagate, occlude, refine, fuse...), where the whole frame's extra goes (``make
   gpu-track`` prints them);
+* ``--ops``: the torch operators dispatched a frame per tracking mode, counted in one more
+  (untimed) run of each video: every operator is at least one kernel launch on CUDA, where
+  the host's launches, not the arithmetic, are the cost of small views, so the count is the
+  GPU's cost measured on any machine; ``waits``: those that make the host wait for a GPU (a
+  value read back, ``nonzero``, ``unique``, ``masked_select``, as ``bench_gpu.py --profile``
+  counts them);
 * ``clicked`` (a third mode, no tracking): every object clicked afresh in every frame at the
   deepest pixel of the view where it shows most, each frame segmented alone by the same
   pipeline and oracle. Its lost share is the floor that the oracle's imperfections set: with
@@ -59,7 +65,7 @@ Usage::
     OMP_NUM_THREADS=1 python benchmarks/bench_tracking.py [--seeds 101,102,103]
         [--frames 12] [--objects 5] [--jitter 0,1] [--modes search,before,clicked] [--easy]
         [--repeat 2] [--consensus off|on|both] [--model oracle] [--device auto] [--stages]
-        [--json OUT]
+        [--ops] [--json OUT]
 
 At the full size, on a GPU (``make gpu-check`` runs it): ``--size 480x640 --min-pixels 2500
 --frames 8 --seeds 1301 --jitter 0 --modes search,before --repeat 2 --device cuda --stages``; the
@@ -77,6 +83,7 @@ from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
+from torch.utils._python_dispatch import TorchDispatchMode
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
@@ -184,6 +191,33 @@ def track(frames, prompts, search: bool, jitter: int, seed: int, consensus: bool
         if stages is not None:
             stages.append(dict(result.timings))
     return labels, seconds, carrying
+
+
+class OperatorCount(TorchDispatchMode):
+    """Counts the torch operators dispatched while active (``--ops``): ``operators`` in all,
+    ``waits`` of them make the host wait for a GPU (:data:`WAITS`)."""
+
+    #: Operators that read a value back or size their output by the data.
+    WAITS = frozenset({"aten::_local_scalar_dense", "aten::nonzero", "aten::_unique2",
+                       "aten::unique_consecutive", "aten::masked_select"})
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.operators = 0
+        self.waits = 0
+
+    def __torch_dispatch__(self, func, types, args=(), kwargs=None):
+        self.operators += 1
+        self.waits += func._schema.name in self.WAITS
+        return func(*args, **(kwargs or {}))
+
+
+def count_operators(frames, prompts, search: bool, jitter: int, seed: int,
+                    consensus: bool = False, segmenter=None) -> tuple[int, int]:
+    """Operators and waits a frame of one tracked video (:class:`OperatorCount`)."""
+    with OperatorCount() as counter:
+        track(frames, prompts, search, jitter, seed, consensus, segmenter)
+    return counter.operators // len(frames), counter.waits // len(frames)
 
 
 def score(frames, labels, truth: dict[int, int], min_pixels: int) -> dict:
@@ -318,6 +352,10 @@ def main() -> None:
     parser.add_argument("--stages", action="store_true",
                         help="also print each tracking mode's pipeline stages (ms a frame, the "
                              "mean over every run): where the whole frame's extra goes")
+    parser.add_argument("--ops", action="store_true",
+                        help="also count the torch operators dispatched a frame per tracking "
+                             "mode, in one more untimed run of each video (each is at least "
+                             "one kernel launch on CUDA): the GPU's cost on any machine")
     parser.add_argument("--json", default=None, help="also write the numbers here")
     args = parser.parse_args()
     global DEVICE
@@ -331,6 +369,7 @@ def main() -> None:
         parser.error("--jitter is the oracle's: give --jitter 0 with --model")
     totals: dict[tuple[str, int, bool], dict] = {}
     stage_runs: dict[tuple[str, int, bool], list[dict]] = defaultdict(list)
+    op_runs: dict[tuple[str, int, bool], list[tuple[int, int]]] = defaultdict(list)
     segmenter = None
     for seed in seeds:
         frames = list(generate_video(grid=grid, size=size, frames=args.frames, seed=seed,
@@ -351,6 +390,11 @@ def main() -> None:
                             got = track(frames, prompts, MODES[mode], jitter, seed,
                                         consensus, segmenter,
                                         stage_runs[(mode, jitter, consensus)])
+                        if args.ops and mode != "clicked" and len(runs) < len(
+                                CONSENSUS[args.consensus]):  # once a video and setting
+                            op_runs[(mode, jitter, consensus)].append(count_operators(
+                                frames, prompts, MODES[mode], jitter, seed, consensus,
+                                segmenter))
                         old = runs.get(consensus)
                         runs[consensus] = got if old is None else (
                             old[0], list(np.minimum(old[1], got[1])),
@@ -419,6 +463,8 @@ def main() -> None:
               f"{row.get('consensus_ratio', nan):.2f}")
     if args.stages:
         print_stages(stage_runs, out)
+    if args.ops:
+        print_operators(op_runs, out)
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1), encoding="utf-8")
 
@@ -442,6 +488,31 @@ def print_stages(stage_runs: dict[tuple[str, int, bool], list[dict]], out: list[
         label = (f"{row['mode']} jitter {row['jitter']}"
                  f"{' +cons' if row['consensus'] else ''}")
         print(label + " | " + " | ".join(f"{means[name]:.0f}" for name in names))
+
+
+
+def print_operators(op_runs: dict[tuple[str, int, bool], list[tuple[int, int]]],
+                    out: list[dict]) -> None:
+    """Operators and waits a frame per tracking mode (the mean over the videos), and the
+    operators' ratio to ``before`` with the same jitter and consensus: added to ``out``'s rows
+    as ``operators_per_frame``, ``waits_per_frame``."""
+    if not op_runs:
+        return
+    means = {key: np.mean(np.asarray(runs, dtype=np.float64), axis=0)
+             for key, runs in op_runs.items()}
+    print()
+    print("operators a frame (one untimed run) | operators | waits | ratio")
+    for row in out:
+        key = (row["mode"], row["jitter"], row["consensus"])
+        if key not in means:
+            continue
+        operators, waits = means[key]
+        base = means.get(("before", row["jitter"], row["consensus"]))
+        ratio = operators / base[0] if base is not None and base[0] else float("nan")
+        row["operators_per_frame"], row["waits_per_frame"] = float(operators), float(waits)
+        label = (f"{row['mode']} jitter {row['jitter']}"
+                 f"{' +cons' if row['consensus'] else ''}")
+        print(f"{label} | {operators:.0f} | {waits:.0f} | {ratio:.2f}")
 
 
 if __name__ == "__main__":
