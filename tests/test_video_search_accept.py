@@ -200,3 +200,43 @@ def test_an_answer_found_again_that_holds_a_placed_neighbour_is_that_neighbour()
     assert search.HELD * neighbour.sum() <= (neighbour & (labels == 2)).sum()
     tracked = Track(CENTER, template, area=192, sightings=3)
     assert find(tracked, [neighbour, touched]) is not None
+
+
+def _showing_a_new_part(support_outside: int = 0):
+    """A uniform red 12x12 template carried to (10, 10) with all of it supported; the answer
+    holds it and a 12x28 part of another colour beside it, which the template never held (its
+    colours as a whole: 144 of 480 pixels the template's). ``support_outside``: support
+    pixels added outside the answer."""
+    rng = np.random.default_rng(3)
+    red = np.array([230.0, 60.0, 60.0])
+    look = (red + rng.uniform(-5, 5, (12, 12, 3))).astype(np.float32)
+    template = Template(look, np.ones((12, 12), bool), (10, 10))
+    image = _background()
+    image[10:22, 10:22] = look
+    image[10:22, 22:50] = np.array([40.0, 60.0, 230.0]) + rng.uniform(-5, 5, (12, 28, 3))
+    mask = np.zeros(SIZE, bool)
+    mask[10:22, 10:50] = True
+    carried = np.zeros(SIZE, bool)
+    carried[10:22, 10:22] = True
+    support = carried.copy()
+    support[30:36, :support_outside // 6] = True
+    return template, image, mask, support, carried
+
+
+def test_an_answer_holding_its_support_is_judged_by_the_part_its_template_held(monkeypatch):
+    import lfsam.video.search as search
+
+    template, image, mask, support, carried = _showing_a_new_part()
+    track = Track(CENTER, template, area=144, sightings=3, disparity=1.0)
+    assert _accept(mask, support, carried, track, None, image, template, (0, 0), 6) == (0, 0)
+    monkeypatch.setattr(search, "KNOWN_PART", False)  # judged as a whole: unlike
+    assert _accept(mask, support, carried, track, None, image, template, (0, 0), 6) is None
+    monkeypatch.setattr(search, "KNOWN_PART", True)
+    # the part the template held looks otherwise: another object there
+    other = image.copy()
+    other[10:22, 10:22] = np.array([60.0, 230.0, 60.0])
+    assert _accept(mask, support, carried, track, None, other, template, (0, 0), 6) is None
+    # an answer holding 80 % of the support (36 of 180 pixels outside it) is judged as a whole
+    template, image, mask, support, carried = _showing_a_new_part(support_outside=36)
+    assert support.sum() == 180 and (mask & support).sum() == 144
+    assert _accept(mask, support, carried, track, None, image, template, (0, 0), 6) is None

@@ -48,7 +48,9 @@ later frame and comes back under its own id (*found*). The search of one object 
    90 % of the support, is at most :data:`UNCOVERED_VIEW` of the view and lies at its depth),
    does not lie mostly on an object
    placed earlier in that view, looks like the template (colour histograms,
-   :func:`looks_alike`) and, when found again after hidden frames or explained so, lies at
+   :func:`looks_alike`; an answer holding :data:`KNOWN_SUPPORT` of the support, by its part
+   inside the carried template: the rest may be a part the template never held,
+   :data:`KNOWN_PART`) and, when found again after hidden frames or explained so, lies at
    the object's depth (its median disparity within :func:`predicted_disparity`'s tolerance):
    appearance, motion and depth before an id is given back, so that a look-alike elsewhere
    in depth cannot take it. Where the answers in the object's own view are refused and the
@@ -129,6 +131,11 @@ RESCORED = 2
 KEEP_TEMPLATE = 0.6
 #: Colour histogram intersection an answer away from the prediction needs.
 MIN_ALIKE = 0.35
+#: An answer holding :data:`KNOWN_SUPPORT` of the support may look unlike the template as a
+#: whole where its part inside the carried template looks like it (an object showing a part
+#: its template never held; issue 47 fifteenth pass).
+KNOWN_PART = True
+KNOWN_SUPPORT = 0.9
 #: Whether :func:`lfsam.video.frame_search.search_frame` gates the match by depth
 #: (:func:`search_object`'s ``disparities``). On since the object's disparity is the median
 #: over its answer (:func:`lfsam.video.frame_search.object_disparity`): with the mean, an
@@ -630,7 +637,10 @@ def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: T
             if at is None:
                 return None
             shift, explained = at, True
-    if looks_alike(image[mask], template.image[template.mask]) < MIN_ALIKE:
+    look = template.image[template.mask]
+    if looks_alike(image[mask], look) < MIN_ALIKE and not (
+            KNOWN_PART and covered >= KNOWN_SUPPORT * support.sum()
+            and looks_alike(image[mask & carried], look) >= MIN_ALIKE):
         return None
     if depth is not None and (checked or explained or grown or track.unseen > 0):
         value = depth[1](depth[0], mask)
