@@ -485,10 +485,12 @@ def print_stages(stage_runs: dict[tuple[str, int, bool], list[dict]], out: list[
         means = {name: 1000 * float(np.mean([frame.get(name, 0.0) for frame in runs]))
                  for name in names}
         row["stages_ms"] = means
-        label = (f"{row['mode']} jitter {row['jitter']}"
-                 f"{' +cons' if row['consensus'] else ''}")
-        print(label + " | " + " | ".join(f"{means[name]:.0f}" for name in names))
+        print(_mode_label(row) + " | " + " | ".join(f"{means[name]:.0f}" for name in names))
 
+
+def _mode_label(row: dict) -> str:
+    """``search jitter 1 +cons``: a tracking mode's name in the extra tables."""
+    return f"{row['mode']} jitter {row['jitter']}{' +cons' if row['consensus'] else ''}"
 
 
 def print_operators(op_runs: dict[tuple[str, int, bool], list[tuple[int, int]]],
@@ -510,9 +512,7 @@ def print_operators(op_runs: dict[tuple[str, int, bool], list[tuple[int, int]]],
         base = means.get(("before", row["jitter"], row["consensus"]))
         ratio = operators / base[0] if base is not None and base[0] else float("nan")
         row["operators_per_frame"], row["waits_per_frame"] = float(operators), float(waits)
-        label = (f"{row['mode']} jitter {row['jitter']}"
-                 f"{' +cons' if row['consensus'] else ''}")
-        print(f"{label} | {operators:.0f} | {waits:.0f} | {ratio:.2f}")
+        print(f"{_mode_label(row)} | {operators:.0f} | {waits:.0f} | {ratio:.2f}")
 
 
 if __name__ == "__main__":

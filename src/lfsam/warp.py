@@ -378,19 +378,34 @@ def _hole_index(
     zbuffer: torch.Tensor, ds: float | torch.Tensor, dt: float | torch.Tensor
 ) -> torch.Tensor:
     """:meth:`ForwardWarp.hole_index` of ``(B, U, V)`` z-buffers at once, ``(B, U * V)``;
-    tensor offsets broadcast as ``(B, 1, 1)``."""
+    tensor offsets are ``(B, 1, 1)``, on the z-buffers' device and of their dtype."""
     batch, height, width = zbuffer.shape
     filled = _hole_disparity(zbuffer)
     hole = ~torch.isfinite(zbuffer) & torch.isfinite(filled)
     d = torch.where(hole, filled, torch.zeros_like(filled))
     rows = torch.arange(height, device=d.device)[:, None]
     cols = torch.arange(width, device=d.device)[None, :]
-    if isinstance(ds, torch.Tensor):
-        ds, dt = ds.to(d), torch.as_tensor(dt).to(d)
     src_u = torch.round(rows + d * ds).long()
     src_v = torch.round(cols + d * dt).long()
     hole &= (src_u >= 0) & (src_u < height) & (src_v >= 0) & (src_v < width)
     return torch.where(hole, src_u * width + src_v, -1).reshape(batch, -1)
+
+
+def _zbuffers(disparity: torch.Tensor, target: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:
+    """The z-buffer of ``(..., U, V)`` source disparities landing at ``target`` (``valid``;
+    :func:`landing_pixels`): the largest disparity on each target pixel, ``-inf`` where none,
+    ``(..., U * V)``."""
+    lead, size = disparity.shape[:-2], disparity.shape[-2] * disparity.shape[-1]
+    rows = lead.numel()  # 1 for a single view
+    zbuffer = torch.full((rows, size + 1), float("-inf"), device=disparity.device,
+                         dtype=disparity.dtype)
+    # every pixel is scattered (no boolean selection, which would make a GPU wait for the
+    # host): those that land nowhere go to a spare last slot, dropped after
+    zbuffer.scatter_reduce_(
+        1, torch.where(valid, target, size).reshape(rows, size), disparity.reshape(rows, size),
+        reduce="amax", include_self=True,
+    )
+    return zbuffer[:, :size].reshape(*lead, size)
 
 
 def forward_warp(
@@ -424,17 +439,8 @@ def forward_warp(
     [False, True, True]
     """
     target, valid = landing_pixels(disparity, ds, dt, halves=halves)
-    size = disparity.numel()
-    # every pixel is scattered (no boolean selection, which would make a GPU wait for the
-    # host): those that land nowhere go to a spare last slot, dropped after
-    zbuffer = torch.full((size + 1,), float("-inf"), device=disparity.device,
-                         dtype=disparity.dtype)
-    zbuffer.scatter_reduce_(
-        0, torch.where(valid, target, size), disparity.reshape(-1), reduce="amax",
-        include_self=True,
-    )
-    return ForwardWarp(target=target, valid=valid, zbuffer=zbuffer[:size], ds=float(ds),
-                       dt=float(dt))
+    return ForwardWarp(target=target, valid=valid, zbuffer=_zbuffers(disparity, target, valid),
+                       ds=float(ds), dt=float(dt))
 
 
 def forward_warps(
@@ -483,13 +489,7 @@ def forward_warps(
     dtype = disparity.dtype if disparity.is_floating_point() else torch.float32
     offsets = torch.tensor([list(ds), list(dt)], dtype=dtype).to(device)[:, :, None, None]
     target, valid = landing_pixels(disparity, offsets[0], offsets[1], halves=halves)
-    size = height * width
-    zbuffer = torch.full((batch, size + 1), float("-inf"), device=device, dtype=disparity.dtype)
-    zbuffer.scatter_reduce_(
-        1, torch.where(valid, target, size), disparity.reshape(batch, size), reduce="amax",
-        include_self=True,
-    )
-    zbuffer = zbuffer[:, :size]
+    zbuffer = _zbuffers(disparity, target, valid)
     index = _hole_index(zbuffer.reshape(batch, height, width), offsets[0], offsets[1]) \
         if holes else None
     warps = []

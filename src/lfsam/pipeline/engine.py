@@ -471,8 +471,8 @@ class StreamingEngine:
         groups: dict[View, list[int]] = defaultdict(list)
         for i in ids:
             groups[objects[i].reference.view].append(i)
-        # (reference view, objects, references, warp, coarse masks): steps 3-4 all at once
-        propagated: list[tuple[View, list[int], list, ForwardWarp, torch.Tensor]] = []
+        # (objects, references, warp, coarse masks) per reference view: steps 3-4 at once
+        propagated: list[tuple[list[int], list, ForwardWarp, torch.Tensor]] = []
         for ref_view, members in groups.items():
             if self.refines(view, ref_view) != (stage == "refine"):
                 continue
@@ -508,7 +508,7 @@ class StreamingEngine:
                 for k, i in enumerate(members):
                     final[i] = masks[k]
                 continue
-            propagated.append((ref_view, members, refs, warp, coarse))
+            propagated.append((members, refs, warp, coarse))
         if propagated:
             self._occlude_and_refine(objects, view, propagated, embedding, refine, out,
                                      coarse_out, final, deferred)
@@ -518,7 +518,7 @@ class StreamingEngine:
         self,
         objects: Mapping[int, TrackedObject],
         view: View,
-        propagated: list[tuple[View, list[int], list, ForwardWarp, torch.Tensor]],
+        propagated: list[tuple[list[int], list, ForwardWarp, torch.Tensor]],
         embedding: ViewEmbedding | None,
         refine: bool,
         out: dict[int, ObjectViews],
@@ -531,9 +531,9 @@ class StreamingEngine:
         Writes ``coarse_out``, and ``out`` and ``final`` (now, or with ``deferred`` when
         :meth:`_refine_deferred` runs)."""
         config = self.config
-        members = [i for _, group, _, _, _ in propagated for i in group]
-        refs = [r for _, _, group, _, _ in propagated for r in group]
-        coarse = (propagated[0][4] if len(propagated) == 1
+        members = [i for group, *_ in propagated for i in group]
+        refs = [r for _, group, *_ in propagated for r in group]
+        coarse = (propagated[0][3] if len(propagated) == 1
                   else torch.cat([masks for *_, masks in propagated]))
         with self.timer("occlude"):
             weights = None
@@ -556,7 +556,7 @@ class StreamingEngine:
             return
         with self.timer("refine"):
             seen, runs = seen_per_mask([warp for *_, warp, _ in propagated],
-                                       [len(group) for _, group, *_ in propagated],
+                                       [len(group) for group, *_ in propagated],
                                        self.lightfield.view_shape)
             carried = [self.clicks_in_view(objects[i], view, zbuffer_test=False)
                        for i in members]

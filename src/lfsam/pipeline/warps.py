@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Callable, Iterable
+from itertools import islice
 
 import torch
 
@@ -34,10 +35,10 @@ WARP_BATCH_BYTES = {"cuda": 256 * 2**20, "cpu": 4 * 2**20}
 
 
 def warp_nbytes(warp: ForwardWarp) -> int:
-    """Memory of a cached warp: its arrays, plus the seen-pixel map it keeps once asked (the
-    holes it keeps are a small fraction of a view)."""
+    """Memory of a cached warp: its arrays, plus what it keeps once asked and the pipeline
+    always asks: the seen-pixel map (a byte a pixel) and the hole index (8 bytes a pixel)."""
     arrays = (warp.target, warp.valid, warp.zbuffer)
-    return sum(x.numel() * x.element_size() for x in arrays) + warp.valid.numel()
+    return sum(x.numel() * x.element_size() for x in arrays) + 9 * warp.valid.numel()
 
 
 class WarpCache:
@@ -117,11 +118,9 @@ class WarpCache:
         height, width = self._view_shape
         budget = WARP_BATCH_BYTES.get(self._device.type, WARP_BATCH_BYTES["cpu"])
         most = max(1, budget // (64 * height * width))
-        order = list(self._ahead)
-        chunk = [
-            pair for pair in order[self._ahead[(source, target)]:]
-            if (*pair, False) not in self._warps
-        ][:most]
+        start = self._ahead[(source, target)]
+        chunk = list(islice((pair for pair in islice(self._ahead, start, None)
+                             if (*pair, False) not in self._warps), most))
         with self._timer("propagate"):
             sources = torch.stack([disparity(s, False) for s, _ in chunk])
             warps = forward_warps(
