@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from lfsam.pipeline.occlusion import OcclusionWeights, uniform_weights
@@ -103,10 +104,12 @@ def test_chunked_refinement_equals_one_batch():
     assert torch.allclose(one.iou, many.iou, equal_nan=True)
 
 
-def test_groups_of_carried_clicks_are_chosen_among_once_per_view(monkeypatch):
-    """Prompts with different numbers of carried clicks are decoded apart (one call per group)
-    but chosen among together (docs/design.md section 3.5): one choice per view, with the
-    outcome of refining each mask alone."""
+@pytest.mark.parametrize("skips_absent", [False, True])
+def test_groups_of_carried_clicks_are_chosen_among_once_per_view(monkeypatch, skips_absent):
+    """Prompts with different numbers of carried clicks are decoded apart (one call per group),
+    or, by a segmenter that skips absent points, padded with them in one call; either way
+    chosen among together (docs/design.md section 3.5): one choice per view, with the outcome
+    of refining each mask alone."""
     from lfsam.pipeline import refinement
     from lfsam.segmenters import load_segmenter
     from lfsam.synth import generate_scene
@@ -140,10 +143,11 @@ def test_groups_of_carried_clicks_are_chosen_among_once_per_view(monkeypatch):
         return choose(*args, **kwargs)
 
     monkeypatch.setattr(segmenter, "predict", counted_predict)
+    monkeypatch.setattr(segmenter, "skips_absent_points", skips_absent)
     monkeypatch.setattr(refinement, "_choose", counted_choose)
     together = refinement.refine_masks(segmenter, embedding, coarse, weights,
                                        extra_points=(points, labels))
-    assert calls == {"decode": 3, "choose": 1}
+    assert calls == {"decode": 1 if skips_absent else 3, "choose": 1}
     for k in range(n):  # each mask refined alone
         alone = refinement.refine_masks(segmenter, embedding, coarse[k : k + 1],
                                         uniform_weights(coarse[k : k + 1]),

@@ -475,3 +475,31 @@ def test_sam1_runs_the_whole_pipeline(sam1_folder, scene_dir, tmp_path, capsys):
     assert result.meta["segmenter"]["backend"] == "transformers"
     assert result.labels.shape == (5, 5, 48, 64)
     assert (result.labels > 0).any()
+
+
+def test_sam1_absent_points_leave_its_answer(sam1_folder):
+    """SAM v1 lays out points, then the box corners (no padding point with a box): absent
+    points among them are masked out there too (docs/design.md section 3.5)."""
+    from lfsam.segmenters.base import ABSENT_POINT
+
+    folder, _ = sam1_folder
+    segmenter = load_segmenter("transformers", checkpoint=folder, device="cpu")
+    assert segmenter.skips_absent_points
+    view = generate_scene(grid=(1, 1), size=(61, 80), seed=1, num_objects=3).views[0, 0]
+    embedding = segmenter.encode(view[None])[0]
+    points = np.array([[[20.0, 30.0], [0.0, 0.0]], [[55.0, 12.0], [60.0, 14.0]]], np.float32)
+    labels = np.array([[1, ABSENT_POINT], [1, 0]])
+    boxes = np.array([[5.0, 10.0, 40.0, 50.0], [30.0, 2.0, 78.0, 30.0]], np.float32)
+    for box in (None, boxes):
+        both = segmenter.predict(embedding, Prompts(points=points, point_labels=labels,
+                                                    boxes=box))
+        alone = segmenter.predict(embedding, Prompts(points=points[:1, :1],
+                                                     point_labels=labels[:1, :1],
+                                                     boxes=None if box is None else box[:1]))
+        torch.testing.assert_close(both.low_res_logits[:1], alone.low_res_logits, atol=1e-7,
+                                   rtol=0)
+        attended = segmenter.predict(embedding, Prompts(points=points, point_labels=[[1, -1],
+                                                                                     [1, 0]],
+                                                        boxes=box))
+        # this model's logits are about 0.02: compare at its scale
+        assert (attended.low_res_logits[:1] - alone.low_res_logits).abs().max() > 1e-5

@@ -24,7 +24,7 @@ import torch
 from lfsam.pipeline.occlusion import OcclusionWeights
 from lfsam.precision import wide_float
 from lfsam.result import pack_masks
-from lfsam.segmenters.base import Prompts, Segmenter, ViewEmbedding
+from lfsam.segmenters.base import ABSENT_POINT, Prompts, Segmenter, ViewEmbedding
 from lfsam.segments import segment_lengths, segment_reduce
 from lfsam.warp import ForwardWarp, FrameRuns
 
@@ -149,6 +149,7 @@ def _prompts_of(
             points=points_xy,
             point_labels=torch.ones(points_xy.shape[:2], dtype=torch.int64, device=device),
             boxes=boxes.to(torch.float32),
+            absent_points=False,
         ),
         prompted,
         index,
@@ -344,7 +345,10 @@ def refine_masks(
 
 
 def _prompt_groups(
-    index: torch.Tensor, prompts: Prompts, extra_points: tuple[np.ndarray, np.ndarray] | None
+    index: torch.Tensor,
+    prompts: Prompts,
+    extra_points: tuple[np.ndarray, np.ndarray] | None,
+    merge: bool = False,
 ) -> list[tuple[torch.Tensor, Prompts]]:
     """The prompts of one view split by the number of carried clicks: ``(positions in index,
     prompts)`` per group.
@@ -353,8 +357,11 @@ def _prompt_groups(
     padding: SAM 2 attends to a padding point (label -1) like to any token, so padding one
     mask's prompt to another's length would change its answer, and a mask's refinement would
     depend on which other objects share the view (an incremental edit would differ from a full
-    run). The clicks are the user's (host arrays); only with them are the prompted masks'
-    numbers read back to group them.
+    run). With ``merge`` (a segmenter that
+    :attr:`~lfsam.segmenters.base.Segmenter.skips_absent_points`) there is one group, the
+    shorter prompts padded with absent points, which such a segmenter answers as without them
+    (docs/design.md section 3.5). The clicks are the user's (host arrays); only with them are
+    the prompted masks' numbers read back to group them.
     """
     device = index.device
     if extra_points is None or extra_points[0].shape[1] == 0:
@@ -363,9 +370,17 @@ def _prompt_groups(
     carried = (extra_points[1][rows_np] != -1).sum(axis=1)
     points = torch.as_tensor(extra_points[0], dtype=torch.float32).to(device)
     labels = torch.as_tensor(extra_points[1], dtype=torch.int64).to(device)
+    if merge:
+        width = int(carried.max())
+        labels = torch.where(labels == -1, ABSENT_POINT, labels)
+        counts = [(width, torch.arange(len(index), device=device), carried.min() < width)]
+    else:
+        counts = [
+            (int(count), torch.as_tensor(np.flatnonzero(carried == count), device=device), False)
+            for count in np.unique(carried)
+        ]
     groups = []
-    for count in np.unique(carried):
-        members = torch.as_tensor(np.flatnonzero(carried == count), device=device)
+    for count, members, absent in counts:
         rows = index[members]
         groups.append((
             members,
@@ -375,9 +390,27 @@ def _prompt_groups(
                     [prompts.point_labels[members], labels[rows, :count]], dim=1
                 ),
                 boxes=None if prompts.boxes is None else prompts.boxes[members],
+                absent_points=bool(absent),
             ),
         ))
     return groups
+
+
+def _pad_points(prompts: Prompts, width: int) -> Prompts:
+    """``prompts`` with absent points appended up to ``width`` points per prompt."""
+    assert prompts.points is not None and prompts.point_labels is not None
+    n, have = prompts.point_labels.shape
+    if have >= width:
+        return prompts
+    points, labels = prompts.points, prompts.point_labels
+    return Prompts(
+        points=torch.cat([points, points.new_zeros((n, width - have, 2))], dim=1),
+        point_labels=torch.cat(
+            [labels, labels.new_full((n, width - have), ABSENT_POINT)], dim=1
+        ),
+        boxes=prompts.boxes,
+        absent_points=True,
+    )
 
 
 def refine_many(
@@ -391,7 +424,11 @@ def refine_many(
     Each view's prompts are cut into the chunks :func:`refine_masks` decodes (at most
     ``chunk_size`` prompts, one group of carried clicks each); one call of
     :meth:`~lfsam.segmenters.base.Segmenter.predict_many` takes one chunk of every view whose
-    prompts have the same shape. A view's candidates of several groups are chosen among
+    prompts have the same shape. A segmenter that
+    :attr:`~lfsam.segmenters.base.Segmenter.skips_absent_points` gets every prompt padded to
+    the longest one with absent points instead: one shape, so one call takes every view
+    (docs/design.md section 3.5, "one decoder call for prompts of different lengths").
+    A view's candidates of several groups are chosen among
     together (:func:`_choose` once per view where its prompts number fewer than
     ``chunk_size``: fewer kernel launches on a GPU), so memory stays bounded by
     ``2 * chunk_size`` candidates per view. A view's outcome does not depend on which views
@@ -407,6 +444,8 @@ def refine_many(
     jobs: dict[tuple[int, bool], dict[int, list[tuple[torch.Tensor, Prompts]]]] = defaultdict(
         lambda: defaultdict(list)
     )
+    merge = segmenter.skips_absent_points
+    groups: list[tuple[int, torch.Tensor, Prompts]] = []  # (view, rows in its masks, prompts)
     for k, request in enumerate(requests):
         n = request.coarse.shape[0]
         device = request.coarse.device
@@ -418,11 +457,17 @@ def refine_many(
         prompts, _, index = _prompts_of(request.weights, request.frame_runs)
         if prompts is None:
             continue
-        for positions, group in _prompt_groups(index, prompts, request.extra_points):
-            shape = (int(group.points.shape[1]), group.boxes is not None)
-            for start in range(0, len(positions), chunk_size):
-                chunk = slice(start, start + chunk_size)
-                jobs[shape][k].append((index[positions[chunk]], group.subset(chunk)))
+        groups.extend((k, index[positions], group)
+                      for positions, group in _prompt_groups(index, prompts,
+                                                             request.extra_points, merge))
+    if merge and groups:  # every view's prompts one length: one call for all views
+        width = max(int(group.points.shape[1]) for _, _, group in groups)
+        groups = [(k, rows, _pad_points(group, width)) for k, rows, group in groups]
+    for k, rows, group in groups:
+        shape = (int(group.points.shape[1]), group.boxes is not None)
+        for start in range(0, len(rows), chunk_size):
+            chunk = slice(start, start + chunk_size)
+            jobs[shape][k].append((rows[chunk], group.subset(chunk)))
     # A view's candidates wait until ``chunk_size`` rows are in (or the last call), then are
     # chosen among at once: one choice per view, not per group of carried clicks.
     waiting: dict[int, list[tuple[torch.Tensor, torch.Tensor]]] = defaultdict(list)

@@ -25,12 +25,20 @@ import torch.nn.functional as F
 from lfsam.errors import LfsamError
 
 __all__ = [
+    "ABSENT_POINT",
     "AutoMasks",
     "MaskPrediction",
     "Prompts",
     "Segmenter",
     "ViewEmbedding",
 ]
+
+
+ABSENT_POINT = -2
+"""Point label of a point that is not there (docs/design.md section 3.5, "one decoder call for
+prompts of different lengths"): a segmenter whose :attr:`Segmenter.skips_absent_points` is True
+answers a prompt padded with such points exactly as the prompt without them. Unlike SAM 2's
+own padding label -1, which the decoder attends to like any token."""
 
 
 @dataclass
@@ -42,9 +50,14 @@ class Prompts:
     points : (N, P, 2) float array or tensor, optional
         Point coordinates ``(x, y)`` in view pixels.
     point_labels : (N, P) int array or tensor, optional
-        1 = positive (object), 0 = negative (background); required with ``points``.
+        1 = positive (object), 0 = negative (background), -1 = SAM 2's padding point (a token
+        the decoder attends to), :data:`ABSENT_POINT` = no point at all (prompts of different
+        lengths in one batch); required with ``points``.
     boxes : (N, 4) float array or tensor, optional
         Boxes ``(x0, y0, x1, y1)`` in view pixels.
+    absent_points : bool, optional
+        Whether some labels are :data:`ABSENT_POINT`. Found from the labels when not given
+        (for labels on a GPU that reads them back: give it where the prompts are made).
 
     Arrays are kept as NumPy arrays (float32 / int64); torch tensors stay tensors on their
     device, cast once to the same dtypes, so prompts made on the device (refinement,
@@ -60,6 +73,7 @@ class Prompts:
     points: np.ndarray | torch.Tensor | None = None
     point_labels: np.ndarray | torch.Tensor | None = None
     boxes: np.ndarray | torch.Tensor | None = None
+    absent_points: bool | None = None
 
     def __post_init__(self) -> None:
         if self.points is None and self.boxes is None:
@@ -73,6 +87,10 @@ class Prompts:
             self.point_labels = _as(self.point_labels, torch.int64).reshape(
                 tuple(self.points.shape[:2])
             )
+            if self.absent_points is None:
+                self.absent_points = bool((self.point_labels == ABSENT_POINT).any())
+        else:
+            self.absent_points = False
         if self.boxes is not None:
             self.boxes = _as(self.boxes, torch.float32).reshape(-1, 4)
         if self.points is not None and self.boxes is not None:
@@ -91,6 +109,9 @@ class Prompts:
             points=None if self.points is None else self.points[index],
             point_labels=None if self.point_labels is None else self.point_labels[index],
             boxes=None if self.boxes is None else self.boxes[index],
+            absent_points=(
+                self.absent_points if isinstance(self.point_labels, torch.Tensor) else None
+            ),
         )
 
 
@@ -169,6 +190,10 @@ class Segmenter(abc.ABC):
     points_per_side: int = 32
     """Density of the automatic mode's point grid (points per image side); the extra reference
     views of :class:`lfsam.generator.LightFieldMaskGenerator` ask at half of it."""
+    skips_absent_points: bool = False
+    """Whether :meth:`predict` answers a prompt padded with :data:`ABSENT_POINT` points exactly
+    as the prompt without them (up to rounding), so prompts of different lengths can share one
+    call; refinement decodes them apart otherwise (docs/design.md section 3.5)."""
 
     def __init__(self) -> None:
         self.encode_calls = 0

@@ -96,6 +96,9 @@ class OracleSegmenter(Segmenter):
     name = "oracle"
     random_weights = False  # answers come from ground truth, not from a model
 
+    skips_absent_points = True
+    """Only labels 1 and 0 select or exclude regions; any other point is ignored."""
+
     def __init__(
         self,
         lightfield: LightField,

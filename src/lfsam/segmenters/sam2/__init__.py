@@ -6,6 +6,8 @@
   ``predict``, ``generate``, ``sample_features``);
 - :mod:`~lfsam.segmenters.sam2.decoder`: the batched mask decoder (many prompts share a view's
   image side);
+- :mod:`~lfsam.segmenters.sam2.two_way`: its two-way transformer (absent points masked out);
+- :mod:`~lfsam.segmenters.sam2.multiview`: prompts of several views in one decoder call;
 - :mod:`~lfsam.segmenters.sam2.adapter`: the one place that touches sam2's private names.
 
 Modules load on demand (``from lfsam.segmenters.sam2.backend import Sam2Segmenter``), so

@@ -191,10 +191,14 @@ class CachedFeaturePredictor(SAM2ImagePredictor):
         point_labels: torch.Tensor | None,
         boxes: torch.Tensor | None = None,
         multimask_output: bool = True,
+        absent_points: bool = False,
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Masks, IoU predictions and low-resolution logits of prompts in model-input pixels
-        (as ``SAM2ImagePredictor._prep_prompts`` makes them), on the image set last."""
-        return self._predict(point_coords, point_labels, boxes, multimask_output=multimask_output)
+        (as ``SAM2ImagePredictor._prep_prompts`` makes them), on the image set last;
+        ``absent_points``: points labelled :data:`~lfsam.segmenters.base.ABSENT_POINT` are
+        masked out (:func:`~lfsam.segmenters.sam2.decoder.decode_prompts`)."""
+        return self._predict(point_coords, point_labels, boxes, multimask_output=multimask_output,
+                             absent_points=absent_points)
 
     def _predict(
         self,
@@ -205,6 +209,7 @@ class CachedFeaturePredictor(SAM2ImagePredictor):
         multimask_output: bool = True,
         return_logits: bool = False,
         img_idx: int = -1,
+        absent_points: bool = False,
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         if mask_input is not None:
             return super()._predict(
@@ -220,7 +225,7 @@ class CachedFeaturePredictor(SAM2ImagePredictor):
         low_res, iou = decode_prompts(
             self.model, image_embed, high_res, point_coords, point_labels, boxes,
             multimask_output, chunk_size=self.decode_chunk_size, clamp=False,
-            state=self.image_state,
+            state=self.image_state, absent_points=absent_points,
         )
         masks = self._transforms.postprocess_masks(low_res, self._orig_hw[img_idx])
         low_res = torch.clamp(low_res, -LOGIT_CLAMP, LOGIT_CLAMP)

@@ -160,6 +160,10 @@ class Sam2Segmenter(Segmenter):
     >>> pred = seg.predict(emb, Prompts(points=[[[40, 30]]], point_labels=[[1]]))  # doctest: +SKIP
     """
 
+    skips_absent_points = True
+    """Absent points are masked out as keys in every attention of the decoder
+    (:func:`lfsam.segmenters.sam2.decoder.absent_tokens`)."""
+
     def __init__(
         self,
         model: torch.nn.Module,
@@ -414,10 +418,12 @@ class Sam2Segmenter(Segmenter):
         """Decode N prompts on one view: prompt encoder + mask decoder, batched.
 
         Computes what ``SAM2ImagePredictor._predict`` computes (points and boxes merged as
-        there: box corners first; a point label of -1 marks padding, for prompts with fewer
-        points than others), through :meth:`CachedFeaturePredictor.predict_prompts`, i.e. the
-        decoder of :mod:`lfsam.segmenters.sam2.decoder` that shares the prompt-independent part
-        across prompts (issue #5). Prompts go through in groups of :attr:`max_prompts_per_batch`
+        there: box corners first; a point label of -1 is SAM 2's padding point, one of
+        :data:`~lfsam.segmenters.base.ABSENT_POINT` no point at all, masked out in the
+        decoder's attention: :attr:`skips_absent_points`), through
+        :meth:`CachedFeaturePredictor.predict_prompts`, i.e. the decoder of
+        :mod:`lfsam.segmenters.sam2.decoder` that shares the prompt-independent part across
+        prompts (issue #5). Prompts go through in groups of :attr:`max_prompts_per_batch`
         (which also caps how many the decoder takes at once).
 
         Returns
@@ -453,7 +459,8 @@ class Sam2Segmenter(Segmenter):
                     sub = prompts.subset(slice(start, start + self.max_prompts_per_batch))
                     coords, labels, boxes = self._prompt_tensors(sub, (u_size, v_size))
                     m, iou, lr = predictor.predict_prompts(
-                        coords, labels, boxes, multimask_output=multimask_output
+                        coords, labels, boxes, multimask_output=multimask_output,
+                        absent_points=bool(sub.absent_points),
                     )
                     masks.append(m)
                     ious.append(iou.float())
@@ -506,6 +513,7 @@ class Sam2Segmenter(Segmenter):
                 self.cross_view_rows if cuda else default_chunk_size(self.device),
                 image_transforms(self._predictor), hw, self.mask_threshold,
                 compiled=self._compiled_pass(),
+                absent_points=any(bool(p.absent_points) for p in prompts),
             )
         self.decoder_calls += calls
         return [MaskPrediction(*x) for x in out]

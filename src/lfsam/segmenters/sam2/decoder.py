@@ -59,14 +59,15 @@ Everything runs on the model's device in the caller's autocast context (bf16 on 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import torch
 import torch.nn.functional as F
 from torch import nn
 
 from lfsam.devices import CUDA_PROMPT_BATCH_SIZE
 from lfsam.errors import LfsamError
+from lfsam.segmenters.base import ABSENT_POINT
+from lfsam.segmenters.sam2.image_state import ImageState
+from lfsam.segmenters.sam2.two_way import _heads, absent_tokens, transformer
 
 __all__ = [
     "ACCELERATOR_CHUNK_SIZE",
@@ -74,6 +75,7 @@ __all__ = [
     "DEFAULT_TILE_ROWS",
     "LOGIT_CLAMP",
     "ImageState",
+    "absent_tokens",
     "decode_prompts",
     "default_chunk_size",
     "embed_prompts",
@@ -99,63 +101,7 @@ LOGIT_CLAMP = 32.0
 """``SAM2ImagePredictor._predict`` clamps the returned low-resolution logits to +-32."""
 
 
-@dataclass
-class ImageState:
-    """Prompt-independent tensors of one image, computed once by :func:`prepare_image`.
-
-    ``HW`` is the number of embedding pixels (64 x 64 for a 1024 input), ``C`` the decoder width,
-    ``h`` the number of attention heads and ``d`` the width per head.
-
-    Parameters
-    ----------
-    grid : (H, W)
-        Size of the image embedding.
-    src : (HW, C)
-        ``image_embed + no_mask_embed``, pixels as rows (the transformer's initial keys).
-    first_k, first_v : (h, HW, d)
-        First block, token-to-image attention: ``k_proj(src + pe)`` and ``v_proj(src)``.
-    first_q : (h, d, HW)
-        First block, image-to-token attention: ``q_proj(src + pe)`` (transposed per head).
-    pe_k : list of (h, d, HW)
-        For each later block and then the final attention: ``W_k pe`` (no bias) of its
-        token-to-image attention.
-    pe_q : list of (h, d, HW)
-        For each later block: ``W_q pe + b_q`` of its image-to-token attention.
-    up1 : (HW, 4 C/4)
-        Additive term of the first upscaling step in block order ``(pixel, di, dj, channel)``:
-        ``conv_s1`` features (when used) plus the transposed convolution's bias.
-    up2 : (4 HW, 4 C/8)
-        Same for the second step, rows ``(pixel, di, dj)``, columns ``(di2, dj2, channel)``.
-    w1, w2 : (C, 4 C/4), (C/4, 4 C/8)
-        The two transposed convolutions as matrices with the same column order.
-    rows : (B,) int64 tensor, optional
-        Set on the state of a chunk of prompts from several images
-        (:func:`lfsam.segmenters.sam2.multiview.decode_views`): the image of each prompt. Then
-        ``src``, ``first_k``, ``first_v`` and ``first_q`` have a leading prompt axis (that
-        prompt's image), and ``up1``, ``up2`` a leading image axis that ``rows`` indexes.
-    """
-
-    grid: tuple[int, int]
-    src: torch.Tensor
-    first_k: torch.Tensor
-    first_v: torch.Tensor
-    first_q: torch.Tensor
-    pe_k: list[torch.Tensor]
-    pe_q: list[torch.Tensor]
-    up1: torch.Tensor
-    up2: torch.Tensor
-    w1: torch.Tensor
-    w2: torch.Tensor
-    rows: torch.Tensor | None = None
-
-
 # --- small helpers ---------------------------------------------------------------------------
-def _heads(attn: nn.Module) -> tuple[int, int]:
-    """Number of heads and width per head of a SAM ``Attention`` layer."""
-    h = int(attn.num_heads)
-    return h, int(attn.internal_dim) // h
-
-
 def _project_heads(
     x: torch.Tensor, layer: nn.Linear, h: int, bias: bool = True, transpose: bool = False
 ) -> torch.Tensor:
@@ -289,7 +235,9 @@ def embed_prompts(
     padding point (label -1) because boxes go in as points. Point label -1 marks padding. A model
     whose ``boxes_as_points`` is False (SAM v1 from ``transformers``, whose predictors pass boxes
     as boxes) gets the points first, without the padding point when there is a box, then the box
-    corners (``PromptEncoder.forward(points, boxes)``; docs/design.md section 3.8).
+    corners (``PromptEncoder.forward(points, boxes)``; docs/design.md section 3.8). A point
+    labelled :data:`~lfsam.segmenters.base.ABSENT_POINT` is embedded as padding; the decoder
+    masks it out when given :func:`absent_tokens`.
 
     Parameters
     ----------
@@ -307,6 +255,8 @@ def embed_prompts(
         raise LfsamError("a prompt needs points, a box, or both")
     if point_coords is not None and point_labels is None:
         raise LfsamError("points need labels (1 = positive, 0 = negative, -1 = padding)")
+    if point_labels is not None:
+        point_labels = torch.where(point_labels == ABSENT_POINT, -1, point_labels)
     points = None if point_coords is None else (point_coords, point_labels)
     if boxes is not None and points is not None and points[0].shape[0] != boxes.shape[0]:
         raise LfsamError(
@@ -329,152 +279,6 @@ def embed_prompts(
             points = (box_coords, box_labels)
     sparse, _dense = model.sam_prompt_encoder(points=points, boxes=None, masks=None)
     return sparse
-
-
-# --- the transformer, image side shared or per prompt ----------------------------------------
-def _value_rows(attn: nn.Module, v_tokens: torch.Tensor) -> torch.Tensor:
-    """Rows ``W_o,h (W_v,h v_j + b_v,h) + b_o / heads`` of image-to-token attention, (B, hT, C).
-
-    With attention weights ``a`` (pixels, heads x tokens) whose rows sum to 1 within each head,
-    ``a @ rows`` is the attention layer's output including ``out_proj`` and its bias.
-    """
-    h, d = _heads(attn)
-    b, t, _ = v_tokens.shape
-    vh = attn.v_proj(v_tokens).view(b, t, h, d)
-    wo = attn.out_proj.weight.view(-1, h, d)  # (C, h, d)
-    rows = torch.einsum("bthd,chd->bhtc", vh, wo) + attn.out_proj.bias / h
-    return rows.reshape(b, h * t, -1)
-
-
-def _image_to_token_first(
-    attn: nn.Module, st: ImageState, k_tokens: torch.Tensor, v_tokens: torch.Tensor
-) -> torch.Tensor:
-    """First block: shared image queries attend to each prompt's tokens; returns src + attn_out.
-
-    Output (B, HW, C) is the residual sum before ``norm4``. Scores are laid out
-    (heads, prompts, tokens, pixels) so that the softmax over the few tokens runs along a
-    non-contiguous axis with the pixels contiguous (much faster than a softmax over a last axis of
-    about 10 entries).
-    """
-    h, d = _heads(attn)
-    b, t, _ = k_tokens.shape
-    hw = st.src.shape[-2]
-    kh = attn.k_proj(k_tokens) * d**-0.5  # softmax scale of scaled_dot_product_attention
-    if st.rows is not None:  # each prompt its own image's queries (B, h, d, HW)
-        scores = torch.matmul(kh.view(b, t, h, d).transpose(1, 2), st.first_q)
-        weights = torch.softmax(scores, dim=2).reshape(b, h * t, hw)
-    else:
-        kh = kh.view(b * t, h, d).transpose(0, 1)  # (h, B T, d)
-        scores = torch.bmm(kh, st.first_q).view(h, b, t, hw)
-        weights = torch.softmax(scores, dim=2).transpose(0, 1).reshape(b, h * t, hw)
-    return torch.baddbmm(st.src, weights.transpose(1, 2), _value_rows(attn, v_tokens))
-
-
-def _image_to_token(
-    attn: nn.Module,
-    keys: torch.Tensor,
-    pe_q: torch.Tensor,
-    k_tokens: torch.Tensor,
-    v_tokens: torch.Tensor,
-) -> torch.Tensor:
-    """Image-to-token attention on per-prompt image keys (B, HW, C); returns keys + attn_out.
-
-    Scores ``x . (W_q,h^T k_h) + (W_q,h pe + b_q,h) . k_h`` (module docstring, point 2), laid
-    out (prompts, heads, tokens, pixels) as in :func:`_image_to_token_first`.
-    """
-    h, d = _heads(attn)
-    b, t, c = k_tokens.shape
-    hw = keys.shape[1]
-    kh = (attn.k_proj(k_tokens) * d**-0.5).view(b, t, h, d)
-    wq = attn.q_proj.weight.view(h, d, c)
-    g_t = torch.einsum("bthd,hdc->bhtc", kh, wq).reshape(b, h * t, c)
-    scores = torch.bmm(g_t, keys.transpose(1, 2)).view(b, h, t, hw)
-    pe_term = torch.bmm(kh.permute(2, 0, 1, 3).reshape(h, b * t, d), pe_q)  # (h, B T, HW)
-    scores += pe_term.view(h, b, t, hw).transpose(0, 1)
-    weights = torch.softmax(scores, dim=2).view(b, h * t, hw)
-    return torch.baddbmm(keys, weights.transpose(1, 2), _value_rows(attn, v_tokens))
-
-
-def _token_to_image_first(attn: nn.Module, st: ImageState, q_tokens: torch.Tensor) -> torch.Tensor:
-    """First block: every prompt's tokens attend to the shared keys/values (batched queries)."""
-    h, d = _heads(attn)
-    b, t, _ = q_tokens.shape
-    q = attn.q_proj(q_tokens)
-    if st.rows is not None:  # each prompt its own image's keys and values (B, h, HW, d)
-        q = q.view(b, t, h, d).transpose(1, 2)
-        out = F.scaled_dot_product_attention(q, st.first_k, st.first_v).transpose(1, 2)
-        return attn.out_proj(out.reshape(b, t, h * d))
-    q = q.view(b * t, h, d).transpose(0, 1)  # (h, B T, d)
-    out = F.scaled_dot_product_attention(q, st.first_k, st.first_v)  # (h, B T, d)
-    out = out.transpose(0, 1).reshape(b, t, h * d)
-    return attn.out_proj(out)
-
-
-def _token_to_image(
-    attn: nn.Module, q_tokens: torch.Tensor, keys: torch.Tensor, pe_k: torch.Tensor
-) -> torch.Tensor:
-    """Token-to-image attention on per-prompt image keys (B, HW, C) (module docstring, point 2).
-
-    Scores ``(q_h W_k,h) . x + q_h . (W_k,h pe)`` (the key bias only shifts each row of scores);
-    output ``W_o concat_h(W_v,h (a_h @ x) + b_v,h) + b_o``.
-    """
-    h, d = _heads(attn)
-    b, t, c = q_tokens.shape
-    hw = keys.shape[1]
-    qh = (attn.q_proj(q_tokens) * d**-0.5).view(b, t, h, d)
-    wk = attn.k_proj.weight.view(h, d, c)
-    qt = torch.einsum("bthd,hdc->bhtc", qh, wk).reshape(b, h * t, c)
-    pe_term = torch.bmm(qh.permute(2, 0, 1, 3).reshape(h, b * t, d), pe_k)  # (h, B T, HW)
-    scores = torch.bmm(qt, keys.transpose(1, 2)).view(b, h, t, hw)
-    scores += pe_term.view(h, b, t, hw).transpose(0, 1)
-    weights = torch.softmax(scores.view(b, h * t, hw), dim=-1)
-    pooled = torch.bmm(weights, keys).view(b, h, t, c)
-    wv = attn.v_proj.weight.view(h, d, c)
-    out = torch.einsum("bhtc,hdc->bthd", pooled, wv) + attn.v_proj.bias.view(h, d)
-    return attn.out_proj(out.reshape(b, t, h * d))
-
-
-def _transformer(
-    tr: nn.Module, st: ImageState, tokens: torch.Tensor, rows: list[int]
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """``TwoWayTransformer.forward`` with the image side shared until it depends on the prompt.
-
-    Returns the processed tokens (B, len(rows), C) and image keys (B, HW, C), as the original.
-    The final token-to-image attention and norm act on each token separately, so they are
-    computed only for the token ``rows`` the decoder reads (IoU and wanted mask tokens).
-    """
-    queries, query_pe = tokens, tokens
-    keys: torch.Tensor | None = None  # None: still the shared st.src
-    for i, layer in enumerate(tr.layers):
-        if layer.skip_first_layer_pe:
-            queries = layer.self_attn(q=queries, k=queries, v=queries)
-        else:
-            q = queries + query_pe
-            queries = queries + layer.self_attn(q=q, k=q, v=queries)
-        queries = layer.norm1(queries)
-
-        q = queries + query_pe
-        if keys is None:
-            attn_out = _token_to_image_first(layer.cross_attn_token_to_image, st, q)
-        else:
-            attn_out = _token_to_image(layer.cross_attn_token_to_image, q, keys, st.pe_k[i - 1])
-        queries = layer.norm2(queries + attn_out)
-        queries = layer.norm3(queries + layer.mlp(queries))
-
-        q = queries + query_pe
-        if keys is None:
-            keys = _image_to_token_first(layer.cross_attn_image_to_token, st, q, queries)
-        else:
-            keys = _image_to_token(
-                layer.cross_attn_image_to_token, keys, st.pe_q[i - 1], q, queries
-            )
-        keys = layer.norm4(keys)
-
-    queries, query_pe = queries[:, rows], query_pe[:, rows]
-    q = queries + query_pe
-    attn_out = _token_to_image(tr.final_attn_token_to_image, q, keys, st.pe_k[-1])
-    queries = tr.norm_final_attn(queries + attn_out)
-    return queries, keys
 
 
 def _mask_logits(
@@ -551,8 +355,10 @@ def _decode_chunk(
     sparse: torch.Tensor,
     multimask_output: bool,
     tile_rows: int = DEFAULT_TILE_ROWS,
+    absent: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """``MaskDecoder.forward`` for a chunk of prompts: (B, K, 4H, 4W) logits and (B, K) IoU."""
+    """``MaskDecoder.forward`` for a chunk of prompts: (B, K, 4H, 4W) logits and (B, K) IoU;
+    ``absent`` (B, T) bool: prompt tokens masked out (:func:`absent_tokens`)."""
     dec = model.sam_mask_decoder
     b = sparse.shape[0]
     s = 1 if dec.pred_obj_scores else 0
@@ -561,6 +367,13 @@ def _decode_chunk(
         parts.insert(0, dec.obj_score_token.weight)
     output_tokens = torch.cat(parts, dim=0).unsqueeze(0).expand(b, -1, -1)
     tokens = torch.cat((output_tokens, sparse.to(output_tokens.dtype)), dim=1)
+    if absent is not None:
+        if absent.shape != sparse.shape[:2]:
+            raise LfsamError(
+                f"absent-token mask of shape {tuple(absent.shape)} for prompts of "
+                f"{tuple(sparse.shape[:2])} tokens; make it with absent_tokens"
+            )
+        absent = F.pad(absent, (output_tokens.shape[1], 0), value=False)
 
     dynamic = not multimask_output and dec.dynamic_multimask_via_stability and not dec.training
     if multimask_output:
@@ -570,7 +383,9 @@ def _decode_chunk(
     else:
         wanted = [0]
     # token order of MaskDecoder.predict_masks: [obj_score,] iou, mask tokens, prompt tokens
-    hs, keys = _transformer(dec.transformer, st, tokens, [s] + [s + 1 + i for i in wanted])
+    hs, keys = transformer(
+        dec.transformer, st, tokens, [s] + [s + 1 + i for i in wanted], absent
+    )
     iou_pred = dec.iou_prediction_head(hs[:, 0, :])
     hyper = torch.stack(
         [dec.output_hypernetworks_mlps[i](hs[:, 1 + j, :]) for j, i in enumerate(wanted)], dim=1
@@ -615,6 +430,7 @@ def decode_prompts(
     clamp: bool = True,
     state: ImageState | None = None,
     tile_rows: int = DEFAULT_TILE_ROWS,
+    absent_points: bool = False,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Decode N prompts on one image: ``SAM2ImagePredictor._predict`` before post-processing.
 
@@ -634,7 +450,8 @@ def decode_prompts(
     point_coords : (N, P, 2) tensor or None
         Points in model-input pixels, as ``SAM2ImagePredictor._prep_prompts`` makes them.
     point_labels : (N, P) int tensor or None
-        1 positive, 0 negative, -1 padding (not a point).
+        1 positive, 0 negative, -1 padding (not a point),
+        :data:`~lfsam.segmenters.base.ABSENT_POINT` absent (with ``absent_points``).
     boxes : (N, 4) tensor or None
         Boxes in model-input pixels; merged before the points as box corners (labels 2, 3).
     multimask_output : bool
@@ -653,6 +470,10 @@ def decode_prompts(
         From :func:`prepare_image` for this image, to reuse it across calls.
     tile_rows : int
         Embedding rows upscaled together (a speed setting; the result does not depend on it).
+    absent_points : bool
+        Mask out the points labelled :data:`~lfsam.segmenters.base.ABSENT_POINT`
+        (:func:`absent_tokens`): each prompt answers as without them, so prompts of different
+        lengths share a call. False: such points are SAM 2's padding.
 
     Returns
     -------
@@ -670,12 +491,16 @@ def decode_prompts(
         )
     with torch.no_grad():
         sparse = embed_prompts(model, point_coords, point_labels, boxes)
+        absent = absent_tokens(model, point_labels, boxes) if absent_points else None
         if state is None:
             state = prepare_image(model, image_embed, high_res_feats)
         masks, ious = [], []
         for start in range(0, sparse.shape[0], chunk_size):
-            chunk = sparse[start : start + chunk_size]
-            m, iou = _decode_chunk(model, state, chunk, multimask_output, tile_rows)
+            chunk = slice(start, start + chunk_size)
+            m, iou = _decode_chunk(
+                model, state, sparse[chunk], multimask_output, tile_rows,
+                None if absent is None else absent[chunk],
+            )
             masks.append(m)
             ious.append(iou)
         if not masks:

@@ -29,6 +29,7 @@ from lfsam.segmenters.sam2.decoder import (
     LOGIT_CLAMP,
     ImageState,
     _decode_chunk,
+    absent_tokens,
     embed_prompts,
 )
 
@@ -124,6 +125,7 @@ def decode_views(
     clamp: bool = True,
     tile_rows: int = DEFAULT_TILE_ROWS,
     compiled: Callable[..., tuple[torch.Tensor, torch.Tensor]] | None = None,
+    absent: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Decode N prompts of several views, ``chunk_size`` prompts per decoder pass, whatever
     their views: what :func:`~lfsam.segmenters.sam2.decoder.decode_prompts` computes for each
@@ -155,6 +157,9 @@ def decode_views(
         graphs): every pass is then padded to ``chunk_size`` prompts (the last prompt
         repeated; prompts do not see each other, the padding is dropped), so one shape serves
         all passes, and each pass's output is copied out of the graph's memory.
+    absent : (N, T) bool tensor, optional
+        Tokens that are absent points, masked out
+        (:func:`~lfsam.segmenters.sam2.decoder.absent_tokens`).
 
     Returns
     -------
@@ -169,17 +174,23 @@ def decode_views(
     masks, ious = [], []
     with torch.no_grad():
         for start in range(0, sparse.shape[0], chunk_size):
-            rows, tokens = views[start : start + chunk_size], sparse[start : start + chunk_size]
+            chunk = slice(start, start + chunk_size)
+            rows, tokens = views[chunk], sparse[chunk]
+            skip = None if absent is None else absent[chunk]
             if compiled is None:
                 m, iou = _decode_chunk(
-                    model, _chunk_state(stacked, rows), tokens, multimask_output, tile_rows
+                    model, _chunk_state(stacked, rows), tokens, multimask_output, tile_rows,
+                    skip,
                 )
             else:
                 count, pad = len(rows), chunk_size - len(rows)
                 rows = torch.cat([rows, rows[-1:].expand(pad)])
                 tokens = torch.cat([tokens, tokens[-1:].expand(pad, -1, -1)])
+                if skip is not None:
+                    skip = torch.cat([skip, skip[-1:].expand(pad, -1)])
                 m, iou = compiled(
-                    model, _chunk_state(stacked, rows), tokens, multimask_output, tile_rows
+                    model, _chunk_state(stacked, rows), tokens, multimask_output, tile_rows,
+                    skip,
                 )
                 m, iou = m[:count].clone(), iou[:count].clone()
             masks.append(m)
@@ -209,6 +220,7 @@ def decode_prompt_batches(
     mask_threshold: float,
     *,
     compiled: Callable[..., tuple[torch.Tensor, torch.Tensor]] | None = None,
+    absent_points: bool = False,
 ) -> tuple[list[tuple[torch.Tensor, torch.Tensor, torch.Tensor]], int]:
     """Masks of each view's prompts, every ``rows_per_call`` prompts of all views decoded
     together (:meth:`lfsam.segmenters.sam2.backend.Sam2Segmenter.predict_many`).
@@ -227,6 +239,8 @@ def decode_prompt_batches(
         Post-processing of the logits (upsampling to ``image_size``).
     image_size : (U, V)
     mask_threshold : float
+    absent_points : bool
+        Mask out the points labelled :data:`~lfsam.segmenters.base.ABSENT_POINT`.
 
     Returns
     -------
@@ -248,12 +262,11 @@ def decode_prompt_batches(
     masks, ious, low_res = [], [], []
     for start in range(0, len(views), rows_per_call):
         rows = slice(start, start + rows_per_call)
-        sparse = embed_prompts(
-            model, None if coords is None else coords[rows],
-            None if labels is None else labels[rows], None if boxes is None else boxes[rows],
-        )
+        chunk = [None if x is None else x[rows] for x in (coords, labels, boxes)]
+        sparse = embed_prompts(model, *chunk)
+        absent = absent_tokens(model, chunk[1], chunk[2]) if absent_points else None
         lr, iou = decode_views(model, stacked, sparse, views[rows], multimask_output,
-                               chunk_size, clamp=False, compiled=compiled)
+                               chunk_size, clamp=False, compiled=compiled, absent=absent)
         masks.append(transforms.postprocess_masks(lr, image_size) > mask_threshold)
         low_res.append(torch.clamp(lr, -LOGIT_CLAMP, LOGIT_CLAMP).float())
         ious.append(iou.float())
