@@ -238,3 +238,28 @@ def test_the_compiled_pass_masks_absent_points():
     for a, b in zip(got, want, strict=True):
         assert torch.equal(a.masks, b.masks)
         torch.testing.assert_close(a.low_res_logits, b.low_res_logits, atol=1e-5, rtol=0)
+
+
+@pytest.mark.cuda
+@pytest.mark.parametrize("precision", ["float32", "bfloat16"])
+def test_cuda_absent_points_leave_the_answer(precision):
+    """On CUDA (``make gpu-check``), the cross-view pass and its autocast: padded prompts of two
+    views in one call against each prompt alone (float32 logits within 1e-4; bfloat16 rounds
+    the two batches differently, so only the masks, at most 1 % of pixels apart)."""
+    segmenter = load_segmenter("sam2-tiny-test", device="cuda", random_weights=True,
+                               precision=precision, cross_view_decode=True)
+    lf = generate_scene(grid=(1, 2), size=(40, 56), seed=5, num_objects=3)
+    embeddings = segmenter.encode(lf.views[0], keys=[(0, 0), (0, 1)])
+    padded = [_scene_prompts([1, 3, 2], 7, absent_width=3), _scene_prompts([2, 1], 8, 3)]
+    many = segmenter.predict_many(embeddings, padded)
+    for embedding, batch, got in zip(embeddings, padded, many, strict=True):
+        labels = np.asarray(batch.point_labels)
+        for i in range(len(batch)):
+            count = int((labels[i] != ABSENT_POINT).sum())
+            alone = segmenter.predict(embedding, Prompts(
+                points=batch.points[i : i + 1, :count],
+                point_labels=labels[i : i + 1, :count], boxes=batch.boxes[i : i + 1]))
+            if precision == "float32":
+                torch.testing.assert_close(got.low_res_logits[i : i + 1], alone.low_res_logits,
+                                           atol=LOGIT_ATOL, rtol=0)
+            assert (got.masks[i] != alone.masks[0]).float().mean().item() <= 0.01
