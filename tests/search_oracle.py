@@ -31,3 +31,24 @@ def search_one_image(track: Track, image: np.ndarray, answer: Callable, **option
     placed = options.pop("placed", None)
     return search_object(1, track, lambda v: image, CENTER, [], answer, lambda v: placed,
                          None, (), False, **options)
+
+
+def covered_object(shown: int, seed: int, skirt: tuple[slice, slice]
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """An object of 20 x 30 random bright pixels at (20, 30) on a dark random background
+    (label 1), all but its first ``shown`` pixels (row by row) behind a black cover (label 3)
+    that also spreads over ``skirt`` outside the object: ``(look, image, labels, cover)``."""
+    rng = np.random.default_rng(seed)
+    look = rng.uniform(150, 250, (20, 30, 3)).astype(np.float32)
+    image = rng.uniform(20, 90, (80, 100, 3)).astype(np.float32)
+    labels = np.ones((80, 100), np.int64)
+    image[20:40, 30:60] = look
+    labels[20:40, 30:60] = 2
+    hidden = np.ones((20, 30), bool)
+    hidden.ravel()[:shown] = False
+    cover = np.zeros((80, 100), bool)
+    cover[skirt] = True
+    cover[20:40, 30:60] = hidden
+    image[cover] = 0.0
+    labels[cover] = 3
+    return look, image, labels, cover

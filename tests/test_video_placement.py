@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from lfsam.api import RunOptions, SegmentOptions
 from lfsam.prompts import ObjectPrompts, PointPrompt
-from lfsam.video import placement
+from lfsam.video import placement, search
 from lfsam.video.carry import Template, deepest
 from lfsam.video.online import OnlineTracker
 from lfsam.video.placement import answer_place, placed_by_answer
@@ -140,6 +140,10 @@ def test_a_behind_the_occluder_is_kept_where_its_answers_place_it(behind,
     assert shown[1] < 100 and min(shown[2:]) >= 100
     ious = _center_ious(behind, 6)
     assert min(ious[2:]) >= 0.9, ious
-    # placed by its matches alone, it drifts off and is lost at frame 8
+    # placed by its matches alone, it drifts off and is lost at frame 8 (unless the ring's
+    # views count only what the objects placed in the frame leave of it, sixteenth pass:
+    # that also finds it there)
     monkeypatch.setattr(placement, "CHECK", False)
+    assert _center_ious(behind, 6)[8] >= 0.9
+    monkeypatch.setattr(search, "PLACED_SUPPORT", False)
     assert _center_ious(behind, 6)[8] < 0.5

@@ -13,29 +13,17 @@ import pytest
 from lfsam.video import search
 from lfsam.video.carry import Template
 from lfsam.video.search import Track
-from search_oracle import CENTER, label_answer, search_one_image
+from search_oracle import CENTER, covered_object, label_answer, search_one_image
 
 OWN = (0, 0)
 
 
 def _scene(shown: int):
     """An object of 20 x 30 pixels at (20, 30) under a cover that leaves its first ``shown``
-    pixels (row by row) in sight, and its template from an answer one pixel too wide: 22 x 32
-    pixels, the ring of a colour that is nowhere in this frame."""
-    rng = np.random.default_rng(3)
-    look = rng.uniform(150, 250, (20, 30, 3)).astype(np.float32)
-    image = rng.uniform(20, 90, (80, 100, 3)).astype(np.float32)
-    labels = np.ones((80, 100), np.int64)
-    image[20:40, 30:60] = look
-    labels[20:40, 30:60] = 2
-    hidden = np.ones((20, 30), bool)
-    hidden.ravel()[:shown] = False
-    cover = np.zeros((80, 100), bool)
-    cover[20:40, 30:60] = hidden
-    cover[30:45, 25:65] = True  # the cover reaches past the object's lower half
-    cover[20:40, 30:60] &= hidden
-    image[cover] = 0.0
-    labels[cover] = 3
+    pixels (row by row) in sight and reaches past its lower half, and its template from an
+    answer one pixel too wide: 22 x 32 pixels, the ring of a colour that is nowhere in this
+    frame."""
+    look, image, labels, _ = covered_object(shown, 3, (slice(30, 45), slice(25, 65)))
     ringed = np.zeros((22, 32, 3), np.float32)
     ringed[..., 0], ringed[..., 2] = 255.0, 255.0  # the ring: pixels never the object
     ringed[1:21, 1:31] = look
