@@ -199,3 +199,30 @@ def test_an_engine_is_freed_as_soon_as_it_is_dropped():
         assert alive() is None
     finally:
         gc.enable()
+
+
+def test_the_warp_cache_counts_a_batched_pass_until_its_last_warp_is_dropped(monkeypatch):
+    """The warps of one batched pass are slices of shared memory blocks: dropping some frees
+    nothing, so the cache keeps counting the blocks until the last of them goes."""
+    from lfsam.timing import StageTimer
+
+    monkeypatch.setitem(warps_module.WARP_BATCH_BYTES, "cpu", 2**30)  # one pass
+    rng = np.random.default_rng(0)
+    disparity = {(0, t): torch.as_tensor(rng.uniform(-2, 2, (12, 16)), dtype=torch.float32)
+                 for t in range(4)}
+    cache = warps_module.WarpCache((12, 16), torch.device("cpu"), StageTimer(torch.device("cpu")))
+    pairs = [((0, t), (2, 2)) for t in range(4)]
+    cache.plan(pairs)
+    warps = [cache.get(lambda view, carried: disparity[view], *pair) for pair in pairs]
+    blocks = {x.untyped_storage().data_ptr(): x.untyped_storage().nbytes()
+              for w in warps for x in (w.target, w.valid, w.zbuffer, *w._index.values())}
+    assert len(blocks) == 4  # one block per array and the hole indices, shared by all four
+    seen = 12 * 16  # a byte a pixel, made later by each warp
+    assert cache.nbytes == sum(blocks.values()) + 4 * seen
+    for t in range(3):
+        cache.forget_source((0, t))
+    # one warp left, holding the whole blocks: more than its own slices
+    assert cache.nbytes == sum(blocks.values()) + seen
+    assert cache.nbytes > warps_module.warp_nbytes(warps[3])
+    cache.forget_source((0, 3))
+    assert cache.nbytes == 0

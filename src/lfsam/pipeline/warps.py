@@ -41,6 +41,17 @@ def warp_nbytes(warp: ForwardWarp) -> int:
     return sum(x.numel() * x.element_size() for x in arrays) + 9 * warp.valid.numel()
 
 
+def _footprint(warp: ForwardWarp) -> tuple[list[tuple[int, int]], int]:
+    """What a cached warp holds: ``(address, bytes)`` of the memory blocks its arrays live
+    in, and the bytes of what it makes later, a byte a pixel for the seen map and 8 for the
+    hole index unless it has it already. The warps of one batched pass
+    (:func:`lfsam.warp.forward_warps`, their hole indices too) are slices of shared blocks,
+    freed only when the last of them is."""
+    arrays = [warp.target, warp.valid, warp.zbuffer, *warp._index.values()]
+    blocks = [(x.untyped_storage().data_ptr(), x.untyped_storage().nbytes()) for x in arrays]
+    return blocks, (1 if warp._index else 9) * warp.valid.numel()
+
+
 class WarpCache:
     """Forward warps of one light field, keyed by (source view, target view, carried).
 
@@ -61,6 +72,10 @@ class WarpCache:
         self._timer = timer
         self._warps: OrderedDict[tuple[View, View, bool], ForwardWarp] = OrderedDict()
         self._bytes = 0
+        #: Memory block address -> [bytes, cached warps in it] (:func:`_footprint`).
+        self._blocks: dict[int, list[int]] = {}
+        #: What each cached warp was counted with (:func:`_footprint` when it was kept).
+        self._counted: dict[tuple[View, View, bool], tuple[list[tuple[int, int]], int]] = {}
         #: The (source, target) pairs planned, in order -> position.
         self._ahead: dict[tuple[View, View], int] = {}
 
@@ -96,18 +111,41 @@ class WarpCache:
         for pair in pairs:
             self._ahead.setdefault(pair, len(self._ahead))
 
+    @property
+    def nbytes(self) -> int:
+        """Memory the cached warps hold: every memory block their arrays live in, counted
+        once however many warps share it (a batched pass's block until its last warp is
+        dropped), plus the seen maps and hole indices the warps make later (:func:`_footprint`)."""
+        return self._bytes
+
     def forget_source(self, view: View) -> None:
         """Drop the (not carried) warps out of ``view`` (its disparity changed)."""
         for key in [key for key in self._warps if key[0] == view and not key[2]]:
-            self._bytes -= warp_nbytes(self._warps.pop(key))
+            self._drop(key)
+
+    def _count(self, blocks: list[tuple[int, int]], extra: int, step: int) -> None:
+        """Count a warp's footprint in (``step`` 1) or out (-1) of :attr:`nbytes`."""
+        self._bytes += step * extra
+        for address, size in blocks:
+            block = self._blocks.setdefault(address, [size, 0])
+            if block[1] == 0:
+                self._bytes += size
+            block[1] += step
+            if block[1] == 0:
+                self._bytes -= size
+                del self._blocks[address]
+
+    def _drop(self, key: tuple[View, View, bool]) -> None:
+        del self._warps[key]
+        self._count(*self._counted.pop(key), -1)
 
     def _keep(self, key: tuple[View, View, bool], warp: ForwardWarp) -> None:
-        """Cache a warp (LRU within :data:`WARP_CACHE_BYTES`)."""
+        """Cache a warp (LRU within :data:`WARP_CACHE_BYTES` of :attr:`nbytes`)."""
         self._warps[key] = warp
-        self._bytes += warp_nbytes(warp)
+        self._counted[key] = _footprint(warp)
+        self._count(*self._counted[key], 1)
         while self._bytes > WARP_CACHE_BYTES and len(self._warps) > 1:
-            _, old = self._warps.popitem(last=False)
-            self._bytes -= warp_nbytes(old)
+            self._drop(next(iter(self._warps)))
 
     def _build_ahead(
         self, disparity: Callable[[View, bool], torch.Tensor], source: View, target: View
