@@ -129,6 +129,15 @@ def _scene_prompts(n_points: list[int], seed: int, absent_width: int | None = No
                    boxes=corners.reshape(-1, 4).astype(np.float32))
 
 
+def _alone(batch: Prompts, i: int) -> Prompts:
+    """Prompt ``i`` of ``batch`` without its absent points."""
+    labels = np.asarray(batch.point_labels)
+    count = int((labels[i] != ABSENT_POINT).sum())
+    return Prompts(points=np.asarray(batch.points)[i : i + 1, :count],
+                   point_labels=labels[i : i + 1, :count],
+                   boxes=np.asarray(batch.boxes)[i : i + 1])
+
+
 @pytest.mark.parametrize("model", ["sam2-tiny-test", "edgetam-tiny-test"])
 def test_segmenters_answer_padded_prompts_as_the_prompts_alone(model):
     segmenter = load_segmenter(model, device="cpu", random_weights=True, cross_view_decode=True)
@@ -143,12 +152,8 @@ def test_segmenters_answer_padded_prompts_as_the_prompts_alone(model):
     for embedding, batch, got in zip(embeddings, padded, many, strict=True):
         single = segmenter.predict(embedding, batch)
         assert torch.equal(single.masks, got.masks)
-        labels = np.asarray(batch.point_labels)
         for i in range(len(batch)):
-            count = int((labels[i] != ABSENT_POINT).sum())
-            alone = segmenter.predict(embedding, Prompts(
-                points=batch.points[i : i + 1, :count],
-                point_labels=labels[i : i + 1, :count], boxes=batch.boxes[i : i + 1]))
+            alone = segmenter.predict(embedding, _alone(batch, i))
             torch.testing.assert_close(got.low_res_logits[i : i + 1], alone.low_res_logits,
                                        atol=LOGIT_ATOL, rtol=0)
             mismatch = (got.masks[i] != alone.masks[0]).float().mean().item()
@@ -162,12 +167,8 @@ def test_the_oracle_ignores_absent_points_exactly():
     embedding = oracle.encode(lf.views[0, :1], keys=[(0, 0)])[0]
     padded = _scene_prompts([1, 3, 2, 1], 9, absent_width=3)
     got = oracle.predict(embedding, padded)
-    labels = np.asarray(padded.point_labels)
     for i in range(len(padded)):
-        count = int((labels[i] != ABSENT_POINT).sum())
-        alone = oracle.predict(embedding, Prompts(points=padded.points[i : i + 1, :count],
-                                                  point_labels=labels[i : i + 1, :count],
-                                                  boxes=padded.boxes[i : i + 1]))
+        alone = oracle.predict(embedding, _alone(padded, i))
         assert torch.equal(got.masks[i], alone.masks[0])
 
 
@@ -253,12 +254,8 @@ def test_cuda_absent_points_leave_the_answer(precision):
     padded = [_scene_prompts([1, 3, 2], 7, absent_width=3), _scene_prompts([2, 1], 8, 3)]
     many = segmenter.predict_many(embeddings, padded)
     for embedding, batch, got in zip(embeddings, padded, many, strict=True):
-        labels = np.asarray(batch.point_labels)
         for i in range(len(batch)):
-            count = int((labels[i] != ABSENT_POINT).sum())
-            alone = segmenter.predict(embedding, Prompts(
-                points=batch.points[i : i + 1, :count],
-                point_labels=labels[i : i + 1, :count], boxes=batch.boxes[i : i + 1]))
+            alone = segmenter.predict(embedding, _alone(batch, i))
             if precision == "float32":
                 torch.testing.assert_close(got.low_res_logits[i : i + 1], alone.low_res_logits,
                                            atol=LOGIT_ATOL, rtol=0)

@@ -20,7 +20,7 @@ import torch
 from lfsam.timing import StageTimer
 from lfsam.warp import ForwardWarp, forward_warp, forward_warps
 
-__all__ = ["WARP_BATCH_BYTES", "WARP_CACHE_BYTES", "WarpCache", "warp_nbytes"]
+__all__ = ["WARP_BATCH_BYTES", "WARP_CACHE_BYTES", "WarpCache"]
 
 View = tuple[int, int]
 
@@ -32,13 +32,6 @@ WARP_CACHE_BYTES = 512 * 2**20
 #: the passes' kernel launches are the cost, so many pairs go together; on a CPU the
 #: arithmetic is, and a pass stays within the caches (a few pairs of small views, one of large).
 WARP_BATCH_BYTES = {"cuda": 256 * 2**20, "cpu": 4 * 2**20}
-
-
-def warp_nbytes(warp: ForwardWarp) -> int:
-    """Memory of a cached warp: its arrays, plus what it keeps once asked and the pipeline
-    always asks: the seen-pixel map (a byte a pixel) and the hole index (8 bytes a pixel)."""
-    arrays = (warp.target, warp.valid, warp.zbuffer)
-    return sum(x.numel() * x.element_size() for x in arrays) + 9 * warp.valid.numel()
 
 
 def _footprint(warp: ForwardWarp) -> tuple[list[tuple[int, int]], int]:
