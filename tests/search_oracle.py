@@ -8,10 +8,14 @@ from collections.abc import Callable
 
 import numpy as np
 
-from lfsam.prompts import ObjectPrompts
+from lfsam.api import RunOptions, SegmentOptions
+from lfsam.prompts import ObjectPrompts, PointPrompt
+from lfsam.video.carry import deepest
+from lfsam.video.online import OnlineTracker
 from lfsam.video.search import Track, search_object
 
 CENTER = (2, 2)
+QUIET = SegmentOptions(run=RunOptions(progress=False))
 
 
 def label_answer(labels: np.ndarray, view: tuple[int, int] | None = None) -> Callable:
@@ -52,3 +56,28 @@ def covered_object(shown: int, seed: int, skirt: tuple[slice, slice]
     image[cover] = 0.0
     labels[cover] = 3
     return look, image, labels, cover
+
+
+def least_ious(frames: list, pairs: dict[int, int]) -> dict[int, float]:
+    """Tracked from one click per object in frame 0 (the deepest pixel of each object showing
+    100 pixels in the center view, ids in label order; the oracle, ground-truth disparity):
+    per ``{label: obj_id}`` of ``pairs``, the least IoU of ``obj_id`` in the last frame's
+    views where the object of ``label`` shows at least 100 pixels."""
+    labels = frames[0].labels[frames[0].center]
+    prompts = []
+    for value in np.unique(labels[labels > 1]):
+        mask = labels == value
+        if mask.sum() >= 100:
+            row, col, _ = deepest(mask)
+            prompts.append(ObjectPrompts(len(prompts) + 1, (PointPrompt(float(col), float(row)),)))
+    tracker = OnlineTracker("oracle", disparity="gt", options=QUIET, search=True, memory=False)
+    tracker.add_prompts(prompts)
+    for lf in frames:
+        ours = tracker.track(lf).labels
+    out = {}
+    for label, obj_id in pairs.items():
+        truth, mine = frames[-1].labels == label, ours == obj_id
+        shown = truth.sum(axis=(2, 3)) >= 100
+        iou = (mine & truth).sum(axis=(2, 3)) / np.maximum((mine | truth).sum(axis=(2, 3)), 1)
+        out[label] = float(iou[shown].min())
+    return out

@@ -16,10 +16,11 @@ from lfsam.api import RunOptions, SegmentOptions
 from lfsam.lightfield import LightField
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.video import consistency
-from lfsam.video.carry import Template, deepest
+from lfsam.video.carry import Template
 from lfsam.video.online import OnlineTracker
 from lfsam.video.search import VELOCITY_SUPPORT, Track, search_radius
 from lfsam.video.synth import generate_video
+from search_oracle import least_ious
 
 GRID, CENTER, SIZE, SIDE = (5, 5), (2, 2), (44, 60), 8
 QUIET = SegmentOptions(run=RunOptions(progress=False))
@@ -129,24 +130,9 @@ def test_a_far_answer_on_a_poorly_supported_match_is_a_jump_at_any_depth(monkeyp
 
 
 def _returned(frames, label: int, obj_id: int) -> float:
-    """Tracked from one click per object in frame 0 (the deepest pixel of each object showing
-    100 pixels in the center view, ids in label order): the least IoU of ``obj_id`` in the
-    last frame's views where the object of ``label`` shows at least 100 pixels."""
-    labels = frames[0].labels[frames[0].center]
-    prompts = []
-    for value in np.unique(labels[labels > 1]):
-        mask = labels == value
-        if mask.sum() >= 100:
-            row, col, _ = deepest(mask)
-            prompts.append(ObjectPrompts(len(prompts) + 1, (PointPrompt(float(col), float(row)),)))
-    tracker = OnlineTracker("oracle", disparity="gt", options=QUIET, search=True, memory=False)
-    tracker.add_prompts(prompts)
-    for lf in frames:
-        ours = tracker.track(lf).labels == obj_id
-    truth = frames[-1].labels == label
-    shown = truth.sum(axis=(2, 3)) >= 100
-    iou = (ours & truth).sum(axis=(2, 3)) / np.maximum((ours | truth).sum(axis=(2, 3)), 1)
-    return float(iou[shown].min())
+    """The least IoU of ``obj_id`` in the last frame's views where the object of ``label``
+    shows at least 100 pixels (:func:`search_oracle.least_ious`)."""
+    return least_ious(frames, {label: obj_id})[label]
 
 
 @pytest.fixture(scope="module")

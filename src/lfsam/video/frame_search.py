@@ -6,10 +6,14 @@ carried between views by disparity). An answer that jumped (:func:`lfsam.video.c
 jumped`) keeps the track before it as a shadow, searched for after every object is placed
 (:func:`lfsam.video.consistency.look_again`). An answer found again that another hidden object,
 still to be searched, explains clearly better (:func:`lfsam.video.claims.rival`) is left to
-that object, searched first (each such rival once a frame)."""
+that object, searched first (each such rival once a frame). An object refused for an answer
+that an object placed earlier from several clicks holds contests it
+(:mod:`lfsam.video.contest`): that object, asked again without its clicks on the answer,
+gives the answer up where its new answer is its old one less that part."""
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -17,7 +21,7 @@ from scipy import ndimage
 
 from lfsam.pipeline.references import reference_views
 from lfsam.prompts import ObjectPrompts
-from lfsam.video import claims, consistency, placement, search
+from lfsam.video import claims, consistency, contest, placement, search
 from lfsam.video.carry import Template
 from lfsam.video.prompts import negatives_since, prompts_at, start_frame
 from lfsam.video.search import Track, first_look, search_object, update
@@ -129,17 +133,32 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         return floats[view]
 
     asked: list[ObjectPrompts] = []  # the latest prompts answered (consistency.look_again)
+    tried: list[tuple[tuple[int, int], np.ndarray, ObjectPrompts]] = []  # the latest search's
 
     def answer(obj: ObjectPrompts) -> tuple[tuple[int, int], np.ndarray]:
         asked[:] = [obj]
         predictor.set_object(obj)
         view, mask, _ = predictor.predict_reference(obj.obj_id)
+        tried.append((view, mask, obj))
         return view, mask
 
     def place(obj_id: int, view: tuple[int, int], mask: np.ndarray) -> None:
         done.append((obj_id, view, mask))
         here = mask if view == center else carried_to(mask, disparity_of(view), view, center)
         placed_ids[here & (placed_ids == 0)] = obj_id
+
+    def replace_placed(k: int, view: tuple[int, int], mask: np.ndarray) -> None:
+        """The ``k``-th placement's mask replaced (contest.gives_up): what is placed where
+        is worked out again."""
+        done[k] = (done[k][0], view, mask)
+        cache.clear()
+        for key in [key for key in each if key[0] == k]:
+            del each[key]
+        placed_ids[:] = 0
+        for obj_id, source, placed in done:
+            here = (placed if source == center
+                    else carried_to(placed, disparity_of(source), source, center))
+            placed_ids[here & (placed_ids == 0)] = obj_id
 
     states: dict[int, str] = {}
     own_prompts = {i: (None if prompts.get(i) is None else prompts_at(prompts[i], index))
@@ -191,11 +210,70 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
                              disparity_of if search.DEPTH_GATE else None, answer_depth,
                              placed_each)
 
+    def settle(obj_id: int, track: Track, view: tuple[int, int], mask: np.ndarray,
+               shift: tuple[int, int] | None, located: Template, k: int | None = None) -> None:
+        """An accepted answer: the track moved to it (steps 6 and 8), the object placed (or
+        its ``k``-th placement replaced, contest)."""
+        disparity = object_disparity(disparity_of(view), mask)
+        # an answer far from the prediction and at another depth: the track before it is
+        # kept as its shadow and searched for (consistency.look_again, below)
+        if consistency.CHECK and shift is not None and consistency.jumped(
+                track, view, located, disparity, center):
+            consistency.doubt(track)
+        # a poorly supported match of a partly seen object: its template placed where it
+        # explains the answer (placement), whatever texture the match fitted
+        if (placement.CHECK and shift is not None and track.support < search.VELOCITY_SUPPORT
+                and mask.sum() < search.KEEP_TEMPLATE * track.area):
+            located = placement.placed_by_answer(located, mask, view_of(view),
+                                                 disparity_of(view), disparity,
+                                                 search.search_radius(track))
+        update(track, view, mask, located, view_of(view), disparity, center,
+               shift is not None)
+        states[obj_id] = track.state
+        if k is None:
+            place(obj_id, view, mask)
+        else:
+            replace_placed(k, view, mask)
+
+    # objects placed from several positive points: (their prompt, the track before it moved,
+    # the search's shift and template), by placement index (contest)
+    clicks: dict[int, tuple[ObjectPrompts, Track, tuple[int, int] | None, Template]] = {}
+
+    def contested(obj_id: int) -> bool:
+        """Whether an answer refused to ``obj_id`` is given up by the object placed from
+        several clicks that held it (contest, module docstring there): that object is then
+        placed with its answer less the contested part."""
+        held = contest.blocker(((v, m) for v, m, _ in tried), list(clicks), placed_one)
+        if held is None:
+            return False
+        k, view, mask = held
+        other, source, old = done[k]
+        prompt, before, shift, located = clicks[k]
+        here = mask if view == source else carried_to(mask, disparity_of(view), view, source)
+        fewer = contest.without_points(prompt, here, source, center)
+        if fewer is None:
+            return False
+        new_view, new = answer(fewer)
+        if new_view != source or not contest.gives_up(old, new, here):
+            predictor.set_object(prompt)  # as it was
+            return False
+        del clicks[k]
+        tracks[other] = copy.deepcopy(before)
+        settle(other, tracks[other], source, new, shift, located, k)
+        return True
+
     queue, moved = list(carried), set()  # moved: rivals searched first (claims.rival), once
+    contesting: set[int] = set()  # objects that contested an answer (contest), once a frame
     while queue:
         obj_id = queue.pop(0)
         track = tracks[obj_id]
+        tried.clear()
         found = search_for(obj_id, obj_id, track, view_of, first[obj_id][1])
+        if found is None and contest.CHECK and obj_id not in contesting and clicks:
+            contesting.add(obj_id)
+            if contested(obj_id):
+                queue.insert(0, obj_id)
+                continue
         if found is None:
             if obj_id in predictor.object_ids:
                 predictor.remove_object(obj_id)
@@ -219,23 +297,12 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             queue.remove(other)
             queue[:0] = [other, obj_id]
             continue
-        disparity = object_disparity(disparity_of(view), mask)
-        # an answer far from the prediction and at another depth: the track before it is
-        # kept as its shadow and searched for (consistency.look_again, below)
-        if consistency.CHECK and shift is not None and consistency.jumped(
-                track, view, located, disparity, center):
-            consistency.doubt(track)
-        # a poorly supported match of a partly seen object: its template placed where it
-        # explains the answer (placement), whatever texture the match fitted
-        if (placement.CHECK and shift is not None and track.support < search.VELOCITY_SUPPORT
-                and mask.sum() < search.KEEP_TEMPLATE * track.area):
-            located = placement.placed_by_answer(located, mask, view_of(view),
-                                                 disparity_of(view), disparity,
-                                                 search.search_radius(track))
-        update(track, view, mask, located, view_of(view), disparity, center,
-               shift is not None)
-        states[obj_id] = track.state
-        place(obj_id, view, mask)
+        prompt = next((p for v, m, p in reversed(tried)
+                       if m is mask or np.array_equal(m, mask)), None)
+        if (contest.CHECK and prompt is not None
+                and sum(p.positive for p in prompt.points) > 1):
+            clicks[len(done)] = (prompt, copy.deepcopy(track), shift, located)
+        settle(obj_id, track, view, mask, shift, located)
 
     def shadow_image(view: tuple[int, int]) -> np.ndarray:
         """A view with the objects placed in this frame read as not the object (a shadow's
