@@ -58,11 +58,13 @@ def covered_object(shown: int, seed: int, skirt: tuple[slice, slice]
     return look, image, labels, cover
 
 
-def least_ious(frames: list, pairs: dict[int, int]) -> dict[int, float]:
+def least_ious(frames: list, pairs: dict[int, int], options: SegmentOptions = QUIET
+               ) -> dict[int, float]:
     """Tracked from one click per object in frame 0 (the deepest pixel of each object showing
-    100 pixels in the center view, ids in label order; the oracle, ground-truth disparity):
-    per ``{label: obj_id}`` of ``pairs``, the least IoU of ``obj_id`` in the last frame's
-    views where the object of ``label`` shows at least 100 pixels."""
+    100 pixels in the center view, ids in label order; the oracle, ground-truth disparity;
+    ``options``: e.g. the oracle's imperfections): per ``{label: obj_id}`` of ``pairs``, the
+    least IoU of ``obj_id`` in the last frame's views where the object of ``label`` shows at
+    least 100 pixels."""
     labels = frames[0].labels[frames[0].center]
     prompts = []
     for value in np.unique(labels[labels > 1]):
@@ -70,7 +72,8 @@ def least_ious(frames: list, pairs: dict[int, int]) -> dict[int, float]:
         if mask.sum() >= 100:
             row, col, _ = deepest(mask)
             prompts.append(ObjectPrompts(len(prompts) + 1, (PointPrompt(float(col), float(row)),)))
-    tracker = OnlineTracker("oracle", disparity="gt", options=QUIET, search=True, memory=False)
+    tracker = OnlineTracker("oracle", disparity="gt", options=options, search=True,
+                            memory=False)
     tracker.add_prompts(prompts)
     for lf in frames:
         ours = tracker.track(lf).labels

@@ -13,8 +13,17 @@ pixels, were refused as placed already in every view (hidden for a frame while i
 depth do not separate the two (their templates explain the contested pixels 0.21-0.42 and
 0.27-0.39; object 2 at disparity 1.13 in front of object 5's 0.75-1.55).
 
-So an object about to be hidden for an answer that an object placed earlier in the frame
-holds (:func:`blocker`: more than half of it) contests it where that object was placed from
+Fresh seed 3202 under the oracle's jitter, frame 2, the same with nothing asked: object 4's
+click on object 2 (which came out in front of it, 424 pixels) took all of it, object 2's
+support was then read as placed (not the object) in every view, and no stage had enough left
+to prompt; its first look near the prediction (75 % of its template supported, before
+anything was placed) lay on those pixels. Hidden for three frames while it showed 424 pixels
+in the center view: 75 lost triples.
+
+So an object about to be hidden for an answer, or a first look near its prediction (the
+template's place there, where the support reached :data:`lfsam.video.search.NEAR_SUPPORT`),
+that an object placed earlier in the frame holds (:func:`blocker`: more than half of it)
+contests it where that object was placed from
 several positive points, one of them on the contested answer: the placed object is asked
 again without the points that lie there (:func:`without_points`), and where its new answer
 is its old one less the contested part (:func:`gives_up`) it is placed with that answer and
@@ -48,10 +57,10 @@ KEPT = 0.9
 def blocker(answers: Iterable[tuple[tuple[int, int], np.ndarray]], eligible: Sequence[int],
             placed: Callable[[int, tuple[int, int]], np.ndarray]
             ) -> tuple[int, tuple[int, int], np.ndarray] | None:
-    """The first of ``answers`` (``(view, mask)``, refused ones among them) that one placed
-    object of ``eligible`` (indices into the frame's placements; ``placed(k, view)``: the
-    ``k``-th placed mask in ``view``) holds more than :data:`HELD` of: ``(k, view, mask)``,
-    or None."""
+    """The first of ``answers`` (``(view, mask)``: refused answers, a first look's place) that
+    one placed object of ``eligible`` (indices into the frame's placements; ``placed(k,
+    view)``: the ``k``-th placed mask in ``view``) holds more than :data:`HELD` of:
+    ``(k, view, mask)``, or None."""
     for view, mask in answers:
         area = int(np.count_nonzero(mask))
         if area == 0:

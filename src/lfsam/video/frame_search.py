@@ -243,7 +243,13 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         """Whether an answer refused to ``obj_id`` is given up by the object placed from
         several clicks that held it (contest, module docstring there): that object is then
         placed with its answer less the contested part."""
-        held = contest.blocker(((v, m) for v, m, _ in tried), list(clicks), placed_one)
+        # its answers, and where its first look matched it near the prediction (its support
+        # then read as placed: nothing was asked), the template's place there
+        answers = [(v, m) for v, m, _ in tried]
+        share, look = first[obj_id]
+        if look is not None and share >= search.NEAR_SUPPORT:
+            answers.append((tracks[obj_id].view, look[0]))
+        held = contest.blocker(answers, list(clicks), placed_one)
         if held is None:
             return False
         k, view, mask = held
