@@ -17,8 +17,8 @@ from lfsam.lightfield import LightField
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.video import consistency
 from lfsam.video.carry import Template
+from lfsam.video.motion import VELOCITY_SUPPORT, Track, search_radius
 from lfsam.video.online import OnlineTracker
-from lfsam.video.search import VELOCITY_SUPPORT, Track, search_radius
 from lfsam.video.synth import generate_video
 from search_oracle import least_ious
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from lfsam.video.carry import Template
-from lfsam.video.search import VELOCITY_SUPPORT, Track, update
+from lfsam.video.motion import VELOCITY_SUPPORT, Track, update
 from search_oracle import CENTER, label_answer, search_one_image
 
 

@@ -12,7 +12,7 @@ import pytest
 
 from lfsam.video.carry import Template
 from lfsam.video.match import likely_shifts, robust_costs, with_depth
-from lfsam.video.search import Track, update
+from lfsam.video.motion import Track, update
 from search_oracle import label_answer, search_one_image
 
 SIZE, CENTER = (60, 80), (2, 2)

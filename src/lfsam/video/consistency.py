@@ -19,7 +19,7 @@ against every onset of a look-alike), so a jump does not refuse the answer: it r
   track's last disparity (motion and depth both inconsistent with the track's history; once
   a velocity is measured, after two sightings), or it lies that far from the prediction on a
   poorly supported match (:data:`POORLY_SUPPORTED`: under
-  :data:`lfsam.video.search.VELOCITY_SUPPORT` of the template; a sliver that fits the
+  :data:`lfsam.video.motion.VELOCITY_SUPPORT` of the template; a sliver that fits the
   template at a range of shifts, whose place is no measure of the motion), or its median
   disparity alone lies beyond
   the depth gate's tolerance (:func:`lfsam.video.search.predicted_disparity`: the gate reads
@@ -45,7 +45,7 @@ import numpy as np
 
 from lfsam.prompts import ObjectPrompts
 from lfsam.video.carry import Template
-from lfsam.video.search import (
+from lfsam.video.motion import (
     VELOCITY_SUPPORT,
     Track,
     predicted,
@@ -66,7 +66,7 @@ JUMP_SHARE = 0.6
 #: last disparity is a jump in depth (with :data:`JUMP_SHARE`, a doubt).
 DEPTH_JUMP = 0.6
 #: An accepted answer farther than :data:`JUMP_SHARE` of the search radius from the
-#: prediction on a match supporting under :data:`lfsam.video.search.VELOCITY_SUPPORT` of the
+#: prediction on a match supporting under :data:`lfsam.video.motion.VELOCITY_SUPPORT` of the
 #: template is a jump whatever its depth (fourteenth pass): seed 401, an object behind an
 #: occluder showing 97 pixels in a corner view, matched there on 81 of its 485 carried
 #: pixels 16 px from the prediction at the object's depth; its velocity jumped from (0.4,
@@ -87,7 +87,7 @@ SHADOW_ID = 1_000_000
 
 def jumped(track: Track, view: tuple[int, int], located: Template, disparity: float,
            center: tuple[int, int]) -> bool:
-    """Whether an answer accepted for ``track`` (before :func:`lfsam.video.search.update`;
+    """Whether an answer accepted for ``track`` (before :func:`lfsam.video.motion.update`;
     ``located``: its template where it was found in ``view``, ``disparity``: its median
     disparity) jumped: beyond :data:`JUMP_SHARE` of the search radius from the prediction and
     beyond :data:`DEPTH_JUMP` from the track's disparity or on a poorly supported match

@@ -23,8 +23,9 @@ from lfsam.pipeline.references import reference_views
 from lfsam.prompts import ObjectPrompts
 from lfsam.video import claims, consistency, contest, placement, search
 from lfsam.video.carry import Template
+from lfsam.video.motion import KEEP_TEMPLATE, VELOCITY_SUPPORT, update
 from lfsam.video.prompts import negatives_since, prompts_at, start_frame
-from lfsam.video.search import Track, first_look, search_object, update
+from lfsam.video.search import Track, first_look, search_object
 
 __all__ = ["carried_to", "median_disparity", "object_disparity", "search_frame"]
 
@@ -222,8 +223,8 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             consistency.doubt(track)
         # a poorly supported match of a partly seen object: its template placed where it
         # explains the answer (placement), whatever texture the match fitted
-        if (placement.CHECK and shift is not None and track.support < search.VELOCITY_SUPPORT
-                and mask.sum() < search.KEEP_TEMPLATE * track.area):
+        if (placement.CHECK and shift is not None and track.support < VELOCITY_SUPPORT
+                and mask.sum() < KEEP_TEMPLATE * track.area):
             located = placement.placed_by_answer(located, mask, view_of(view),
                                                  disparity_of(view), disparity,
                                                  search.search_radius(track))

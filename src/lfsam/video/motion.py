@@ -7,7 +7,10 @@ the object should be in a view: constant velocity in center-view pixels from its
 sightings, and its disparity changing at its last rate, parallax included (a pixel of the
 center view at disparity ``d`` is at ``p - d (s - s_c, t - t_c)`` in view ``(s, t)``, section
 1). How far from there it is looked for (:func:`search_radius`), and how far its depth may
-have moved (:func:`predicted_disparity`), grow while it is unseen.
+have moved (:func:`predicted_disparity`), grow while it is unseen. Where the object is found
+:func:`update` moves the track to the answer: its velocity (by the match's support, at most
+:data:`VELOCITY_SUPPORT`'s share), disparity, and template (replaced by an answer of at least
+:data:`KEEP_TEMPLATE` of its largest area, else moved to where it was found).
 """
 
 from __future__ import annotations
@@ -23,13 +26,16 @@ __all__ = [
     "DISPARITY_FRAMES",
     "DISPARITY_TOLERANCE",
     "GROWTH",
+    "KEEP_TEMPLATE",
     "NEAR_REACH",
     "STATES",
+    "VELOCITY_SUPPORT",
     "Track",
     "near_reach",
     "predicted",
     "predicted_disparity",
     "search_radius",
+    "update",
     "view_offset",
 ]
 
@@ -48,6 +54,10 @@ NEAR_REACH = 4
 DISPARITY_TOLERANCE = 1.2
 #: The disparity tolerance grows with the frames unseen up to this many frames' worth.
 DISPARITY_FRAMES = 2
+#: A template is replaced by an answer at least this fraction of the object's largest area.
+KEEP_TEMPLATE = 0.6
+#: A match supporting less of its template moves the velocity only by its share of this.
+VELOCITY_SUPPORT = 0.3
 
 
 @dataclass
@@ -110,3 +120,36 @@ def predicted_disparity(track: Track) -> tuple[float, float]:
     swings are bounded: a gate that opened without end would let a hidden object be found on
     a background of its colours)."""
     return track.disparity, DISPARITY_TOLERANCE * min(track.unseen + 1, DISPARITY_FRAMES)
+
+
+def update(track: Track, view: tuple[int, int], mask: np.ndarray, located: Template,
+           image: np.ndarray, disparity: float, center: tuple[int, int],
+           moved: bool = True) -> None:
+    """The track after the object was found in ``view`` (``located``: its template where it
+    was found; ``disparity``: the answer's median disparity; ``moved`` False: the place is
+    the prediction's, not a measure, and the velocity is kept)."""
+    steps = track.unseen + 1
+    before = (np.asarray(track.template.origin, np.float64)
+              + track.disparity * view_offset(track.view, center))
+    now = np.asarray(located.origin, np.float64) + disparity * view_offset(view, center)
+    measured = (now - before) / steps
+    if track.sightings >= 1 and moved:
+        # a poorly supported match moves the velocity only by its share (VELOCITY_SUPPORT)
+        weight = 1.0 if track.sightings < 2 else min(1.0, track.support / VELOCITY_SUPPORT)
+        blended = np.asarray(track.velocity) + weight * (measured - np.asarray(track.velocity))
+        track.velocity = (float(blended[0]), float(blended[1]))
+        track.disparity_rate = (disparity - track.disparity) / steps
+    area = int(mask.sum())
+    if area >= KEEP_TEMPLATE * track.area or track.template is None:
+        track.template = Template.from_mask(image, mask)
+        track.view = view
+        track.disparity = disparity
+    else:  # mostly hidden: keep the fuller look, moved to where it was found
+        track.template = located
+        track.view = view
+        track.disparity = disparity
+    track.area = max(track.area, area)
+    track.state = "found" if track.unseen > 0 else "tracked"
+    track.unseen = 0
+    track.lost = False
+    track.sightings += 1

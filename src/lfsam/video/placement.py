@@ -21,8 +21,8 @@ the match's only where it scores better and explains :data:`EXPLAINED` of the an
 only where the template lies :data:`INSIDE` the frame (an object cut by the frame's border is
 partial because of the border: the template can slide out of the frame at no cost). The
 tracker asks only where the match was poorly supported (under
-:data:`lfsam.video.search.VELOCITY_SUPPORT` of the template) and the answer is a part of the
-object (under :data:`lfsam.video.search.KEEP_TEMPLATE` of its largest area): asked for every
+:data:`lfsam.video.motion.VELOCITY_SUPPORT` of the template) and the answer is a part of the
+object (under :data:`lfsam.video.motion.KEEP_TEMPLATE` of its largest area): asked for every
 partly seen object it also moved well supported matches and lost more than it found
 (docs/performance.md, issue 47, twelfth pass).
 """
