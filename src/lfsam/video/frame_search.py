@@ -24,10 +24,15 @@ from lfsam.prompts import ObjectPrompts
 from lfsam.video import claims, consistency, contest, placement, search
 from lfsam.video.carry import Template
 from lfsam.video.motion import KEEP_TEMPLATE, VELOCITY_SUPPORT, update
-from lfsam.video.prompts import negatives_since, prompts_at, start_frame
+from lfsam.video.prompts import latest_prompts, negatives_since, prompts_at, start_frame
 from lfsam.video.search import Track, first_look, search_object
 
-__all__ = ["carried_to", "median_disparity", "object_disparity", "search_frame"]
+__all__ = ["RETRY_UNANSWERED", "carried_to", "median_disparity", "object_disparity",
+           "search_frame"]
+
+#: An object whose prompts were never answered with an accepted mask is asked its latest
+#: prompts again every frame (:func:`search_frame`), after every other object is placed.
+RETRY_UNANSWERED = True
 
 
 def carried_to(mask: np.ndarray, disparity: object, source: tuple[int, int],
@@ -175,9 +180,11 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
                            disparity_of(tracks[i].view) if search.DEPTH_GATE else None)
              for i in carried}
     carried.sort(key=lambda i: (tracks[i].unseen > 0, -first[i][0], i))
-    for obj_id in prompted:
+    def prompt_object(obj_id: int, own: ObjectPrompts, state: str) -> None:
+        """``obj_id`` prompted with ``own`` (and its negative clicks that hold here): placed
+        as ``state`` with a fresh template where the answer is not mostly on objects placed
+        already, else hidden."""
         negatives = negatives_since(prompts[obj_id], index)
-        own = own_prompts[obj_id]
         view, mask = answer(own.with_points([p for p in negatives if p not in own.points]))
         known = placed_in(view)
         if not mask.any() or (mask & known).sum() > 0.5 * mask.sum():
@@ -185,16 +192,19 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             track = tracks.setdefault(obj_id, Track(view))
             track.unseen += 1
             states[obj_id] = track.state = "hidden"
-            continue
+            return
         disparity = object_disparity(disparity_of(view), mask)
         old = tracks.get(obj_id)
         track = Track(view, Template.from_mask(lf.views[view], mask), disparity=disparity,
-                      area=int(mask.sum()), sightings=1, state="prompted")
+                      area=int(mask.sum()), sightings=1, state=state)
         if old is not None:
             track.velocity, track.area = old.velocity, max(old.area, track.area)
         tracks[obj_id] = track
-        states[obj_id] = "prompted"
+        states[obj_id] = state
         place(obj_id, view, mask)
+
+    for obj_id in prompted:
+        prompt_object(obj_id, own_prompts[obj_id], "prompted")
 
     def answer_depth(view: tuple[int, int], mask: np.ndarray) -> float | None:
         return median_disparity(disparity_of(view), mask)
@@ -331,6 +341,16 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         if back is not None:
             states[obj_id] = tracks[obj_id].state
             place(obj_id, *back)
+    # an object whose prompts were never answered with an accepted mask (no template: hidden
+    # since they were given, its answer empty or mostly on an object placed before it) is
+    # asked its latest prompts again in every frame until one is accepted, after every other
+    # object is placed (its click may lie on one of them): never dropped for good
+    for obj_id in started if RETRY_UNANSWERED else ():
+        if (obj_id not in prompted and prompts.get(obj_id) is not None
+                and (obj_id not in tracks or tracks[obj_id].template is None)):
+            latest = latest_prompts(prompts[obj_id], index)
+            if latest is not None:
+                prompt_object(obj_id, latest, "found")
     for obj_id in order:
         states.setdefault(obj_id, "waiting")
     return states

@@ -15,7 +15,7 @@ from dataclasses import replace
 
 from lfsam.prompts import ObjectPrompts, PointPrompt
 
-__all__ = ["frame_of", "negatives_since", "prompts_at", "start_frame"]
+__all__ = ["frame_of", "latest_prompts", "negatives_since", "prompts_at", "start_frame"]
 
 
 def frame_of(prompt) -> int:
@@ -45,6 +45,24 @@ def prompts_at(obj: ObjectPrompts, frame: int) -> ObjectPrompts | None:
     if not points and box is None:
         return None
     return ObjectPrompts(obj.obj_id, points, None if box is None else replace(box, frame=None))
+
+
+def latest_prompts(obj: ObjectPrompts, frame: int) -> ObjectPrompts | None:
+    """The prompts of the latest frame up to ``frame`` that gives ``obj`` a positive point or
+    its box, frame tags removed (None: none so far): what an object whose prompts were never
+    answered is asked again (issue 47, :func:`lfsam.video.frame_search.search_frame`).
+
+    Examples
+    --------
+    >>> from lfsam.prompts import PointPrompt
+    >>> obj = ObjectPrompts(1, (PointPrompt(3, 4), PointPrompt(5, 6, True, None, 2)))
+    >>> latest_prompts(obj, 1).points[0].x, latest_prompts(obj, 5).points[0].x
+    (3, 5)
+    """
+    frames = [frame_of(p) for p in obj.points if p.positive and frame_of(p) <= frame]
+    if obj.box is not None and frame_of(obj.box) <= frame:
+        frames.append(frame_of(obj.box))
+    return prompts_at(obj, max(frames)) if frames else None
 
 
 def negatives_since(obj: ObjectPrompts, frame: int) -> Sequence[PointPrompt]:
