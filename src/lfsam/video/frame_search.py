@@ -138,20 +138,24 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             floats[view] = lf.views[view].astype(np.float32)
         return floats[view]
 
-    asked: list[ObjectPrompts] = []  # the latest prompts answered (consistency.look_again)
-    tried: list[tuple[tuple[int, int], np.ndarray, ObjectPrompts]] = []  # the latest search's
+    # the latest search's answers and their prompts (contest; consistency.look_again reads
+    # the last prompts)
+    tried: list[tuple[tuple[int, int], np.ndarray, ObjectPrompts]] = []
 
     def answer(obj: ObjectPrompts) -> tuple[tuple[int, int], np.ndarray]:
-        asked[:] = [obj]
         predictor.set_object(obj)
         view, mask, _ = predictor.predict_reference(obj.obj_id)
         tried.append((view, mask, obj))
         return view, mask
 
-    def place(obj_id: int, view: tuple[int, int], mask: np.ndarray) -> None:
-        done.append((obj_id, view, mask))
+    def mark(obj_id: int, view: tuple[int, int], mask: np.ndarray) -> None:
+        """``obj_id`` in the center view's ids where no object placed before it is."""
         here = mask if view == center else carried_to(mask, disparity_of(view), view, center)
         placed_ids[here & (placed_ids == 0)] = obj_id
+
+    def place(obj_id: int, view: tuple[int, int], mask: np.ndarray) -> None:
+        done.append((obj_id, view, mask))
+        mark(obj_id, view, mask)
 
     def replace_placed(k: int, view: tuple[int, int], mask: np.ndarray) -> None:
         """The ``k``-th placement's mask replaced (contest.gives_up): what is placed where
@@ -161,10 +165,8 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         for key in [key for key in each if key[0] == k]:
             del each[key]
         placed_ids[:] = 0
-        for obj_id, source, placed in done:
-            here = (placed if source == center
-                    else carried_to(placed, disparity_of(source), source, center))
-            placed_ids[here & (placed_ids == 0)] = obj_id
+        for entry in done:
+            mark(*entry)
 
     states: dict[int, str] = {}
     own_prompts = {i: (None if prompts.get(i) is None else prompts_at(prompts[i], index))
@@ -332,11 +334,11 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             continue
 
         def shadow_search(shadow_id: int, shadow: Track, obj_id: int = obj_id) -> tuple | None:
-            asked.clear()
+            tried.clear()
             return search_for(obj_id, shadow_id, shadow, shadow_image, None)
 
         back = consistency.look_again(
-            obj_id, tracks, shadow_search, predictor, lambda: asked[-1] if asked else None,
+            obj_id, tracks, shadow_search, predictor, lambda: tried[-1][2] if tried else None,
             lambda v, m: object_disparity(disparity_of(v), m), view_of, center)
         if back is not None:
             states[obj_id] = tracks[obj_id].state
