@@ -60,7 +60,8 @@ later frame and comes back under its own id (*found*). The search of one object 
    the object (:data:`REFUSED_AGAIN`: a match on a background of its colours beside it).
    The support needed is a share of the template's part inside the frame (an object leaving
    the frame shows only that part), and an object cut by the frame's border in its own view
-   is prompted in the view that sees most of it.
+   is prompted in the view that sees most of it. An accepted answer to several clicks larger
+   than the object ever was is split by click (:mod:`lfsam.video.union`).
 
 The template is replaced by the answer when the answer shows most of the object; a mostly
 hidden answer keeps the fuller template (moved to where it was found). Each object's state per
@@ -76,6 +77,7 @@ import numpy as np
 from scipy import ndimage
 
 from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
+from lfsam.video import union
 from lfsam.video.carry import (
     MIN_PIXELS,
     Template,
@@ -574,15 +576,25 @@ def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, in
     # all positive points together; where that answer is refused, each alone (a point on a
     # look-alike pixel of the background must not sink the others)
     tries = [positives] + ([[p] for p in positives] if len(positives) > 1 else [])
-    for chosen in tries:
+
+    def ask(chosen: Sequence[tuple[float, float]]) -> tuple[tuple[int, int], np.ndarray]:
         points = (*(PointPrompt(x, y, True, view) for x, y in chosen), *negative)
-        ref_view, mask = answer(ObjectPrompts(obj_id, points, box))
-        judged = (ref_view, depth) if depth is not None else None
-        at = _accept(mask, support, carried, track,
-                     known if ref_view == view else placed(ref_view), image, template,
-                     shift, None if widened else radius, judged, checked=widened,
-                     held=() if held is None or track.unseen == 0 else held(ref_view))
+        return answer(ObjectPrompts(obj_id, points, box))
+
+    def judge(ref_view: tuple[int, int], mask: np.ndarray) -> tuple[int, int] | None:
+        return _accept(mask, support, carried, track,
+                       known if ref_view == view else placed(ref_view), image, template,
+                       shift, None if widened else radius,
+                       (ref_view, depth) if depth is not None else None, checked=widened,
+                       held=() if held is None or track.unseen == 0 else held(ref_view))
+
+    for chosen in tries:
+        ref_view, mask = ask(chosen)
+        at = judge(ref_view, mask)
         track.support = np.count_nonzero(support) / max(np.count_nonzero(carried), 1)
+        if at is not None:  # larger than the object ever was: a click on a neighbour?
+            (ref_view, mask), at = union.checked(ask, judge, chosen, (ref_view, mask), at,
+                                                 support, track.area)
         if at is not None and widened and mask.sum() < KEEP_TEMPLATE * track.area:
             # a part of the object found away from the prediction: the template fits that
             # part at a range of shifts, so the place it gives is no measure of the motion
