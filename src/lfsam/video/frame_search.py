@@ -9,7 +9,9 @@ still to be searched, explains clearly better (:func:`lfsam.video.claims.rival`)
 that object, searched first (each such rival once a frame). An object refused for an answer
 that an object placed earlier from several clicks holds contests it
 (:mod:`lfsam.video.contest`): that object, asked again without its clicks on the answer,
-gives the answer up where its new answer is its old one less that part."""
+gives the answer up where its new answer is its old one less that part. An object placed
+from another view than a found-again answer's, whose carried mask meets it, is asked there
+(:mod:`lfsam.video.neighbour`): the answer holding half of it is that object's."""
 
 from __future__ import annotations
 
@@ -21,7 +23,7 @@ from scipy import ndimage
 
 from lfsam.pipeline.references import reference_views
 from lfsam.prompts import ObjectPrompts
-from lfsam.video import claims, consistency, contest, placement, search
+from lfsam.video import claims, consistency, contest, neighbour, placement, search
 from lfsam.video.carry import Template
 from lfsam.video.motion import KEEP_TEMPLATE, VELOCITY_SUPPORT, update
 from lfsam.video.prompts import latest_prompts, negatives_since, prompts_at, start_frame
@@ -211,6 +213,27 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
     def answer_depth(view: tuple[int, int], mask: np.ndarray) -> float | None:
         return median_disparity(disparity_of(view), mask)
 
+    seen_there: dict[tuple[int, tuple[int, int]], np.ndarray | None] = {}
+
+    def held_by(view: tuple[int, int], mask: np.ndarray | None = None) -> list[np.ndarray]:
+        """Each object placed so far in this frame, its mask in ``view``; with the answer
+        ``mask``: those placed from another view whose carried mask meets it, as the segmenter
+        answers them there (neighbour, each asked once a view and frame)."""
+        if mask is None:
+            return placed_each(view)
+        out = []
+        for k, carried in enumerate(placed_each(view)):
+            if not neighbour.ASK or done[k][1] == view or not (carried & mask).any():
+                continue
+            if (k, view) not in seen_there:
+                _, source, placed_mask = done[k]
+                seen_there[(k, view)] = neighbour.asked_mask(
+                    predictor, k, view, carried, disparity_of(view),
+                    object_disparity(disparity_of(source), placed_mask))
+            if seen_there[(k, view)] is not None:
+                out.append(seen_there[(k, view)])
+        return out
+
     def search_for(obj_id: int, search_id: int, track: Track,
                    image: Callable[[tuple[int, int]], np.ndarray], hint: object) -> tuple | None:
         """:func:`search_object` for ``track``, prompted under ``search_id``, with
@@ -221,7 +244,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         return search_object(search_id, track, image, center, ring, answer, placed_in,
                              placed_ids, negatives, use_box, hint, fresh,
                              disparity_of if search.DEPTH_GATE else None, answer_depth,
-                             placed_each)
+                             held_by)
 
     def settle(obj_id: int, track: Track, view: tuple[int, int], mask: np.ndarray,
                shift: tuple[int, int] | None, located: Template, k: int | None = None) -> None:

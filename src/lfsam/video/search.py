@@ -72,6 +72,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 from scipy import ndimage
@@ -206,19 +207,13 @@ SMALL_SHARE = 0.3
 #: colour (every channel 255 below black), so they support no template.
 REFUSED_VALUE = -255.0
 #: An answer found again (the object unseen for frames) that holds this share of an object
-#: placed earlier in the frame, in the answer's view, is that object, not the searched one:
-#: fresh seed 1802's disc, hidden behind a neighbour, was "found" on 338 pixels of which
-#: 46 % lay on objects placed already (under the limit of half the answer), colours 0.36
-#: alike; that answer held most of the neighbour's own mask, and the disc took the
-#: neighbour's place (81 lost triples, a swap). Tracked objects are not checked: their
-#: answers beside a neighbour are checked by the half-the-answer limit alone.
+#: placed earlier in the frame, in the answer's view, is that object (its mask carried
+#: there, then as the segmenter answers it there, :mod:`lfsam.video.neighbour`; fresh seed
+#: 1802's disc took a neighbour's place, docs/design.md section 10 "Tracking" step 5).
 HELD = 0.5
 #: The widening stage reads the answers refused in a view this frame (the object's own view
-#: and the ring's) as not the object, as it reads the objects placed: a hidden object of the
-#: background's colours, within the depth gate, had every match, the widening's too, on the
-#: background, whose answers were refused, while it showed 113 pixels in a corner view
-#: (fresh seed 1801 without jitter, its return a frame late; over the 15 earlier sets and
-#: 1801-1803 with jitter 1: 925 -> 906 lost triples, shown switches 13 -> 10).
+#: and the ring's) as not the object, as it reads the objects placed (fresh seed 1801: every
+#: match of a hidden object on a background of its colours; docs/design.md section 10).
 WIDE_REFUSED = True
 
 
@@ -293,7 +288,7 @@ def search_object(
     fresh: Sequence[PointPrompt] = (),
     disparities: Callable[[tuple[int, int]], np.ndarray | None] | None = None,
     depth: Callable[[tuple[int, int], np.ndarray], float | None] | None = None,
-    held: Callable[[tuple[int, int]], Sequence[np.ndarray]] | None = None,
+    held: Callable[[tuple[int, int], np.ndarray], Sequence[np.ndarray]] | None = None,
 ) -> tuple[tuple[int, int], np.ndarray, tuple[int, int], Template] | None:
     """Find a carried object in this frame (see the module docstring).
 
@@ -335,8 +330,10 @@ def search_object(
         must then lie within :func:`predicted_disparity`'s tolerance of the object's
         disparity (:func:`_accept`).
     held : callable, optional
-        ``held(view)``: each object placed earlier in this frame, its mask in that view. An
-        answer found again that holds :data:`HELD` of one of them is that object (:func:`_accept`).
+        ``held(view)``: each object placed earlier in this frame, its mask in that view;
+        ``held(view, mask)``: those the segmenter was asked for there, where they meet the
+        answer ``mask`` (:mod:`lfsam.video.neighbour`). An answer found again that holds
+        :data:`HELD` of one of them is that object (:func:`_accept`).
 
     Returns
     -------
@@ -586,7 +583,7 @@ def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, in
                        known if ref_view == view else placed(ref_view), image, template,
                        shift, None if widened else radius,
                        (ref_view, depth) if depth is not None else None, checked=widened,
-                       held=() if held is None or track.unseen == 0 else held(ref_view))
+                       held=None if held is None or track.unseen == 0 else partial(held, ref_view))
 
     for chosen in tries:
         ref_view, mask = ask(chosen)
@@ -649,14 +646,16 @@ def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: T
             placed: np.ndarray | None, image: np.ndarray, template: Template,
             shift: tuple[int, int] = (0, 0), radius: int | None = None,
             depth: tuple | None = None, checked: bool = False,
-            held: Sequence[np.ndarray] = ()) -> tuple[int, int] | None:
+            held: Callable[..., Sequence[np.ndarray]] | None = None) -> tuple[int, int] | None:
     """Whether an answer is the searched object (see the module docstring, step 5): the
     template's shift where it is (``shift``, or :func:`explaining_shift`'s), or None.
 
     ``depth``: ``(view, depth(view, mask))`` of :func:`search_object`: an object found again
     after hidden frames, or by :func:`explaining_shift`, must also lie at its depth.
-    ``held``: the masks of objects placed earlier in this frame in the answer's view; an
-    answer holding :data:`HELD` of one of them is that object."""
+    ``held()``: the masks of objects placed earlier in this frame in the answer's view; an
+    answer holding :data:`HELD` of one of them is that object; ``held(mask)``, asked once the
+    answer passed every other check, the same with the segmenter's masks there
+    (:mod:`lfsam.video.neighbour`)."""
     area = int(mask.sum())
     covered = int((mask & support).sum())
     grown = area > MAX_GROWTH * max(track.area, 1) + 50
@@ -669,8 +668,7 @@ def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: T
         return None
     if placed is not None and (mask & placed).sum() > 0.5 * area:
         return None
-    if any(np.count_nonzero(mask & other) >= HELD * max(np.count_nonzero(other), MIN_PIXELS)
-           for other in held):
+    if held is not None and _holds(mask, held()):
         return None
     explained = False
     if covered < 0.5 * support.sum():
@@ -693,4 +691,10 @@ def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: T
         expected, tolerance = predicted_disparity(track)
         if value is not None and abs(value - expected) > tolerance:
             return None
-    return shift
+    return None if held is not None and _holds(mask, held(mask)) else shift
+
+
+def _holds(mask: np.ndarray, others: Sequence[np.ndarray]) -> bool:
+    """Whether ``mask`` holds :data:`HELD` of one of ``others`` (their pixels)."""
+    return any(np.count_nonzero(mask & other) >= HELD * max(np.count_nonzero(other), MIN_PIXELS)
+               for other in others)
