@@ -107,6 +107,8 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         return maps[view]
 
     each: dict[tuple[int, tuple[int, int]], np.ndarray] = {}
+    # placed objects asked in another view (neighbour), by (placement, view); None: not asked
+    seen_there: dict[tuple[int, tuple[int, int]], np.ndarray | None] = {}
 
     def placed_one(k: int, view: tuple[int, int]) -> np.ndarray:
         """The ``k``-th object placed in this frame, its mask in ``view`` (carried once)."""
@@ -164,8 +166,9 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         is worked out again."""
         done[k] = (done[k][0], view, mask)
         cache.clear()
-        for key in [key for key in each if key[0] == k]:
-            del each[key]
+        for cached in (each, seen_there):
+            for key in [key for key in cached if key[0] == k]:
+                del cached[key]
         placed_ids[:] = 0
         for entry in done:
             mark(*entry)
@@ -184,6 +187,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
                            disparity_of(tracks[i].view) if search.DEPTH_GATE else None)
              for i in carried}
     carried.sort(key=lambda i: (tracks[i].unseen > 0, -first[i][0], i))
+
     def prompt_object(obj_id: int, own: ObjectPrompts, state: str) -> None:
         """``obj_id`` prompted with ``own`` (and its negative clicks that hold here): placed
         as ``state`` with a fresh template where the answer is not mostly on objects placed
@@ -212,8 +216,6 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
 
     def answer_depth(view: tuple[int, int], mask: np.ndarray) -> float | None:
         return median_disparity(disparity_of(view), mask)
-
-    seen_there: dict[tuple[int, tuple[int, int]], np.ndarray | None] = {}
 
     def held_by(view: tuple[int, int], mask: np.ndarray | None = None) -> list[np.ndarray]:
         """Each object placed so far in this frame, its mask in ``view``; with the answer

@@ -140,14 +140,12 @@ def update(track: Track, view: tuple[int, int], mask: np.ndarray, located: Templ
         track.velocity = (float(blended[0]), float(blended[1]))
         track.disparity_rate = (disparity - track.disparity) / steps
     area = int(mask.sum())
-    if area >= KEEP_TEMPLATE * track.area or track.template is None:
-        track.template = Template.from_mask(image, mask)
-        track.view = view
-        track.disparity = disparity
-    else:  # mostly hidden: keep the fuller look, moved to where it was found
-        track.template = located
-        track.view = view
-        track.disparity = disparity
+    # mostly hidden: the fuller look is kept, moved to where it was found
+    track.template = (Template.from_mask(image, mask)
+                      if area >= KEEP_TEMPLATE * track.area or track.template is None
+                      else located)
+    track.view = view
+    track.disparity = disparity
     track.area = max(track.area, area)
     track.state = "found" if track.unseen > 0 else "tracked"
     track.unseen = 0

@@ -288,7 +288,7 @@ def search_object(
     fresh: Sequence[PointPrompt] = (),
     disparities: Callable[[tuple[int, int]], np.ndarray | None] | None = None,
     depth: Callable[[tuple[int, int], np.ndarray], float | None] | None = None,
-    held: Callable[[tuple[int, int], np.ndarray], Sequence[np.ndarray]] | None = None,
+    held: Callable[..., Sequence[np.ndarray]] | None = None,
 ) -> tuple[tuple[int, int], np.ndarray, tuple[int, int], Template] | None:
     """Find a carried object in this frame (see the module docstring).
 
