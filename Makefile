@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.lfsam-installed
 
-.PHONY: install demo test lint bench clean system-deps gpu-deps gpu-env gpu-check gpu-track
+.PHONY: install demo test lint bench bench-guard clean system-deps gpu-deps gpu-env gpu-check gpu-track
 
 install: $(STAMP)
 
@@ -27,7 +27,7 @@ demo: $(STAMP)
 test: $(STAMP) system-deps
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/lint-imports
-	xvfb-run -a $(VENV)/bin/python -m pytest -q
+	xvfb-run -a $(VENV)/bin/python -m pytest -q -n 2 --dist loadfile
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
@@ -35,6 +35,11 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(VENV)/bin/python benchmarks/run_all.py
+
+# The default commands a user runs, timed whole in fresh processes (median of 3) beside the
+# figures recorded in docs/performance.md ("Speed guard"); run it alone.
+bench-guard: $(STAMP)
+	$(VENV)/bin/python benchmarks/guard.py
 
 # System packages the viewer tests need (napari under a virtual X display with Mesa's OpenGL;
 # Qt's offscreen platform has no OpenGL). Installed with apt-get only when some are missing.

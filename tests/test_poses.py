@@ -23,8 +23,10 @@ from lfsam.errors import LfsamError
 from lfsam.metrics.pose import add_error, add_recall, rotation_error_deg
 from lfsam.poses import (
     PoseTracker,
+    VideoPoses,
     ViewData,
     bop_csv,
+    default_pose_views,
     first_pose,
     poses_csv,
     poses_of_video,
@@ -250,3 +252,30 @@ def test_cli_one_line_errors(folders, tmp_path, capsys, video):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1, err
     assert not (tmp_path / "x.json").exists()
+
+
+def test_estimated_depth_by_default_uses_the_center_and_corner_views(tmp_path, capsys, video):
+    """`lfsam poses` with its defaults estimates 5 views per frame, not every view (issue 65):
+    it says so before the work, and the poses hold (ADD within 5 % of the diameter)."""
+    write_video_frames(iter(video[:2]), tmp_path / "boxes")
+    assert main(["segment", str(tmp_path / "boxes"), "--auto", "--model", "oracle",
+                 "--disparity", "gt", "--out", str(tmp_path / "result")]) == 0
+    capsys.readouterr()
+    assert main(["poses", str(tmp_path / "result"), "--lightfield", str(tmp_path / "boxes"),
+                 "--json", str(tmp_path / "p.json")]) == 0
+    captured = capsys.readouterr()
+    assert "estimating 5 views' disparity in every frame" in captured.err
+    document = json.loads((tmp_path / "p.json").read_text())
+    assert document["views"] == "corners" and document["estimate"] == "own"
+    assert default_pose_views("estimate") == "corners" and default_pose_views("gt") == "all"
+    assert VideoPoses().views == "corners" and VideoPoses(disparity="gt").views == "all"
+    with pytest.raises(LfsamError, match="estimate must be one of"):
+        VideoPoses(estimate="each")
+    pose0, size = _truth(video[0])
+    model = transform(pose0, box_surface_points(size))
+    (box,) = [o for o in document["objects"]  # the oracle's object on the box
+              if (np.abs(transform(np.linalg.inv(pose0), np.asarray(o["first_pose"])[None, :3, 3]))
+                  <= size / 2).all()]
+    motion = np.asarray(box["frames"][1]["motion"])
+    true = _truth(video[1])[0] @ np.linalg.inv(pose0)
+    assert add_error(model, motion, true) < 0.05 * np.linalg.norm(size)

@@ -41,7 +41,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from lfsam.camera import Camera
-from lfsam.disparity.methods import estimate_disparity
+from lfsam.disparity.carried import ESTIMATE_MODES, estimate_views
 from lfsam.disparity.source import load_disparity_spec, resolve_view_disparity
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField, check_result_shape
@@ -68,6 +68,7 @@ __all__ = [
     "VideoPoses",
     "ViewData",
     "bop_csv",
+    "default_pose_views",
     "first_pose",
     "poses_csv",
     "poses_json",
@@ -78,6 +79,14 @@ __all__ = [
 #: Which views' pixels become points: every present view, the center and the four corner views
 #: (the longest baselines: 5 disparity estimates per frame instead of 49), or the center alone.
 POSE_VIEWS = ("all", "corners", "center")
+
+
+def default_pose_views(disparity: object) -> str:
+    """The views whose pixels become points when none are named (issue 65): every view with a
+    ground-truth or file disparity; the center and the corners with an estimate (5 estimates per
+    frame instead of one per view, and the estimate targets are met with them: docs/design.md
+    section 12)."""
+    return "corners" if isinstance(disparity, str) and disparity == "estimate" else "all"
 
 #: The statuses of an object in a frame.
 STATUSES = ("tracked", "lost", "found again")
@@ -434,7 +443,7 @@ class PoseTracker:
 
 
 def _view_arrays(lightfield: LightField, result: SegmentationResult, spec, name: str,
-                 views: str, device: str | None) -> list[ViewData]:
+                 views: str, estimate: str, device: str | None) -> list[ViewData]:
     present = lightfield.present & result.present_mask
     center = lightfield.center
     chosen = [tuple(int(x) for x in v) for v in np.argwhere(present)]
@@ -444,12 +453,12 @@ def _view_arrays(lightfield: LightField, result: SegmentationResult, spec, name:
         last_s, last_t = present.shape[0] - 1, present.shape[1] - 1
         chosen = [center] + [v for v in ((0, 0), (0, last_t), (last_s, 0), (last_s, last_t))
                              if present[v] and v != center]
+    estimated = (estimate_views(lightfield, chosen, mode=estimate, device=device)
+                 if isinstance(spec, str) and spec == "estimate" else {})
     out = []
     for view in chosen:
-        if isinstance(spec, str) and spec == "estimate":
-            estimate = estimate_disparity(lightfield, device=device, view=view)
-            disparity = np.asarray(estimate.disparity)
-            confidence = np.asarray(estimate.confidence)
+        if view in estimated:
+            disparity, confidence = estimated[view]
         else:
             disparity, _, _ = resolve_view_disparity(spec, lightfield, view=view,
                                                      device=device, name=name)
@@ -464,7 +473,8 @@ def poses_of_video(
     *,
     disparity: str | os.PathLike | np.ndarray = "estimate",
     camera: Camera | str | os.PathLike | None = None,
-    views: str = "all",
+    views: str | None = None,
+    estimate: str = "own",
     options: PoseOptions | None = None,
     device: str | None = None,
     on_frame: Callable[[int, list[FramePose]], None] | None = None,
@@ -478,9 +488,15 @@ def poses_of_video(
     disparity : {"estimate", "gt"}, .npy path or ndarray
         As :func:`lfsam.objects3d.objects_in_3d`; a map or file holds for every frame.
     camera : Camera, ``--camera`` JSON path, or None (the first frame's own)
-    views : {"all", "corners", "center"}
+    views : {"all", "corners", "center"}, optional
         The views whose pixels become points (:data:`POSE_VIEWS`; features use the center and
-        the corners of these). With ``"estimate"``, one estimate per view and frame.
+        the corners of these); default :func:`default_pose_views` (``"corners"`` with an
+        estimate, else ``"all"``).
+    estimate : {"own", "carried"}
+        With ``disparity="estimate"``: every used view's own estimate (one cost volume per view
+        and frame: 5 with ``views="corners"``, 49 on a 7 x 7 grid with ``views="all"``), or the
+        center view's estimate carried to the other views (one per frame, less accurate;
+        :func:`lfsam.disparity.carried.estimate_views`).
     options : PoseOptions, optional
     on_frame : callable, optional
         Called with ``(frame, [FramePose, ...])`` after each frame (live output).
@@ -494,8 +510,8 @@ def poses_of_video(
     LfsamError
         A result that does not match its light field, no camera, a bad disparity source.
     """
-    session = VideoPoses(disparity=disparity, camera=camera, views=views, options=options,
-                         device=device)
+    session = VideoPoses(disparity=disparity, camera=camera, views=views, estimate=estimate,
+                         options=options, device=device)
     for result, lightfield in frames:
         entries = session.add(result, lightfield)
         if on_frame is not None:
@@ -514,10 +530,15 @@ class VideoPoses:
     """
 
     def __init__(self, *, disparity: str | os.PathLike | np.ndarray = "estimate",
-                 camera: Camera | str | os.PathLike | None = None, views: str = "all",
-                 options: PoseOptions | None = None, device: str | None = None) -> None:
+                 camera: Camera | str | os.PathLike | None = None, views: str | None = None,
+                 estimate: str = "own", options: PoseOptions | None = None,
+                 device: str | None = None) -> None:
+        views = default_pose_views(disparity) if views is None else views
         if views not in POSE_VIEWS:
             raise LfsamError(f"views must be one of {POSE_VIEWS}, got {views!r}")
+        if estimate not in ESTIMATE_MODES:
+            raise LfsamError(f"estimate must be one of {ESTIMATE_MODES}, got {estimate!r}")
+        self.estimate = estimate
         self.disparity, self.views, self.options, self.device = disparity, views, options, device
         self._camera_spec = camera
         self.camera: Camera | None = camera if isinstance(camera, Camera) else None
@@ -540,7 +561,8 @@ class VideoPoses:
             self.tracker = PoseTracker(self.camera, lightfield.view_shape, self.options,
                                        categories)
         spec, name = load_disparity_spec(self.disparity, lightfield)
-        data = _view_arrays(lightfield, result, spec, name, self.views, self.device)
+        data = _view_arrays(lightfield, result, spec, name, self.views, self.estimate,
+                            self.device)
         entries = self.tracker.add_frame(data, frame=self.frames)
         self.frames += 1
         return entries

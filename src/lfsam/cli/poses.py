@@ -11,11 +11,20 @@ import numpy as np
 from lfsam.camera import CAMERA_EXAMPLE
 from lfsam.cli.common import HelpFormatter, add_device_argument
 from lfsam.cli.inputs import expect_input, expect_partner, video_with_result
+from lfsam.disparity.carried import ESTIMATE_MODES
 from lfsam.errors import LfsamError
 from lfsam.fileutil import check_writable, write_text_atomic
 from lfsam.metrics.pose import rotation_error_deg
 from lfsam.objects3d import resolve_camera
-from lfsam.poses import POSE_VIEWS, ObjectPoses, bop_csv, poses_csv, poses_json, poses_of_video
+from lfsam.poses import (
+    POSE_VIEWS,
+    ObjectPoses,
+    bop_csv,
+    default_pose_views,
+    poses_csv,
+    poses_json,
+    poses_of_video,
+)
 
 __all__ = ["register", "run"]
 
@@ -40,9 +49,12 @@ points onto a keyframe model of the object (no drift from chaining frame to fram
 light field (a result .npz) gives each object's pose with identity motion.
 
 The camera is --camera CAMERA.json ({CAMERA_EXAMPLE}), else the light field's own (an HCI 4D
-parameters.cfg, or an lfsam scene folder's: `lfsam synth` writes one). --disparity estimate
-estimates every used view's disparity (seconds per view on a CPU): --views corners needs 5
-per frame (the center and the corners, the longest baselines), --views center one.
+parameters.cfg, or an lfsam scene folder's: `lfsam synth` writes one). With --disparity
+estimate (the default) the points come from the center and the four corner views (--views
+corners), each estimated on its own: 5 estimates per frame. --views all then estimates every
+view (49 per frame on a 7x7 grid: about 10 times the time); --estimate carried estimates the
+center view alone and carries its disparity to the other views through the light field's
+geometry (one estimate per frame; less accurate: the views then repeat the center's errors).
 
 Outputs: the table on the terminal; --json everything ({{"camera", "objects": [{{"id",
 "category", "first_pose", "frames": [{{"frame", "status", "motion", "pose", "inliers",
@@ -56,7 +68,8 @@ examples:
   lfsam synth boxes --rigid --seed 7          # 3 boxes under known motion, 10 frames of 7x7 views
   lfsam segment boxes --auto --model oracle --disparity gt --out boxes_result
   lfsam poses boxes_result --lightfield boxes --disparity gt --json poses.json
-  lfsam poses boxes_result --lightfield boxes --views corners --csv poses.csv --bop bop.csv
+  lfsam poses boxes_result --lightfield boxes --csv poses.csv --bop bop.csv   # estimated depth
+  lfsam poses boxes_result --lightfield boxes --estimate carried    # one estimate per frame
   lfsam segment scene --auto --model oracle --disparity gt --out result.npz
   lfsam poses result.npz --lightfield scene --camera camera.json      # one light field
 """
@@ -77,16 +90,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="the light-field video (or light field) the result was computed on")
     parser.add_argument(
         "--disparity", default="estimate", metavar="estimate|gt|FILE.npy",
-        help="disparity: estimated per view (with its confidence), the ground truth, or a "
-        "(U, V) / (S, T, U, V) .npy map used for every frame",
+        help="disparity: estimated (with its confidence; see --estimate), the ground truth, or "
+        "a (U, V) / (S, T, U, V) .npy map used for every frame",
+    )
+    parser.add_argument(
+        "--estimate", choices=ESTIMATE_MODES, default="own",
+        help="with --disparity estimate: each used view's own estimate (one per view and "
+        "frame), or the center view's estimate carried to the other views (one per frame, "
+        "less accurate)",
     )
     parser.add_argument("--camera", metavar="CAMERA.json",
                         help=f"camera: {CAMERA_EXAMPLE} (default: the light field's own)")
-    parser.add_argument("--views", choices=POSE_VIEWS, default="all",
-                        help="the views whose pixels become points: every view (default), the "
-                        "center and the four corner views (with --disparity estimate: 5 "
-                        "estimates per frame instead of one per view; what the benchmark "
-                        "measures), or the center view only (fastest, least accurate)")
+    parser.add_argument("--views", choices=POSE_VIEWS, default=None,
+                        help="the views whose pixels become points: every view, the center and "
+                        "the four corner views, or the center view only (fastest, least "
+                        "accurate) (default: corners with --disparity estimate, else all)")
     parser.add_argument("--json", metavar="OUT.json", help="write everything as JSON")
     parser.add_argument("--csv", metavar="OUT.csv",
                         help="write one row per object and frame (quaternions, metres)")
@@ -116,12 +134,19 @@ def _line(obj: ObjectPoses) -> str:
             f"rmse {1000 * rmse:.2f} mm, {seconds:.2f} s/frame")
 
 
-def _say_estimating(args: argparse.Namespace) -> None:
+def _say_estimating(args: argparse.Namespace, grid: tuple[int, int]) -> None:
     """Once the inputs are checked: an estimated disparity is most of the run's time."""
-    if args.disparity == "estimate":
-        per_frame = {"all": "every view's", "corners": "5 views'", "center": "the center view's"}
-        print(f"estimating {per_frame[args.views]} disparity in every frame (seconds per view "
-              "on a CPU; --disparity gt or FILE.npy skips it)", file=sys.stderr)
+    if args.disparity != "estimate":
+        return
+    if args.estimate == "carried":
+        print("estimating the center view's disparity in every frame, carried to the other "
+              "views (--disparity gt or FILE.npy skips it)", file=sys.stderr)
+        return
+    count = {"all": grid[0] * grid[1], "corners": 5, "center": 1}[args.views]
+    cost = "" if args.views != "all" else f" ({count / 5:.0f} times the time of --views corners)"
+    print(f"estimating {count} view{'' if count == 1 else 's'}' disparity in every frame"
+          f"{cost}; seconds per view on a CPU (--disparity gt or FILE.npy skips it)",
+          file=sys.stderr)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -129,6 +154,7 @@ def run(args: argparse.Namespace) -> int:
     for option, path in (("--json", args.json), ("--csv", args.csv), ("--bop", args.bop)):
         if path:
             check_writable(path, folder=False, option=option)
+    args.views = args.views or default_pose_views(args.disparity)
     kind = expect_input(args.result, "poses", ("result", "video-result"))
     expect_partner(args.lightfield, args.result, kind, "poses", "--lightfield")
     from tqdm import tqdm
@@ -139,11 +165,12 @@ def run(args: argparse.Namespace) -> int:
             if args.disparity == "gt" and not video.has_disparity:
                 raise LfsamError(f"{args.lightfield} has no ground-truth disparity; use "
                                  "--disparity estimate or FILE.npy")
-            _say_estimating(args)
+            _say_estimating(args, video.frame(0).grid_shape)
             frames = tqdm(zip(video_result, video, strict=True), total=len(video),
                           desc="frames", unit="frame", file=sys.stderr)
             _, objects = poses_of_video(frames, disparity=args.disparity, camera=camera,
-                                        views=args.views, device=args.device)
+                                        views=args.views, estimate=args.estimate,
+                                        device=args.device)
             count = len(video)
     else:
         from lfsam.io import read_lightfield
@@ -154,9 +181,10 @@ def run(args: argparse.Namespace) -> int:
         lightfield = read_lightfield(args.lightfield)
         check_result_shape(result.labels.shape, lightfield, args.result)
         camera = resolve_camera(lightfield, args.camera)
-        _say_estimating(args)
+        _say_estimating(args, lightfield.grid_shape)
         _, objects = poses_of_video([(result, lightfield)], disparity=args.disparity,
-                                    camera=camera, views=args.views, device=args.device)
+                                    camera=camera, views=args.views, estimate=args.estimate,
+                                    device=args.device)
         count = 1
     print(f"{len(objects)} object{'' if len(objects) == 1 else 's'} over {count} frame"
           f"{'' if count == 1 else 's'}; disparity {args.disparity}, views {args.views}, "
@@ -164,7 +192,8 @@ def run(args: argparse.Namespace) -> int:
     for obj in objects:
         print(_line(obj))
     if args.json:
-        document = poses_json(camera, objects, disparity=args.disparity, views=args.views)
+        document = poses_json(camera, objects, disparity=args.disparity, views=args.views,
+                              estimate=args.estimate if args.disparity == "estimate" else None)
         write_text_atomic(args.json, json.dumps(document, indent=1) + "\n")
         print(f"wrote {args.json}")
     if args.csv:
