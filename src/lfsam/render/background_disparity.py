@@ -4,7 +4,8 @@ Never the object's own disparity: behind an object, the surface its rim shows co
 center view, the disparity estimated from the views is kept wherever the objects are not (their
 masks grown by a few pixels, where estimates bleed across the edge) and filled inside from
 around: a plane fitted robustly to the rim behind the object, plus OpenCV's inpainting of what
-departs from it (:mod:`lfsam.render.inpaint`): a plane behind the object is filled exactly. Any other view looks the background up in the center: a background point seen in view
+departs from it (:mod:`lfsam.render.inpaint`): a plane behind the object is filled exactly.
+Any other view looks the background up in the center: a background point seen in view
 ``(s, t)`` at ``(u, v)`` with disparity ``d`` is seen by the center view at
 ``(u + d ds, v + d dt)`` (docs/design.md section 1); ``d`` is found by a few fixed-point steps.
 """
