@@ -5,9 +5,9 @@ center view, the disparity estimated from the views is kept wherever the objects
 masks grown by a few pixels, where estimates bleed across the edge) and filled inside from
 around: a plane fitted robustly to the rim behind the object, plus OpenCV's inpainting of what
 departs from it (:mod:`lfsam.render.inpaint`): a plane behind the object is filled exactly.
-Any other view looks the background up in the center: a background point seen in view
-``(s, t)`` at ``(u, v)`` with disparity ``d`` is seen by the center view at
-``(u + d ds, v + d dt)`` (docs/design.md section 1); ``d`` is found by a few fixed-point steps.
+Any other view gets the center's disparity forward-warped into it (its own rim, even where
+nearer objects hide the background from the center view), filled in its own object pixels
+the same way.
 """
 
 from __future__ import annotations
@@ -16,12 +16,15 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from lfsam.disparity import warp_center_disparity
 from lfsam.render.inpaint import inpaint
 
 __all__ = ["background_center", "dilate", "rim_disparity", "view_backgrounds"]
 
 #: Pixels by which the object masks grow before their disparity is replaced.
 GAP = 2
+#: Disparity above the object's (95th percentile) that marks a nearer surface, pixels.
+NEARER = 0.1
 #: Width of the ring around an object from which the surface behind it is fitted, pixels.
 RING = 6
 
@@ -78,8 +81,18 @@ def background_center(disparity: np.ndarray, mask: np.ndarray) -> np.ndarray:
     if not hole.any():
         return disparity.copy()
     plane = _rim_plane(disparity, mask, hole)
-    residual = np.where(hole, 0.0, disparity - plane).astype(np.float32)
-    return (plane + inpaint(residual, hole)).astype(np.float32)
+    # What lies in front of the object around it (nearer objects) is not what lies behind it:
+    # left out of the fill as well.
+    inside = disparity[mask & np.isfinite(disparity)]
+    unknown = hole.copy()
+    if inside.size:
+        near = dilate(torch.from_numpy(hole), RING).numpy() & (disparity >= np.median(inside))
+        unknown |= near
+    residual = np.where(unknown, 0.0, disparity - plane).astype(np.float32)
+    filled = plane + inpaint(residual, unknown)
+    if inside.size:  # the grown mask's pixels of nearer objects keep their own disparity
+        hole &= ~(disparity > np.percentile(inside, 95) + NEARER)
+    return np.where(hole, filled, disparity).astype(np.float32)
 
 
 def _rim_plane(disparity: np.ndarray, mask: np.ndarray, hole: np.ndarray) -> np.ndarray:
@@ -114,37 +127,35 @@ def _rim_plane(disparity: np.ndarray, mask: np.ndarray, hole: np.ndarray) -> np.
 
 
 def view_backgrounds(
-    center: np.ndarray, offsets: torch.Tensor, steps: int = 4
+    center: np.ndarray, masks: np.ndarray, offsets: torch.Tensor,
+    device: str | torch.device | None = None,
 ) -> torch.Tensor:
-    """The background disparity of every view, looked up in the center's.
+    """The background disparity of every view: the center's disparity carried into the view
+    (:func:`lfsam.disparity.warp_center_disparity`: z-buffer, disocclusions filled from the
+    farther side), the view's own object pixels then filled from its own rim
+    (:func:`background_center`). Each view's rim shows what lies behind the object there, even
+    where nearer objects hide it from the center view.
 
     Parameters
     ----------
     center : (U, V) float array
-        :func:`background_center`.
+        The center view's disparity (estimated from the views, or ground truth).
+    masks : (N, U, V) bool array
+        The objects in each view.
     offsets : (N, 2) tensor
         ``(ds, dt)`` of each view from the center view.
-    steps : int
-        Fixed-point steps ``d <- center(u + d ds, v + d dt)``.
+    device : str or torch.device, optional
+        Where the warps run.
 
     Returns
     -------
     (N, U, V) float32 tensor
     """
-    height, width = center.shape
-    base = torch.from_numpy(np.asarray(center, dtype=np.float32))[None, None]
-    offsets = torch.as_tensor(offsets, dtype=torch.float32)
-    n = offsets.shape[0]
-    rows = torch.arange(height, dtype=torch.float32)[:, None].expand(height, width)
-    cols = torch.arange(width, dtype=torch.float32)[None, :].expand(height, width)
-    d = base[0].expand(n, height, width).clone()
-    ds = offsets[:, 0, None, None]
-    dt = offsets[:, 1, None, None]
-    source = base.expand(n, 1, height, width)
-    for _ in range(steps):
-        u = rows + d * ds
-        v = cols + d * dt
-        grid = torch.stack([2 * v / max(width - 1, 1) - 1, 2 * u / max(height - 1, 1) - 1], -1)
-        d = F.grid_sample(source, grid, mode="bilinear", padding_mode="border",
-                          align_corners=True)[:, 0]
-    return d
+    center = np.asarray(center, dtype=np.float32)
+    finite = np.where(np.isfinite(center), center, np.nanmin(center[np.isfinite(center)]))
+    out = []
+    for k, (ds, dt) in enumerate(torch.as_tensor(offsets).tolist()):
+        view = finite if ds == 0 and dt == 0 else warp_center_disparity(
+            finite, (ds, dt), device=device)[0]
+        out.append(background_center(view, masks[k]))
+    return torch.from_numpy(np.stack(out))

@@ -6,8 +6,9 @@ from the other views where the surface behind is visible: a pixel of view ``(s, 
 background disparity ``d`` (:mod:`lfsam.render.background_disparity`, never the object's own)
 is seen by view ``(s', t')`` at ``(u - d (s' - s), v - d (t' - t))``; that view's colour there
 counts if its ray misses the objects (none of the four bilinear neighbours masked) and the
-view sees that surface there (its own background disparity within :data:`DEPTH_TOLERANCE`, so
-another object in front of it does not count). The colours are averaged with weights falling
+view sees that surface there (the nearest background disparity within a pixel of the sample
+within :data:`DEPTH_TOLERANCE` of it, so another object in front, or its anti-aliased edge, does
+not count). The colours are averaged with weights falling
 with the distance between the views (nearer views differ less in sampling and lighting).
 Pixels no other view sees are inpainted by OpenCV (:mod:`lfsam.render.inpaint`) and flagged.
 """
@@ -20,7 +21,7 @@ import torch.nn.functional as F
 from tqdm import tqdm
 
 from lfsam.devices import resolve_device
-from lfsam.render.background_disparity import background_center, dilate, view_backgrounds
+from lfsam.render.background_disparity import dilate, view_backgrounds
 from lfsam.render.inpaint import inpaint, require_cv2
 from lfsam.render.views import check_masks, select_views, views_tensor
 
@@ -111,10 +112,13 @@ def remove_objects(
     s_count, t_count = views.shape[:2]
     chosen, offsets = select_views(views.shape[:2], present, None)
     hit = dilate(torch.from_numpy(np.stack([masks[s, t] for s, t in chosen])), grow)
-    center = background_center(disparity, masks[s_count // 2, t_count // 2])
-    depth = view_backgrounds(center, offsets)
+    own = np.stack([masks[s, t] for s, t in chosen])
+    depth = view_backgrounds(disparity, own, offsets, device=device)
     images = views_tensor(views, chosen, torch.device("cpu"))
-    sources = torch.cat([images, (~hit).float()[:, None], depth[:, None]], dim=1).to(device)
+    # The nearest surface within a pixel of each sample: a ray grazing a nearer object's
+    # (anti-aliased) edge does not count as seeing the surface behind.
+    nearest = F.max_pool2d(depth[:, None], 3, stride=1, padding=1)
+    sources = torch.cat([images, (~hit).float()[:, None], nearest], dim=1).to(device)
     out = np.array(views, copy=True)
     unseen = np.zeros(views.shape[:4], dtype=bool)
     offsets = offsets.to(device)
