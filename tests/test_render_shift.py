@@ -76,7 +76,7 @@ def test_keep_weights_leave_rays_out():
 
 
 def test_aperture_selects_views_within_the_radius():
-    chosen, offsets = select_views((5, 5), aperture=1.0)
+    chosen, _ = select_views((5, 5), aperture=1.0)
     assert sorted(chosen) == [(1, 2), (2, 1), (2, 2), (2, 3), (3, 2)]
     present = np.ones((5, 5), dtype=bool)
     present[2, 3] = False

@@ -77,8 +77,9 @@ def test_remove_fills_each_view_from_the_others(scene):
 
 
 def _grown(masks):
-    from lfsam.render.background_disparity import dilate
     import torch
+
+    from lfsam.render.background_disparity import dilate
 
     return dilate(torch.from_numpy(masks), 1).numpy()
 
@@ -101,7 +102,8 @@ def test_refocus_on_a_fronto_parallel_object_is_sharp(scene):
 
 def _inner(mask):
     """The object's pixels all of whose rays hit it (its mask, eroded by the aperture's reach)."""
-    from lfsam.render.background_disparity import dilate
     import torch
+
+    from lfsam.render.background_disparity import dilate
 
     return ~dilate(torch.from_numpy(~mask), 3).numpy()
