@@ -81,3 +81,14 @@ def test_a_focus_outside_the_range_is_clipped_with_a_warning(scene, tmp_path, ca
                  "--out", str(tmp_path / "f.png")]) == 0
     assert "outside the scene's disparity range" in capsys.readouterr().err
     assert np.asarray(read_lightfield(lf_path).views).any()
+
+
+def test_a_video_result_renders_every_frame(tmp_path):
+    clip, result, out = tmp_path / "clip", tmp_path / "clip_result", tmp_path / "behind"
+    assert main(["synth", str(clip), "--frames", "2", "--grid", "3x3", "--size", "40x56",
+                 "--objects", "2"]) == 0
+    assert main(["segment", str(clip), "--auto", "--model", "oracle", "--disparity", "gt",
+                 "--out", str(result)]) == 0
+    assert main(["render", str(clip), "--result", str(result), "--see-through", "2",
+                 "--disparity", "gt", "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["frame_0000.png", "frame_0001.png"]

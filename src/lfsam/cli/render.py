@@ -13,6 +13,7 @@ import numpy as np
 
 from lfsam.cli.common import HelpFormatter, add_device_argument, add_disparity_argument
 from lfsam.cli.render_output import write_coverage, write_image, write_removed
+from lfsam.cli.render_video import run_video
 from lfsam.disparity import estimate_disparity_range, resolve_disparity
 from lfsam.errors import LfsamError
 from lfsam.fileutil import check_writable
@@ -20,6 +21,7 @@ from lfsam.io import read_lightfield, resolve_output
 from lfsam.lightfield import LightField, check_result_shape
 from lfsam.render import behind_focus, object_focus, refocus, remove_objects, see_through
 from lfsam.result import load_result
+from lfsam.video.result import is_video_result
 
 __all__ = ["register", "run"]
 
@@ -45,6 +47,10 @@ IDs are label ids of RESULT (`lfsam segment ... --out RESULT`; with an oracle re
 the scene's ground-truth labels). --aperture R uses the views within R view steps of the center
 view (default all). A focus outside the scene's disparity range is clipped to it, with a
 warning. Nothing is written when a step fails.
+
+A light-field video's result folder (from `lfsam segment VIDEO`) renders every frame: LF is the
+video and OUT a folder of frame_0000.png ... (refocus, see-through; with --coverage (any
+name), coverage_0000.png ... beside them) or frame_0000/ scene folders (remove).
 """
 
 EPILOG = """\
@@ -55,6 +61,7 @@ examples:
   lfsam render scene --result result.npz --focus-on 3 --out object3.png
   lfsam render scene --result result.npz --see-through 3,4 --coverage cover.png --out behind.png
   lfsam render scene --result result.npz --remove 3 --out without3.npz
+  lfsam render clip --result clip_result --see-through 2 --out behind_frames   # every frame
   lfsam synth truth --grid 9x9 --size 240x320 --seed 5 --without 3   # the ground truth to compare
 """
 
@@ -128,12 +135,21 @@ def _check(args: argparse.Namespace) -> str:
 def run(args: argparse.Namespace) -> int:
     """Render and write; every input is checked before any output is made."""
     mode = _check(args)
+    if args.result and is_video_result(args.result):
+        return run_video(args, mode, render_frame)
     lf = read_lightfield(args.lightfield)
     labels = None
     if args.result:
         result = load_result(args.result)
         check_result_shape(result.labels.shape, lf, args.result)
         labels = result.labels
+    print(render_frame(args, mode, lf, labels, args.out, args.coverage, progress=True))
+    return 0
+
+
+def render_frame(args: argparse.Namespace, mode: str, lf: LightField,
+                 labels: np.ndarray | None, out, coverage_out, progress: bool = False) -> str:
+    """Render one light field (one frame) in ``mode`` and write it to ``out``; the summary."""
     device = None if args.device == "auto" else args.device
     disparity = None
     if mode == "refocus" and args.focus_on is None and args.disparity == "estimate":
@@ -150,9 +166,8 @@ def run(args: argparse.Namespace) -> int:
             focus = object_focus(mask, disparity)
         image = refocus(lf.views, focus, present=lf.present, aperture=args.aperture,
                         disparity_range=scene_range, device=device)
-        write_image(args.out, image)
-        print(f"wrote {args.out}: refocused at disparity {_clip(focus, scene_range):.3f}")
-        return 0
+        write_image(out, image)
+        return f"wrote {out}: refocused at disparity {_clip(focus, scene_range):.3f}"
     if mode == "see-through":
         masks = _masks(labels, args.see_through, args.result)
         focus = args.focus if args.focus is not None else behind_focus(masks, disparity)
@@ -160,27 +175,25 @@ def run(args: argparse.Namespace) -> int:
             lf.views, masks, focus=focus, present=lf.present, aperture=args.aperture,
             disparity_range=scene_range, device=device,
         )
-        write_image(args.out, image)
-        if args.coverage:
-            write_coverage(args.coverage, coverage)
+        write_image(out, image)
+        if coverage_out:
+            write_coverage(coverage_out, coverage)
         seen = float((coverage > 0).mean())
-        print(f"wrote {args.out}: seen through {args.see_through} at disparity "
-              f"{_clip(focus, scene_range):.3f}; {seen:.1%} of the pixels seen by some view")
-        return 0
+        return (f"wrote {out}: seen through {args.see_through} at disparity "
+                f"{_clip(focus, scene_range):.3f}; {seen:.1%} of the pixels seen by some view")
     masks = _masks(labels, args.remove, args.result)
     views, unseen = remove_objects(lf.views, masks, disparity, present=lf.present,
-                                   device=device, progress=True)
+                                   device=device, progress=progress)
     removed = LightField(
         views, present=lf.present,
         meta={**{k: v for k, v in lf.meta.items() if k not in ("generator",)},
               "render": {"removed": args.remove, "result": str(args.result),
                          "inpainted": int(unseen.sum()), "flags": "inpainted.npy"}},
     )
-    out = write_removed(removed, unseen, args.out)
-    print(f"wrote {out}: {lf.grid_shape[0]}x{lf.grid_shape[1]} views without {args.remove}; "
-          f"{int(masks.sum())} object pixels, {int(unseen.sum())} seen by no view (inpainted, "
-          "flagged in inpainted.npy)")
-    return 0
+    written = write_removed(removed, unseen, out)
+    return (f"wrote {written}: {lf.grid_shape[0]}x{lf.grid_shape[1]} views without "
+            f"{args.remove}; {int(masks.sum())} object pixels, {int(unseen.sum())} seen by no "
+            "view (inpainted, flagged in inpainted.npy)")
 
 
 def _clip(focus: float, scene_range: tuple[float, float] | None) -> float:
