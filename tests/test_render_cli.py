@@ -83,6 +83,7 @@ def test_a_focus_outside_the_range_is_clipped_with_a_warning(scene, tmp_path, ca
     assert np.asarray(read_lightfield(lf_path).views).any()
 
 
+@pytest.mark.slow  # segmenting a video first: about 50 s on a shared 2-core CPU
 def test_a_video_result_renders_every_frame(tmp_path):
     clip, result, out = tmp_path / "clip", tmp_path / "clip_result", tmp_path / "behind"
     assert main(["synth", str(clip), "--frames", "2", "--grid", "3x3", "--size", "40x56",
