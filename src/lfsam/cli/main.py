@@ -35,6 +35,7 @@ SUBCOMMANDS = [
     "poses",
     "evaluate",
     "show",
+    "render",
     "demo",
     "view",
 ]
@@ -54,6 +55,7 @@ examples:
   lfsam segment scene --auto --model oracle --disparity gt --out result.npz
   lfsam metrics result.npz --gt scene                      # the paper's metrics
   lfsam show result.npz --lightfield scene --out figure.png
+  lfsam render scene --result result.npz --see-through 3 --out behind.png
 
 Run `lfsam COMMAND --help` for each command's options and an example.
 """

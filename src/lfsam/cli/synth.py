@@ -9,7 +9,7 @@ from lfsam.cli.common import HelpFormatter, bounded_int, parse_pair, unit_interv
 from lfsam.errors import LfsamError
 from lfsam.fileutil import check_writable
 from lfsam.io import WRITE_FORMATS, resolve_output, write_lightfield
-from lfsam.synth import generate_scene
+from lfsam.synth import generate_scene, generate_scene_without
 from lfsam.synth.rigid import generate_rigid_video
 from lfsam.video.synth import generate_video, write_video_frames
 
@@ -61,6 +61,7 @@ examples:
   lfsam synth small.npz --grid 5x5 --size 64x96 --seed 3 --objects 4
   lfsam synth wide --disparity-range=-4,4              # note the '=' for negative numbers
   lfsam synth hidden.npz --hidden-objects 3            # 3 objects only the outer views see
+  lfsam synth twin --seed 3 --without 2,4              # the same scene without objects 2 and 4
   lfsam synth glossy --specular 0.6                    # highlights that move across views
   lfsam synth glassy --glass 1 --mirror 1              # a see-through and a mirror object
   lfsam synth clip --frames 6 --grid 5x5 --size 96x128 # a light-field video of 6 frames
@@ -75,6 +76,16 @@ def _disparity_range(text: str) -> tuple[float, float]:
     if not (low < high and math.isfinite(low) and math.isfinite(high)):
         raise argparse.ArgumentTypeError(f"expected LO,HI with LO < HI, got {text!r}")
     return low, high
+
+
+def _id_list(text: str) -> list[int]:
+    try:
+        ids = [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        ids = []
+    if not ids or min(ids) < 1:
+        raise argparse.ArgumentTypeError(f"expected labels ID[,ID...] (>= 1), got {text!r}")
+    return ids
 
 
 def _positive_pair(text: str) -> tuple[int, int]:
@@ -153,6 +164,8 @@ def run(args: argparse.Namespace) -> int:
     """Generate the scene (or with ``--frames``, the video; ``--rigid``, the boxes) and write
     it."""
     _defaults(args)
+    if args.without and (args.rigid or args.frames is not None):
+        raise LfsamError("--without renders one scene without objects; not with --frames, --rigid")
     if args.rigid:
         return _run_rigid(args)
     if args.disparity_range is None:
@@ -176,7 +189,7 @@ def run(args: argparse.Namespace) -> int:
             f"supersample {args.supersample} needs more than {MAX_RENDER_BYTES >> 30} GiB; "
             "choose a smaller --grid, --size or --supersample"
         )
-    lf = generate_scene(
+    settings = dict(
         grid=args.grid,
         size=args.size,
         seed=args.seed,
@@ -188,6 +201,10 @@ def run(args: argparse.Namespace) -> int:
         glass=args.glass,
         mirror=args.mirror,
     )
+    if args.without:
+        lf = generate_scene_without(args.without, **settings)
+    else:
+        lf = generate_scene(**settings)
     out = write_lightfield(lf, args.out, format=args.format)
     hidden = f" + {args.hidden_objects} hidden" if args.hidden_objects else ""
     hidden += f", specular {args.specular:g}" if args.specular else ""
@@ -290,6 +307,14 @@ def register(subparsers) -> None:
         type=bounded_int(1, 8),
         default=2,
         help="RGB samples per pixel along each axis (anti-aliasing)",
+    )
+    parser.add_argument(
+        "--without",
+        type=_id_list,
+        default=None,
+        metavar="ID[,ID...]",
+        help="render the same scene without these objects (labels; what lies behind them, with "
+        "its exact disparity and labels: the ground truth of `lfsam render --remove`)",
     )
     parser.add_argument(
         "--format",

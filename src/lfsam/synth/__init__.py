@@ -8,13 +8,15 @@ exact per-view disparity and instance labels in the package convention.
 - :func:`demo_scene` — the default scene used by ``make demo``;
 - :func:`random_scene` / :func:`render_scene` — the two steps separately, for custom scenes built
   from :class:`PlanarObject` and :class:`SceneSpec` (the data model, :mod:`lfsam.synth.spec`);
-- :func:`sample_geometry` — exact labels and disparity of any view at sub-pixel positions.
+- :func:`sample_geometry` — exact labels and disparity of any view at sub-pixel positions;
+- :func:`generate_scene_without` — the same scene without chosen objects (what lies behind them).
 """
 
 from lfsam.synth.render import demo_scene, generate_scene, render_scene, sample_geometry
 from lfsam.synth.scene import random_scene
 from lfsam.synth.spec import PlanarObject, SceneSpec
 from lfsam.synth.textures import TEXTURES, make_texture
+from lfsam.synth.twin import generate_scene_without, scene_without
 
 __all__ = [
     "TEXTURES",
@@ -22,8 +24,10 @@ __all__ = [
     "SceneSpec",
     "demo_scene",
     "generate_scene",
+    "generate_scene_without",
     "make_texture",
     "random_scene",
     "render_scene",
     "sample_geometry",
+    "scene_without",
 ]

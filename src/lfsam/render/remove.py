@@ -1,0 +1,141 @@
+"""Object removal: a whole light field without the objects (docs/design.md section 13).
+
+Jarabo et al. (2014), "How do people edit light fields?": edits of a light field must stay
+consistent across its views. Each view's object pixels (the mask grown by a pixel) are filled
+from the other views where the surface behind is visible: a pixel of view ``(s, t)`` with
+background disparity ``d`` (:mod:`lfsam.render.background_disparity`, never the object's own)
+is seen by view ``(s', t')`` at ``(u - d (s' - s), v - d (t' - t))``; that view's colour there
+counts if its ray misses the objects (none of the four bilinear neighbours masked) and the
+view sees that surface there (the nearest background disparity within a pixel of the sample
+within :data:`DEPTH_TOLERANCE` of it, so another object in front, or its anti-aliased edge, does
+not count). The colours are averaged with weights falling
+with the distance between the views (nearer views differ less in sampling and lighting).
+Pixels no other view sees are inpainted by OpenCV (:mod:`lfsam.render.inpaint`) and flagged.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from tqdm import tqdm
+
+from lfsam.devices import resolve_device
+from lfsam.render.background_disparity import dilate, view_backgrounds
+from lfsam.render.inpaint import inpaint, require_cv2
+from lfsam.render.views import check_masks, select_views, views_tensor
+
+__all__ = ["DEPTH_TOLERANCE", "remove_objects"]
+
+#: Largest difference (pixels per view step) between the disparity a view shows and the one
+#: sought for its colour to count.
+DEPTH_TOLERANCE = 0.5
+#: Spread of the weights over the view distance, view steps.
+SIGMA = 1.0
+
+
+def _fill_view(sources, grid_shape, n, hidden, offsets, depth, sigma):
+    """Colours of target view ``n``'s ``hidden`` pixels from the other views, and which got any.
+
+    ``sources`` is ``(N, 5, U, V)``: RGB, keep weight and background disparity of every view.
+    """
+    _, _, height, width = sources.shape
+    ys, xs = torch.nonzero(hidden, as_tuple=True)
+    d = depth[n][ys, xs]
+    rel = offsets - offsets[n]  # (N, 2): source minus target
+    others = torch.ones(offsets.shape[0], dtype=torch.bool)
+    others[n] = False
+    rel = rel[others].float()
+    u = ys.float()[None] - d[None] * rel[:, :1]
+    v = xs.float()[None] - d[None] * rel[:, 1:]
+    grid = torch.stack([2 * v / max(width - 1, 1) - 1, 2 * u / max(height - 1, 1) - 1], -1)
+    sampled = F.grid_sample(sources[others], grid[:, None], mode="bilinear",
+                            padding_mode="zeros", align_corners=True)[:, :, 0]  # (M, 5, K)
+    valid = (sampled[:, 3] > 0.999) & ((sampled[:, 4] - d[None]).abs() < DEPTH_TOLERANCE)
+    dist2 = (rel ** 2).sum(1)[:, None].expand_as(valid)
+    nearest = torch.where(valid, dist2, torch.full_like(dist2, float("inf"))).amin(0)
+    # Relative to the nearest view that sees the pixel: no underflow however far it is.
+    weight = valid.float() * torch.exp(-(dist2 - nearest.clamp(max=1e9)) / (2 * sigma**2))
+    total = weight.sum(0)
+    colour = (sampled[:, :3] * weight[:, None]).sum(0) / total.clamp_min(1e-12)
+    return ys, xs, colour, total > 0
+
+
+def remove_objects(
+    views: np.ndarray,
+    masks: np.ndarray,
+    disparity: np.ndarray,
+    *,
+    present: np.ndarray | None = None,
+    grow: int = 1,
+    sigma: float = SIGMA,
+    device: str | torch.device | None = None,
+    progress: bool = False,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The light field without the objects of ``masks``.
+
+    Parameters
+    ----------
+    views : (S, T, U, V, 3) uint8 array
+    masks : (S, T, U, V) bool array
+        The objects to remove in every view (e.g. the union of a result's masks).
+    disparity : (U, V) float array
+        The center view's disparity (estimated from the views); the objects' own is replaced
+        by what lies behind them (:func:`lfsam.render.background_disparity.background_center`).
+    present : (S, T) bool array, optional
+        Views that exist; absent views are neither filled nor used.
+    grow : int
+        Pixels by which the masks grow (their anti-aliased edges are replaced too).
+    sigma : float
+        Spread of the view weights, view steps.
+    device : str or torch.device, optional
+        Where to compute (default CPU).
+    progress : bool
+        Show a progress bar over the views.
+
+    Returns
+    -------
+    views : (S, T, U, V, 3) uint8 array
+        Every view with the objects' pixels filled.
+    unseen : (S, T, U, V) bool array
+        Pixels no other view sees, inpainted (flagged: never counted as filled from the views).
+
+    Raises
+    ------
+    LfsamError
+        If OpenCV is missing (``pip install 'lfsam[render]'``) or the masks do not fit.
+    """
+    require_cv2()
+    views = np.asarray(views)
+    masks = check_masks(masks, views)
+    device = resolve_device("cpu" if device is None else device)
+    s_count, t_count = views.shape[:2]
+    chosen, offsets = select_views(views.shape[:2], present, None)
+    hit = dilate(torch.from_numpy(np.stack([masks[s, t] for s, t in chosen])), grow)
+    own = np.stack([masks[s, t] for s, t in chosen])
+    depth = view_backgrounds(disparity, own, offsets, device=device)
+    images = views_tensor(views, chosen, torch.device("cpu"))
+    # The nearest surface within a pixel of each sample: a ray grazing a nearer object's
+    # (anti-aliased) edge does not count as seeing the surface behind.
+    nearest = F.max_pool2d(depth[:, None], 3, stride=1, padding=1)
+    sources = torch.cat([images, (~hit).float()[:, None], nearest], dim=1).to(device)
+    out = np.array(views, copy=True)
+    unseen = np.zeros(views.shape[:4], dtype=bool)
+    offsets = offsets.to(device)
+    for n, (s, t) in enumerate(tqdm(chosen, desc="removing", unit="view",
+                                    disable=not progress or None, leave=False)):
+        if not hit[n].any():
+            continue
+        ys, xs, colour, seen = _fill_view(sources, (s_count, t_count), n, hit[n].to(device),
+                                          offsets, depth.to(device), sigma)
+        view = out[s, t]
+        ys_np, xs_np = ys.cpu().numpy(), xs.cpu().numpy()
+        filled = colour.T.round().clamp(0, 255).to(torch.uint8).cpu().numpy()
+        seen_np = seen.cpu().numpy()
+        view[ys_np[seen_np], xs_np[seen_np]] = filled[seen_np]
+        holes = np.zeros(view.shape[:2], dtype=bool)
+        holes[ys_np[~seen_np], xs_np[~seen_np]] = True
+        if holes.any():
+            out[s, t] = inpaint(view, holes)
+            unseen[s, t] = holes
+    return out, unseen
