@@ -27,7 +27,7 @@ demo: $(STAMP)
 test: $(STAMP) system-deps
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/lint-imports
-	xvfb-run -a $(VENV)/bin/python -m pytest -q -n 2 --dist loadfile
+	xvfb-run -a $(VENV)/bin/python -m pytest -q
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

@@ -18,17 +18,6 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "repeatable"))
 
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
-# `make test` runs the suite in two worker processes (pytest-xdist, `-n 2`), one per core of the
-# 2-core machines it runs on: each worker, and every process a test starts, then computes with
-# one thread, so two workers never fight over the cores (two torch processes of 2 threads
-# each on 2 cores run slower than one at a time; docs/performance.md, "make test").
-if os.environ.get("PYTEST_XDIST_WORKER"):
-    for variable in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
-        os.environ[variable] = "1"
-    import torch
-
-    torch.set_num_threads(1)
-
 
 @pytest.fixture
 def shared_data() -> Path:

@@ -26,6 +26,7 @@ DEVICE_COMMANDS = {
                  "--out", "OUT/ev"],
     "demo": ["demo", "--out", "OUT/demo", "--quiet"],
     "view": ["view", "SCENE", "--model", "oracle", "--disparity", "gt"],
+    "render": ["render", "SCENE", "--result", "RESULT", "--focus", "0", "--out", "OUT/r.png"],
 }
 
 
