@@ -8,7 +8,7 @@ antinous, whose disparity changes by 0.06 px per row, held 58 % of that scene's 
 errors with a 7 x 7 window). Along a line of constant disparity (on a plane, a straight line)
 the minima agree (a strip 3 pixels wide, not 1, keeps some robustness to noise). So every cost
 slice is filtered three times, each time by the colour guided filter
-(:func:`lfsam.disparity.filters.colour_guided_filter`, the reference view as guide, so that no
+(:class:`lfsam.disparity.filters.ColourGuidedFilter`, the reference view as guide, so that no
 window crosses a colour edge: cost-volume filtering, Hosni et al., TPAMI 2013):
 
 - over a ``(2 r + 1)^2`` square (``r = square_radius``),
@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import torch
 
-from lfsam.disparity.filters import box_blur, colour_guided_filter
+from lfsam.disparity.filters import ColourGuidedFilter, box_blur, slice_chunks
 
 __all__ = ["aggregate_costs"]
 
@@ -79,13 +79,21 @@ def aggregate_costs(
     """
     if guide.dim() == 2:
         guide = guide[None].expand(3, -1, -1)
-    square = colour_guided_filter(guide, cost, (square_radius, square_radius), eps, border)
+    windows = [(square_radius, square_radius)]
+    if line_radius > 0:
+        windows += [(1, line_radius), (line_radius, 1)]
+    filters = [ColourGuidedFilter(guide, window, eps, border) for window in windows]
+    filtered = [torch.empty_like(cost) for _ in windows]
+    for chunk in slice_chunks(cost.shape[0], cost[0].numel()):
+        part = cost[chunk]
+        products = filters[0].products(part)
+        for guided, out in zip(filters, filtered, strict=True):
+            out[chunk] = guided.apply(part, products)
+    best = filtered[0]
     if line_radius <= 0:
-        return square
-    best = square
-    best_score = box_blur(square.amin(0), choice_radius)
-    for window in ((1, line_radius), (line_radius, 1)):
-        line = colour_guided_filter(guide, cost, window, eps, border)
+        return best
+    best_score = box_blur(best.amin(0), choice_radius)
+    for line in filtered[1:]:
         score = box_blur(line.amin(0), choice_radius) + line_bias
         better = score < best_score
         best = torch.where(better[None], line, best)

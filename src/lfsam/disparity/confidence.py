@@ -70,17 +70,27 @@ def _view_disparity(cost: torch.Tensor, hypotheses: torch.Tensor, offset: tuple[
     cost ``inf``.
     """
     count, rows, cols = cost.shape
-    device = cost.device
-    u = torch.arange(rows, device=device).view(1, rows, 1)
-    v = torch.arange(cols, device=device).view(1, 1, cols)
-    shift_u = torch.round(hypotheses * offset[0]).long().view(count, 1, 1)
-    shift_v = torch.round(hypotheses * offset[1]).long().view(count, 1, 1)
-    src_u, src_v = u + shift_u, v + shift_v
-    inside = (src_u >= 0) & (src_u < rows) & (src_v >= 0) & (src_v < cols)
-    flat = (src_u.clamp(0, rows - 1) * cols + src_v.clamp(0, cols - 1)).view(count, -1)
-    moved = cost.reshape(count, -1).gather(1, flat).view(count, rows, cols)
-    moved = moved.masked_fill(~inside, float("inf"))
-    return hypotheses[moved.argmin(0)], inside.any(0)
+    shift_u = torch.round(hypotheses * offset[0]).long().tolist()
+    shift_v = torch.round(hypotheses * offset[1]).long().tolist()
+    best = torch.full((rows, cols), float("inf"), device=cost.device)
+    winner = torch.zeros((rows, cols), device=cost.device)
+    covered = torch.zeros((rows, cols), dtype=torch.bool, device=cost.device)
+    # slice by slice, the running minimum (the first hypothesis wins a tie, as argmin): each
+    # slice moves by whole pixels, so only its overlap with the frame is compared
+    for k in range(count):
+        du, dv = shift_u[k], shift_v[k]
+        target_u = slice(max(0, -du), min(rows, rows - du))
+        target_v = slice(max(0, -dv), min(cols, cols - dv))
+        if target_u.start >= target_u.stop or target_v.start >= target_v.stop:
+            continue
+        source = cost[k, target_u.start + du : target_u.stop + du,
+                      target_v.start + dv : target_v.stop + dv]
+        region = best[target_u, target_v]
+        lower = source < region
+        region.copy_(torch.minimum(region, source))
+        winner[target_u, target_v].masked_fill_(lower, float(k))
+        covered[target_u, target_v] = True
+    return hypotheses[winner.long()], covered
 
 
 def consistency_confidence(

@@ -273,11 +273,16 @@ def build_cost_volume(
     pad = math.ceil(float(np.abs(hypotheses).max()) * reach) + 2
     padded = F.pad(views.features[:, None], (pad, pad, pad, pad), mode="replicate")[:, 0]
     with_all = occlusion_aware and full_set_ratio is not None
-    count = (5 if with_all else 4) if occlusion_aware else 1
+    groups = _view_groups(offsets, occlusion_aware, with_all)
+    # each view's cost is added to the sum of its side class (the sign of its offset along each
+    # axis, 3 x 3 classes), and each half-grid sums its classes: one addition per view, not one
+    # per half it belongs to
+    side_class = ((np.sign(offsets[:, 0]) + 1) * 3 + np.sign(offsets[:, 1]) + 1).tolist()
     volume = torch.empty((len(hypotheses), rows, cols), device=device, dtype=torch.float32)
     for index, d in enumerate(np.asarray(hypotheses, dtype=np.float64)):
-        sums = torch.zeros((count, rows, cols), device=device)
-        seen = torch.zeros((count, rows, cols), device=device)
+        class_sums = torch.zeros((9, rows, cols), device=device)
+        seen_rows = torch.zeros((len(offsets), rows), device=device)
+        seen_cols = torch.zeros((len(offsets), cols), device=device)
         for k, (ds, dt) in enumerate(offsets.tolist()):
             shift_u, shift_v = -d * ds, -d * dt
             # only the pixels this view sees at this hypothesis (a rectangle) are compared
@@ -286,12 +291,16 @@ def build_cost_volume(
                 continue
             warped = _resample(padded[k], pad, shift_u, shift_v, in_u, in_v)
             cost = (warped - views.reference_features[in_u, in_v]).abs_().clamp_(max=truncation)
-            targets = halves_of(ds, dt) if occlusion_aware else [0]
-            for half in targets + ([4] if with_all else []):
-                sums[half, in_u, in_v] += cost
-                seen[half, in_u, in_v] += 1.0
+            class_sums[side_class[k], in_u, in_v] += cost
+            seen_rows[k, in_u] = 1.0
+            seen_cols[k, in_v] = 1.0
+        sums = torch.stack([_summed(class_sums, group) for group in groups])
+        # how many views of each group see each pixel: a sum of the views' visible rectangles,
+        # each the outer product of its visible rows and columns
+        member = torch.as_tensor(_membership(groups, side_class), device=device)
+        seen = torch.einsum("gk,ku,kv->guv", member, seen_rows, seen_cols)
         means = torch.where(seen > 0.5, sums / seen.clamp(min=1.0), truncation)
-        if count == 1:
+        if len(groups) == 1:
             volume[index] = means[0]
             continue
         judged = box_blur(means, selection_radius) if selection_radius > 0 else means
@@ -301,3 +310,35 @@ def build_cost_volume(
             clear = best[0] < (1.0 - float(full_set_ratio)) * judged[4]
             volume[index] = torch.where(clear, volume[index], means[4])
     return volume
+
+
+#: The side classes (``3 (sign(ds) + 1) + sign(dt) + 1``) of each half-grid of :data:`HALVES`,
+#: and of all views.
+_HALF_CLASSES = ((0, 3, 6), (2, 5, 8), (0, 1, 2), (6, 7, 8))
+_ALL_CLASSES = (0, 1, 2, 3, 5, 6, 7, 8)
+
+
+def _view_groups(
+    offsets: np.ndarray, occlusion_aware: bool, with_all: bool
+) -> list[tuple[int, ...]]:
+    """The view groups whose mean costs :func:`build_cost_volume` keeps, as side classes: the
+    four half-grids (and all views), or all views only."""
+    if not occlusion_aware:
+        return [_ALL_CLASSES]
+    return list(_HALF_CLASSES) + ([_ALL_CLASSES] if with_all else [])
+
+
+def _summed(class_sums: torch.Tensor, classes: tuple[int, ...]) -> torch.Tensor:
+    """The sum of the given side classes' cost sums, always added in the same order."""
+    total = class_sums[classes[0]].clone()
+    for side in classes[1:]:
+        total += class_sums[side]
+    return total
+
+
+def _membership(groups: list[tuple[int, ...]], side_class: list[int]) -> np.ndarray:
+    """``(groups, views)`` float32: 1 where a view belongs to a group."""
+    return np.array(
+        [[1.0 if side in group else 0.0 for side in side_class] for group in groups],
+        dtype=np.float32,
+    ).reshape(len(groups), len(side_class))

@@ -86,8 +86,39 @@ def joint_bilateral_filter(
         torch.cat([disparity[None], weight[None], image]).unsqueeze(0), pad, mode="replicate"
     )[0]
     reference = disparity if reference is None else reference
-    numerator = torch.zeros_like(disparity)
-    denominator = torch.zeros_like(disparity)
+    out = torch.empty_like(disparity)
+    # a band of rows at a time: its intermediates stay in a CPU's cache
+    band = max(1, _BAND_ELEMENTS // max(cols, 1))
+    for first in range(0, rows, band):
+        last = min(first + band, rows)
+        out[first:last] = _filter_band(
+            padded[:, first : last + 2 * radius], image[:, first:last], reference[first:last],
+            radius, spatial_sigma, color_sigma, disparity_sigma,
+        )
+    return out
+
+
+#: Pixels of one band of rows of :func:`joint_bilateral_filter`: its maps then fit a CPU's
+#: cache (the two passes of :func:`refine_disparity` on HCI antinous' 512 x 512 center view, one
+#: thread: 1.3 s in bands of 64 rows, 1.65 s over the whole image at once).
+_BAND_ELEMENTS = 1 << 15
+
+
+def _filter_band(
+    padded: torch.Tensor,
+    image: torch.Tensor,
+    reference: torch.Tensor,
+    radius: int,
+    spatial_sigma: float,
+    color_sigma: float,
+    disparity_sigma: float | None,
+) -> torch.Tensor:
+    """:func:`joint_bilateral_filter` for a band of rows: ``padded`` holds the band's rows with
+    ``radius`` more on each side (disparity, weight and guide), ``image`` and ``reference`` the
+    band's own."""
+    rows, cols = reference.shape
+    numerator = torch.zeros_like(reference)
+    denominator = torch.zeros_like(reference)
     color_scale = -0.5 / (color_sigma * color_sigma)
     for du in range(-radius, radius + 1):
         for dv in range(-radius, radius + 1):

@@ -70,7 +70,12 @@ import torch.nn.functional as F
 
 from lfsam.disparity.epi import EpiStack, as_views, epi_stacks, resolve_view
 from lfsam.disparity.estimate import DisparityEstimate
-from lfsam.disparity.filters import gaussian_blur, gaussian_kernel1d, smooth_axis
+from lfsam.disparity.filters import (
+    CHUNK_ELEMENTS,
+    gaussian_blur,
+    gaussian_kernel1d,
+    smooth_axis,
+)
 from lfsam.disparity.range import estimate_disparity_range
 from lfsam.disparity.refine import refine_disparity
 from lfsam.errors import LfsamError
@@ -230,6 +235,27 @@ class _ShearedStack:
         self.cost_weights = halves / half_sums.clamp(min=1e-12)
         self.empty_halves = (half_sums[:, 0] <= 0).view(2, 1, 1)
 
+    def _terms(self, sheared: torch.Tensor) -> torch.Tensor:
+        """The structure tensor's and the linearised cost's terms per half of the views, shape
+        ``(2, 6, rows, cols)``, from the sheared spectrum of some rows ``(N, C, rows, freq)``."""
+        both = torch.fft.irfft(torch.stack([sheared, sheared * self.derivative]), n=self.length)
+        values, dx = both[..., self.pad : self.pad + self.cols].unbind(0)  # (N, C, rows, cols)
+        # structure tensor products on rows 1 .. N-2, summed over colour channels
+        e_n = 0.5 * (values[2:] - values[:-2])
+        e_x = (3.0 * dx[:-2] + 10.0 * dx[1:-1] + 3.0 * dx[2:]) * (1.0 / 16.0)
+        tensor_terms = torch.stack([(e_n * e_n).sum(1), (e_n * e_x).sum(1), (e_x * e_x).sum(1)])
+        # linearised photo-consistency terms against the reference view, per view
+        diff = values - values[self.center : self.center + 1]
+        grad = self.offsets * dx
+        cost_terms = torch.stack([(diff * diff).sum(1), (diff * grad).sum(1), (grad * grad).sum(1)])
+        return torch.cat(
+            [
+                torch.einsum("kn,jnrc->kjrc", self.tensor_weights, tensor_terms),
+                torch.einsum("kn,jnrc->kjrc", self.cost_weights, cost_terms),
+            ],
+            dim=1,
+        )  # (2 halves, 6 terms, rows, cols)
+
     def evaluate(self, candidate: float) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Score the candidate disparity ``candidate`` at every pixel.
 
@@ -241,24 +267,14 @@ class _ShearedStack:
         """
         # view n shifted by candidate * offset_n: g(x) = f(x - a)  <->  G = F exp(-i omega a)
         phase = torch.exp(-1j * self.omega * (candidate * self.offsets))
-        sheared = self.spectrum * phase
-        both = torch.fft.irfft(torch.stack([sheared, sheared * self.derivative]), n=self.length)
-        values, dx = both[..., self.pad : self.pad + self.cols].unbind(0)  # (N, C, rows, cols)
-        # structure tensor products on rows 1 .. N-2, summed over colour channels
-        e_n = 0.5 * (values[2:] - values[:-2])
-        e_x = (3.0 * dx[:-2] + 10.0 * dx[1:-1] + 3.0 * dx[2:]) * (1.0 / 16.0)
-        tensor_terms = torch.stack([(e_n * e_n).sum(1), (e_n * e_x).sum(1), (e_x * e_x).sum(1)])
-        # linearised photo-consistency terms against the reference view, per view
-        diff = values - values[self.center : self.center + 1]
-        grad = self.offsets * dx
-        cost_terms = torch.stack([(diff * diff).sum(1), (diff * grad).sum(1), (grad * grad).sum(1)])
-        halves = torch.cat(
-            [
-                torch.einsum("kn,jnrc->kjrc", self.tensor_weights, tensor_terms),
-                torch.einsum("kn,jnrc->kjrc", self.cost_weights, cost_terms),
-            ],
-            dim=1,
-        )  # (2 halves, 6 terms, rows, cols)
+        count, channels, rows = self.spectrum.shape[:3]
+        halves = torch.empty((2, 6, rows, self.cols), device=self.spectrum.device)
+        # a few rows at a time (every row of an EPI stack is independent up to here): the
+        # intermediates stay in a CPU's cache
+        step = max(1, CHUNK_ELEMENTS // (count * channels * self.length))
+        for first in range(0, rows, step):
+            part = slice(first, min(first + step, rows))
+            halves[:, :, part] = self._terms(self.spectrum[:, :, part] * phase)
         empty = self.empty_halves
         if not self.occlusion_aware:
             full = halves.sum(0, keepdim=True)
@@ -297,15 +313,55 @@ def _shiftable_window(
     :data:`_SHIFT_GAIN` times the centred cost): on smooth slanted surfaces the centred window is
     as good and a displaced one would bring the disparity of its own position.
     """
-    size = 2 * radius + 1
-    neg, index = F.max_pool2d(-cost[:, None], size, stride=1, padding=radius, return_indices=True)
-    index = index[:, 0].flatten(1)
-    shape = cost.shape
-    shifted = -neg[:, 0]
+    shifted, residual_at, coherence_at = _window_minimum(cost, (residual, coherence), radius)
     use = (shifted < _SHIFT_GAIN * cost) & (cost > _COST_FLOOR)
-    residual = torch.where(use, residual.flatten(1).gather(1, index).view(shape), residual)
-    coherence = torch.where(use, coherence.flatten(1).gather(1, index).view(shape), coherence)
+    residual = torch.where(use, residual_at, residual)
+    coherence = torch.where(use, coherence_at, coherence)
     return torch.where(use, shifted, cost), residual, coherence
+
+
+def _window_minimum(
+    values: torch.Tensor, carried: tuple[torch.Tensor, ...], radius: int
+) -> tuple[torch.Tensor, ...]:
+    """The minimum of ``values`` (shape ``(K, rows, cols)``) over the ``(2 radius + 1)^2`` window
+    around each pixel (positions outside the frame count as infinite), with the ``carried``
+    tensors' values at the position of that minimum.
+
+    Separable, each axis by doubling: the minimum over ``w`` positions is that of two
+    overlapping windows of ``2^floor(log2 w)`` positions, so a 7-wide window takes three steps
+    per axis. The position of the minimum travels along as a flat index held in float32 (exact
+    below 2^24 elements), updated arithmetically (``i + lower (j - i)``, faster on a CPU than
+    ``torch.where``); the carried tensors are gathered there at the end.
+    """
+    count, rows, cols = values.shape
+    if count * rows * cols >= 1 << 24:
+        raise ValueError("too many elements for float32 indices; split the call")
+    size = 2 * radius + 1
+    index = torch.arange(count * rows * cols, device=values.device, dtype=torch.float32)
+    best, index = values, index.view(values.shape)
+    for dim in (-1, -2):
+        length = values.shape[dim]
+        pad = (radius, radius) if dim == -1 else (0, 0, radius, radius)
+        best, index = F.pad(best, pad, value=math.inf), F.pad(index, pad)
+        width = 1
+        while 2 * width <= size:
+            best, index = _lower_of(best, index, dim, width, best.shape[dim] - width)
+            width *= 2
+        # two windows of `width` positions cover the `size` ones (they overlap when size < 2w)
+        best, index = _lower_of(best, index, dim, size - width, length)
+    flat = index.long().flatten()
+    return (best, *(extra.flatten()[flat].view(values.shape) for extra in carried))
+
+
+def _lower_of(
+    values: torch.Tensor, index: torch.Tensor, dim: int, shift: int, length: int
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per position along ``dim`` (``length`` of them), the lower of ``values`` there and
+    ``shift`` positions further, with its ``index`` (the nearer one on a tie)."""
+    near, far = values.narrow(dim, 0, length), values.narrow(dim, shift, length)
+    near_index, far_index = index.narrow(dim, 0, length), index.narrow(dim, shift, length)
+    lower = (far < near).float()
+    return torch.minimum(near, far), near_index + lower * (far_index - near_index)
 
 
 def _estimate_direction(

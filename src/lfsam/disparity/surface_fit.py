@@ -119,27 +119,17 @@ def fit_surface(
     keep = mask.float()
     level, slope_u, slope_v = _plane_prefit(d, mask, radius)
     r = radius
-    padded_d = F.pad(d[None, None], (r, r, r, r))[0, 0]
-    padded_w = F.pad(keep[None, None], (r, r, r, r))[0, 0]
-    padded_c = F.pad(guide.float()[None], (r, r, r, r))[0]
-    moments = torch.zeros(len(_MOMENTS), rows, cols, device=d.device)
-    rhs = torch.zeros(len(_BASIS), rows, cols, device=d.device)
-    colour_scale = -0.5 / colour_sigma**2
-    range_scale = -0.5 / range_sigma**2
-    for du in range(-r, r + 1):
-        for dv in range(-r, r + 1):
-            window = (slice(r + du, r + du + rows), slice(r + dv, r + dv + cols))
-            value = padded_d[window]
-            colour = ((padded_c[(slice(None), *window)] - guide) ** 2).sum(0)
-            off = value - level - slope_u * du - slope_v * dv
-            weight = padded_w[window] * torch.exp(colour * colour_scale + off * off * range_scale)
-            x, y = du / r, dv / r
-            moments += torch.tensor([x**i * y**j for i, j in _MOMENTS], device=d.device)[
-                :, None, None
-            ] * weight
-            rhs += torch.tensor([x**i * y**j for i, j in _BASIS], device=d.device)[
-                :, None, None
-            ] * (weight * value)
+    padded = F.pad(torch.cat([d[None], keep[None], guide.float()])[None], (r, r, r, r))[0]
+    moments = torch.empty(len(_MOMENTS), rows, cols, device=d.device)
+    rhs = torch.empty(len(_BASIS), rows, cols, device=d.device)
+    # a band of rows at a time: its maps then stay in a CPU's cache
+    band = max(1, _BAND_ELEMENTS // max(cols, 1))
+    for first in range(0, rows, band):
+        last = min(first + band, rows)
+        moments[:, first:last], rhs[:, first:last] = _window_moments(
+            padded[:, first : last + 2 * r], guide[:, first:last], level[first:last],
+            slope_u[first:last], slope_v[first:last], r, colour_sigma, range_sigma,
+        )
     index = {m: k for k, m in enumerate(_MOMENTS)}
     gram = torch.stack(
         [torch.stack([moments[index[(a[0] + b[0], a[1] + b[1])]] for b in _BASIS], -1)
@@ -153,3 +143,60 @@ def fit_surface(
     centre = coefficients[..., 0].float()
     supported = total.float() > min_support * (2 * r + 1) ** 2
     return torch.where(mask & supported, centre, d).to(disparity.dtype)
+
+
+#: Pixels of one band of rows of :func:`fit_surface`'s window sums (their maps then fit a
+#: CPU's cache).
+_BAND_ELEMENTS = 1 << 15
+
+
+def _window_moments(
+    padded: torch.Tensor,
+    guide: torch.Tensor,
+    level: torch.Tensor,
+    slope_u: torch.Tensor,
+    slope_v: torch.Tensor,
+    r: int,
+    colour_sigma: float,
+    range_sigma: float,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The weighted moments ``sum w x^i y^j`` (:data:`_MOMENTS`) and right-hand sides
+    ``sum w d x^i y^j`` (:data:`_BASIS`) of a band of rows: ``padded`` holds the band's
+    disparity, mask and guide with ``r`` more rows and columns on each side.
+
+    The sums over a window row (fixed ``du``) are gathered first as ``sum w y^j`` and
+    ``sum w d y^j``; each window row then adds them times ``x^i`` (``x = du / r``), so the work
+    per window position is the weight and eight accumulations.
+    """
+    rows, cols = level.shape
+    moments = torch.zeros(len(_MOMENTS), rows, cols, device=level.device)
+    rhs = torch.zeros(len(_BASIS), rows, cols, device=level.device)
+    colour_scale = -0.5 / colour_sigma**2
+    range_scale = -0.5 / range_sigma**2
+    for du in range(-r, r + 1):
+        plane_at_row = level + slope_u * du
+        weight_sums = torch.zeros(5, rows, cols, device=level.device)  # sum w y^j, j = 0..4
+        value_sums = torch.zeros(3, rows, cols, device=level.device)  # sum w d y^j, j = 0..2
+        for dv in range(-r, r + 1):
+            window = padded[:, r + du : r + du + rows, r + dv : r + dv + cols]
+            value, keep, colour = window[0], window[1], window[2:]
+            difference = colour[0] - guide[0]
+            exponent = difference * difference
+            for channel in range(1, guide.shape[0]):
+                difference = colour[channel] - guide[channel]
+                exponent.addcmul_(difference, difference)
+            off = (value - plane_at_row).sub_(slope_v, alpha=dv)
+            exponent.mul_(colour_scale).addcmul_(off, off, value=range_scale)
+            weight = exponent.exp_().mul_(keep)
+            weighted_value = weight * value
+            y = dv / r
+            for j in range(5):
+                weight_sums[j].add_(weight, alpha=y**j)
+            for j in range(3):
+                value_sums[j].add_(weighted_value, alpha=y**j)
+        x = du / r
+        for k, (i, j) in enumerate(_MOMENTS):
+            moments[k].add_(weight_sums[j], alpha=x**i)
+        for k, (i, j) in enumerate(_BASIS):
+            rhs[k].add_(value_sums[j], alpha=x**i)
+    return moments, rhs
