@@ -1,6 +1,6 @@
 """Tracks that come back (issue 47; docs/design.md section 10): objects through clutter.
 
-Synthetic videos with the hard cases (:func:`lfsam.video.synth.generate_video` with
+Synthetic videos with the hard cases (:func:`lfsam.video.io.synth.generate_video` with
 ``hard=True``: objects at up to 6 pixels per frame, depth order changing, one small object
 passing fully behind a near occluder for about five frames, one leaving the frame and coming
 back), 5x5 views of 96x128, tracked with the oracle and ground-truth disparity from one click
@@ -92,8 +92,8 @@ from lfsam.metrics.temporal import frame_matches, identity_switches
 from lfsam.pipeline import PipelineConfig
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.segmenters import load_segmenter
-from lfsam.video.online import OnlineTracker
-from lfsam.video.synth import generate_video
+from lfsam.video.io.synth import generate_video
+from lfsam.video.tracking.online import OnlineTracker
 
 MODES = {"search": True, "before": False, "clicked": None}
 #: Issue 47's target covers objects hidden for up to this many frames: found again in the

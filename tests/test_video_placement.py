@@ -14,11 +14,11 @@ from hypothesis import strategies as st
 
 from lfsam.api import RunOptions, SegmentOptions
 from lfsam.prompts import ObjectPrompts, PointPrompt
-from lfsam.video import placement, search
-from lfsam.video.carry import Template, deepest
-from lfsam.video.online import OnlineTracker
-from lfsam.video.placement import answer_place, placed_by_answer
-from lfsam.video.synth import generate_video
+from lfsam.video.io.synth import generate_video
+from lfsam.video.tracking import placement, search
+from lfsam.video.tracking.carry import Template, deepest
+from lfsam.video.tracking.online import OnlineTracker
+from lfsam.video.tracking.placement import answer_place, placed_by_answer
 
 QUIET = SegmentOptions(run=RunOptions(progress=False))
 

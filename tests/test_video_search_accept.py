@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from lfsam.video.carry import Template
-from lfsam.video.search import (
+from lfsam.video.tracking.carry import Template
+from lfsam.video.tracking.search import (
     EXPLAINED,
     Track,
     _accept,
@@ -101,8 +101,8 @@ def test_the_objects_disparity_is_the_median_over_an_answer_spilling_onto_the_ba
     """A 6x6 object at disparity 2 on a background at -1, answered one pixel too wide (the
     oracle's jitter): the median stays on the object (the mean, 0.3, was 1.7 off, beyond the
     depth gate's tolerance, so the gate refused the object's own pixels)."""
-    from lfsam.video.frame_search import median_disparity, object_disparity
-    from lfsam.video.motion import DISPARITY_TOLERANCE
+    from lfsam.video.tracking.frame_search import median_disparity, object_disparity
+    from lfsam.video.tracking.motion import DISPARITY_TOLERANCE
 
     disparity = np.full(SIZE, -1.0, np.float32)
     disparity[10:16, 10:16] = 2.0
@@ -171,9 +171,9 @@ def test_an_answer_found_again_that_holds_a_placed_neighbour_is_that_neighbour()
     """Fresh seed 1802's case: a hidden object's answer lies on a neighbour's region, of
     which an object placed earlier in the frame holds 46 % of the answer (under the limit of
     half the answer) but most of its own mask: the answer is that object, so the hidden one
-    is not found there (:data:`lfsam.video.search.HELD`); an answer that only touches a
+    is not found there (:data:`lfsam.video.tracking.search.HELD`); an answer that only touches a
     placed object, or a tracked object's answer, is not refused so."""
-    from lfsam.video import search
+    from lfsam.video.tracking import search
 
     rng = np.random.default_rng(3)
     look = (np.array([60.0, 200.0, 90.0]) + rng.uniform(-4, 4, (12, 16, 3))).astype(np.float32)
@@ -224,7 +224,7 @@ def _showing_a_new_part(support_outside: int = 0):
 
 
 def test_an_answer_holding_its_support_is_judged_by_the_part_its_template_held(monkeypatch):
-    import lfsam.video.search as search
+    import lfsam.video.tracking.search as search
 
     template, image, mask, support, carried = _showing_a_new_part()
     track = Track(CENTER, template, area=144, sightings=3, disparity=1.0)

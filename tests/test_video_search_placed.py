@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from lfsam.video import search
-from lfsam.video.carry import Template
-from lfsam.video.search import Track
+from lfsam.video.tracking import search
+from lfsam.video.tracking.carry import Template
+from lfsam.video.tracking.search import Track
 from search_oracle import CENTER, covered_object, label_answer, search_one_image
 
 OWN = (0, 0)

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from lfsam.video import search
-from lfsam.video.carry import Template
-from lfsam.video.search import Track
+from lfsam.video.tracking import search
+from lfsam.video.tracking.carry import Template
+from lfsam.video.tracking.search import Track
 from search_oracle import CENTER, label_answer, search_one_image
 
 
@@ -60,7 +60,7 @@ def test_the_widening_reads_refused_answers_as_not_the_object(monkeypatch):
     than on the object's visible part), whose answer is refused. The widening reads those
     refused answers as not the object, as it reads placed objects, and finds it."""
     from lfsam.prompts import ObjectPrompts
-    from lfsam.video.search import search_object
+    from lfsam.video.tracking.search import search_object
 
     rng = np.random.default_rng(4)
     colour = np.array([120.0, 110.0, 90.0])

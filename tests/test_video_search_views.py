@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from lfsam.prompts import ObjectPrompts
-from lfsam.video import carry, match, search
-from lfsam.video.carry import MAX_PIXEL_DIFFERENCE, Template
-from lfsam.video.search import Track, search_object
+from lfsam.video.tracking import carry, match, search
+from lfsam.video.tracking.carry import MAX_PIXEL_DIFFERENCE, Template
+from lfsam.video.tracking.search import Track, search_object
 
 GRID, CENTER, SIZE = (5, 5), (2, 2), (40, 50)
 RING = [(0, 0), (0, 2), (0, 4), (2, 0), (2, 4), (4, 0), (4, 2), (4, 4)]
@@ -148,7 +148,7 @@ def test_a_tracked_object_covered_in_the_center_and_corners_is_kept_from_a_ring_
     very frame, under its id (before, only the corners were searched: hidden)."""
     from lfsam.api import RunOptions, SegmentOptions
     from lfsam.prompts import PointPrompt
-    from lfsam.video.online import OnlineTracker
+    from lfsam.video.tracking.online import OnlineTracker
 
     every = {(s, t) for s in range(GRID[0]) for t in range(GRID[1])}
     frames = [_light_field(every), _light_field({(0, 2)})]

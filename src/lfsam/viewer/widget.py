@@ -20,7 +20,8 @@ object, ``Ctrl-Z`` / ``Ctrl-Shift-Z`` undo / redo prompt edits, ``Ctrl-T`` track
 A light-field video (docs/design.md section 10) gets a ``frame`` slider before ``s`` and ``t``
 (its layers are read lazily, :mod:`lfsam.viewer.video`); a click is tagged with the frame shown
 and segments that frame at once (:class:`lfsam.viewer.video_session.VideoSession`); "Track"
-runs :func:`lfsam.video.track.track_video` in the worker and shows each frame as it finishes.
+runs :func:`lfsam.video.tracking.track.track_video` in the worker and shows each frame as it
+finishes.
 """
 
 from __future__ import annotations

@@ -2,8 +2,8 @@
 "Tracking"), vectorised: one batch of FFTs for the masked SSD of every shift, one gather for
 the robust cost of many shifts.
 
-A template (:class:`lfsam.video.carry.Template`) may carry more channels than RGB: the search
-adds the disparity as a fourth (:func:`with_depth`), so that an object is told from a
+A template (:class:`lfsam.video.tracking.carry.Template`) may carry more channels than RGB: the
+search adds the disparity as a fourth (:func:`with_depth`), so that an object is told from a
 background of the same colours by its depth, the light field's own cue.
 """
 
@@ -16,7 +16,7 @@ import numpy as np
 import torch
 from scipy import fft
 
-from lfsam.video.carry import (
+from lfsam.video.tracking.carry import (
     MAX_PIXEL_DIFFERENCE,
     Template,
     masked_cost,
@@ -62,7 +62,7 @@ def margins_in(templates: Sequence[Template], images: Sequence[np.ndarray],
 def with_depth(template: Template, image: np.ndarray, disparity: np.ndarray | None,
                expected: float, tolerance: float) -> tuple[Template, np.ndarray]:
     """The template and the view with the disparity as a fourth channel, scaled so that
-    ``tolerance`` disparity pixels weigh :data:`lfsam.video.carry.MAX_PIXEL_DIFFERENCE` (in
+    ``tolerance`` disparity pixels weigh :data:`lfsam.video.tracking.carry.MAX_PIXEL_DIFFERENCE` (in
     the masked SSD a weight; in the robust cost a gate, :func:`pixel_costs`): the
     template's pixels all at ``expected``, the view's at its disparity map (unknown pixels at
     ``expected``: no evidence either way). Without a disparity map both are returned as they
@@ -81,9 +81,9 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The masked mean squared difference of ``template`` at every integer shift within
     ``radius`` pixels of its place (None: every shift where it overlaps the frame); inf where
-    it overlaps the frame by less than :data:`lfsam.video.carry.MIN_PIXELS` and a fifth of its
-    mask. The same numbers as :func:`lfsam.video.carry.cost_map` (up to rounding), from one
-    batch of real FFTs: the channels' cross terms are summed before the one inverse transform,
+    it overlaps the frame by less than :data:`lfsam.video.tracking.carry.MIN_PIXELS` and a fifth of
+    its mask. The same numbers as :func:`lfsam.video.tracking.carry.cost_map` (up to rounding), from
+    one batch of real FFTs: the channels' cross terms are summed before the one inverse transform,
     and the overlap counts are constants where the searched region lies inside the frame.
 
     Returns
@@ -124,7 +124,7 @@ def cost_map(template: Template, image: np.ndarray, radius: int | None
 
 
 #: Colour bins per channel of :func:`likely_shifts`' look-up (as
-#: :func:`lfsam.video.carry.looks_alike`'s histograms).
+#: :func:`lfsam.video.tracking.carry.looks_alike`'s histograms).
 BINS = 6
 #: :func:`likely_shifts` keeps the shifts this nearly as likely as the likeliest.
 ALMOST = 0.9
@@ -153,7 +153,8 @@ def likely_shifts_many(templates: Sequence[Template], images: Sequence[np.ndarra
     :func:`robust_costs`' support that does not pair pixels, so it is not led astray by a
     cover over most of the template as the masked SSD is: the candidates for an object
     whose prediction missed it (the search's widening stage,
-    :func:`lfsam.video.search.search_object`), scored exactly by :func:`robust_costs` after.
+    :func:`lfsam.video.tracking.search.search_object`), scored exactly by :func:`robust_costs`
+    after.
 
     Returns
     -------
@@ -263,7 +264,7 @@ def robust_costs(template: Template, image: np.ndarray, du: np.ndarray, dv: np.n
                  ) -> tuple[np.ndarray, np.ndarray]:
     """The *robust* cost of the template at each shift ``(du[k], dv[k])``: the sum over its
     pixels of the distance (summed over channels) truncated at
-    :data:`lfsam.video.carry.MAX_PIXEL_DIFFERENCE`, a pixel outside the frame costing the
+    :data:`lfsam.video.tracking.carry.MAX_PIXEL_DIFFERENCE`, a pixel outside the frame costing the
     truncation, so that pixels covered by something in front cost the same everywhere; and
     the support count (pixels under the truncation). One gather for all shifts (of at most
     :data:`MAX_GATHER` shift-pixel pairs: beyond it, of every k-th template pixel, scaled).
@@ -307,14 +308,15 @@ def support_in_answer(template: Template, image: np.ndarray, mask: np.ndarray,
     """:func:`robust_costs`' support count of the template's colours at each shift
     ``(du[k], dv[k])``, the view read only inside the answer ``mask`` (a pixel outside it
     never looks the same): how much of an answer the template explains there
-    (:func:`lfsam.video.search.explaining_shift`, :mod:`lfsam.video.placement`)."""
+    (:func:`lfsam.video.tracking.search.explaining_shift`,
+    :mod:`lfsam.video.tracking.placement`)."""
     inside = np.where(mask[..., None], image[..., :3], np.float32(1e4)).astype(np.float32)
     return robust_costs(replace(template, image=template.image[..., :3]), inside, du, dv)[1]
 
 
 def pixel_costs(values: np.ndarray, look: np.ndarray) -> np.ndarray:
     """Each pixel's truncated distance to the template's (``(..., C)`` arrays): the RGB
-    distance summed over channels, at most :data:`lfsam.video.carry.MAX_PIXEL_DIFFERENCE`;
+    distance summed over channels, at most :data:`lfsam.video.tracking.carry.MAX_PIXEL_DIFFERENCE`;
     with a disparity channel (:func:`with_depth`) a pixel farther in depth than the tolerance
     costs the truncation whatever its colour (a gate, not a sum: an object whose depth
     changed within the tolerance keeps its support)."""
@@ -329,7 +331,7 @@ def placed_at(template: Template, image: np.ndarray, du: int, dv: int
               ) -> tuple[np.ndarray, np.ndarray] | None:
     """``template``'s mask shifted by ``(du, dv)`` into the frame (clipped) and its support:
     the pixels whose cost (:func:`pixel_costs`) is under the truncation, as
-    :func:`lfsam.video.carry.shifted` with the disparity gate. None outside the frame."""
+    :func:`lfsam.video.tracking.carry.shifted` with the disparity gate. None outside the frame."""
     height, width = image.shape[:2]
     h, w = template.mask.shape
     r0, c0 = template.origin[0] + du, template.origin[1] + dv

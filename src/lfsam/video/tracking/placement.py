@@ -8,7 +8,7 @@ astray (seed 403: an ellipse behind the near occluder carried 14 pixels away fro
 was within three frames, then lost). Once the answer is accepted, SAM's mask says which pixels
 are the object; :func:`answer_place` places the template where it explains them best:
 
-* the template's pixels that look the same there (:func:`lfsam.video.match.robust_costs`'
+* the template's pixels that look the same there (:func:`lfsam.video.tracking.match.robust_costs`'
   support, the view read only inside the answer) count for the place;
 * the answer's pixels the template leaves uncovered count against it;
 * so do the template's pixels that fall outside the answer where the view shows something
@@ -21,9 +21,9 @@ the match's only where it scores better and explains :data:`EXPLAINED` of the an
 only where the template lies :data:`INSIDE` the frame (an object cut by the frame's border is
 partial because of the border: the template can slide out of the frame at no cost). The
 tracker asks only where the match was poorly supported (under
-:data:`lfsam.video.motion.VELOCITY_SUPPORT` of the template) and the answer is a part of the
-object (under :data:`lfsam.video.motion.KEEP_TEMPLATE` of its largest area): asked for every
-partly seen object it also moved well supported matches and lost more than it found
+:data:`lfsam.video.tracking.motion.VELOCITY_SUPPORT` of the template) and the answer is a part of
+the object (under :data:`lfsam.video.tracking.motion.KEEP_TEMPLATE` of its largest area): asked for
+every partly seen object it also moved well supported matches and lost more than it found
 (docs/performance.md, issue 47, twelfth pass).
 """
 
@@ -34,8 +34,8 @@ from dataclasses import replace
 import numpy as np
 from scipy import signal
 
-from lfsam.video.carry import Template, window_within
-from lfsam.video.match import support_in_answer
+from lfsam.video.tracking.carry import Template, window_within
+from lfsam.video.tracking.match import support_in_answer
 
 __all__ = ["CHECK", "answer_place", "placed_by_answer"]
 
@@ -45,7 +45,7 @@ CHECK = True
 #: answer, contradicts the template lying on it.
 FARTHER = 0.5
 #: The template's share inside the frame below which its place stands (as
-#: :data:`lfsam.video.search.SURE`'s cut objects).
+#: :data:`lfsam.video.tracking.search.SURE`'s cut objects).
 INSIDE = 0.6
 #: Shifts ranked by where the template lies that are also scored by its look.
 CANDIDATES = 12

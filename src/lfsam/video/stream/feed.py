@@ -1,8 +1,8 @@
 """Frames of a followed stream read ahead, and (``latest``) only the newest
-(docs/design.md section 10, issue 44; used by :func:`lfsam.video.live.segment_stream`).
+(docs/design.md section 10, issue 44; used by :func:`lfsam.video.stream.live.segment_stream`).
 
-:class:`FrameFeed` stands between a :class:`lfsam.video.follow.FrameFollower` and the tracker.
-Two threads of its own keep the camera's side moving while a frame is segmented:
+:class:`FrameFeed` stands between a :class:`lfsam.video.stream.follow.FrameFollower` and the
+tracker. Two threads of its own keep the camera's side moving while a frame is segmented:
 
 - the *follow* thread iterates the follower and queues each arrived entry (a path: cheap);
 - the *prefetch* thread takes the next queued entry and reads (decodes) its light field, so
@@ -35,7 +35,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 from lfsam.lightfield import LightField
-from lfsam.video.follow import ArrivedFrame, FrameFollower
+from lfsam.video.stream.follow import ArrivedFrame, FrameFollower
 
 __all__ = ["NEWER_FRAME", "FrameFeed", "ReadFrame"]
 

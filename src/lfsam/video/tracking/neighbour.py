@@ -2,9 +2,9 @@
 eighteenth pass; docs/design.md section 10, "Tracking", step 5).
 
 An answer found again (the object unseen for frames) that holds half of an object placed
-earlier in the frame is that object (:data:`lfsam.video.search.HELD`). Where the answer lies
-in another view than the placed object's reference view, that object's mask there is its
-reference mask carried by disparity (:func:`lfsam.video.frame_search.carried_to`), which
+earlier in the frame is that object (:data:`lfsam.video.tracking.search.HELD`). Where the answer
+lies in another view than the placed object's reference view, that object's mask there is its
+reference mask carried by disparity (:func:`lfsam.video.tracking.frame_search.carried_to`), which
 leaves out what the reference view does not see. A thin, mostly hidden object shows
 different parts in different views, and the carried mask misses most of what it shows:
 fresh seed 3603 without jitter, frame 5, object 4 placed from its center mask (103 pixels)
@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from lfsam.prompts import ObjectPrompts, PointPrompt
-from lfsam.video.carry import deepest
+from lfsam.video.tracking.carry import deepest
 
 __all__ = ["AGREE", "ASK", "NEIGHBOUR_ID", "asked_mask"]
 

@@ -1,12 +1,12 @@
 """Tracking objects through a light-field video (docs/design.md section 10).
 
-:func:`track_video` is a loop over :class:`lfsam.video.online.OnlineTracker` (which holds the
-tracking itself: SAM 2's video memory or constrained prompts, see its module): each frame of the
+:func:`track_video` is a loop over :class:`lfsam.video.tracking.online.OnlineTracker` (which holds
+the tracking itself: SAM 2's video memory or constrained prompts, see its module): each frame of the
 video is read, tracked and written before the next is read.
 
-The result is written frame by frame (:mod:`lfsam.video.result`): memory stays flat in F. Its
+The result is written frame by frame (:mod:`lfsam.video.io.result`): memory stays flat in F. Its
 manifest keeps each object's frame-tagged prompts as given (``meta["objects"]``), so that the
-viewer reopens the folder editable (:meth:`lfsam.video.result.VideoResult.stored_prompts`), and
+viewer reopens the folder editable (:meth:`lfsam.video.io.result.VideoResult.stored_prompts`), and
 each object's state in every frame (``meta["tracks"]``: prompted, tracked, found, hidden or
 waiting; issue 47).
 """
@@ -25,14 +25,14 @@ from lfsam.prompts import ObjectPrompts, validate_objects
 from lfsam.result import SegmentationResult
 from lfsam.segmenters.base import Segmenter
 from lfsam.version import __version__
-from lfsam.video.online import MAX_GROWTH, OnlineTracker
-from lfsam.video.result import (
+from lfsam.video.io.result import (
     VideoResult,
     load_video_result,
     record_states,
     video_result_writer,
 )
-from lfsam.video.source import LightFieldVideo
+from lfsam.video.io.source import LightFieldVideo
+from lfsam.video.tracking.online import MAX_GROWTH, OnlineTracker
 
 __all__ = ["MAX_GROWTH", "track_video"]
 
@@ -55,10 +55,10 @@ def track_video(
     ----------
     video : LightFieldVideo
     prompts : sequence of ObjectPrompts, or None
-        Objects with frame-tagged prompts (:mod:`lfsam.video.prompts`); None: automatic mask
-        generation on frame 0.
+        Objects with frame-tagged prompts (:mod:`lfsam.video.tracking.prompts`); None: automatic
+        mask generation on frame 0.
     out : path-like
-        The result folder (:func:`lfsam.video.result.video_result_writer`).
+        The result folder (:func:`lfsam.video.io.result.video_result_writer`).
     model : str or Segmenter, optional
         A model name (default ``options.model.name``; ``"oracle"`` is built per frame from
         that frame's labels) or a ready SAM 2 segmenter.

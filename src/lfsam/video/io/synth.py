@@ -36,7 +36,7 @@ from lfsam.io import write_lightfield
 from lfsam.io.native import check_scene_target
 from lfsam.lightfield import LightField
 from lfsam.synth import PlanarObject, SceneSpec, random_scene, render_scene
-from lfsam.video.frames_folder import VIDEO_MARKER
+from lfsam.video.io.frames_folder import VIDEO_MARKER
 
 __all__ = ["generate_video", "video_specs", "write_video_frames"]
 

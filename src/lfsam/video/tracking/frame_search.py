@@ -1,17 +1,17 @@
 """One frame of constrained-prompt tracking with the search of issue 47 (docs/design.md
 section 10, "Tracking"): the user's prompted objects first, then every carried object, the
-surest first, each searched for by :func:`lfsam.video.search.search_object` and placed in the
-frame's predictor where it is found; the bookkeeping of what is placed where (its masks
-carried between views by disparity). An answer that jumped (:func:`lfsam.video.consistency.
+surest first, each searched for by :func:`lfsam.video.tracking.search.search_object` and placed in
+the frame's predictor where it is found; the bookkeeping of what is placed where (its masks
+carried between views by disparity). An answer that jumped (:func:`lfsam.video.tracking.consistency.
 jumped`) keeps the track before it as a shadow, searched for after every object is placed
-(:func:`lfsam.video.consistency.look_again`). An answer found again that another hidden object,
-still to be searched, explains clearly better (:func:`lfsam.video.claims.rival`) is left to
-that object, searched first (each such rival once a frame). An object refused for an answer
+(:func:`lfsam.video.tracking.consistency.look_again`). An answer found again that another hidden
+object, still to be searched, explains clearly better (:func:`lfsam.video.tracking.claims.rival`) is
+left to that object, searched first (each such rival once a frame). An object refused for an answer
 that an object placed earlier from several clicks holds contests it
-(:mod:`lfsam.video.contest`): that object, asked again without its clicks on the answer,
+(:mod:`lfsam.video.tracking.contest`): that object, asked again without its clicks on the answer,
 gives the answer up where its new answer is its old one less that part. An object placed
 from another view than a found-again answer's, whose carried mask meets it, is asked there
-(:mod:`lfsam.video.neighbour`): the answer holding half of it is that object's."""
+(:mod:`lfsam.video.tracking.neighbour`): the answer holding half of it is that object's."""
 
 from __future__ import annotations
 
@@ -23,11 +23,11 @@ from scipy import ndimage
 
 from lfsam.pipeline.references import reference_views
 from lfsam.prompts import ObjectPrompts
-from lfsam.video import claims, consistency, contest, neighbour, placement, search
-from lfsam.video.carry import Template
-from lfsam.video.motion import KEEP_TEMPLATE, VELOCITY_SUPPORT, update
-from lfsam.video.prompts import latest_prompts, negatives_since, prompts_at, start_frame
-from lfsam.video.search import Track, first_look, search_object
+from lfsam.video.tracking import claims, consistency, contest, neighbour, placement, search
+from lfsam.video.tracking.carry import Template
+from lfsam.video.tracking.motion import KEEP_TEMPLATE, VELOCITY_SUPPORT, update
+from lfsam.video.tracking.prompts import latest_prompts, negatives_since, prompts_at, start_frame
+from lfsam.video.tracking.search import Track, first_look, search_object
 
 __all__ = ["RETRY_UNANSWERED", "carried_to", "median_disparity", "object_disparity",
            "search_frame"]
@@ -75,8 +75,8 @@ def object_disparity(disparity: object, mask: np.ndarray) -> float:
     """An object's disparity: :func:`median_disparity` over its answer (0 where it has none).
     The median, not the mean: an answer whose boundary spills a pixel onto the background
     (the oracle's jitter, SAM's soft edges) would pull a small object's mean towards the
-    background's depth, and the depth gate (:data:`lfsam.video.search.DEPTH_GATE`) would then
-    refuse the object's own pixels."""
+    background's depth, and the depth gate (:data:`lfsam.video.tracking.search.DEPTH_GATE`) would
+    then refuse the object's own pixels."""
     value = median_disparity(disparity, mask)
     return 0.0 if value is None else value
 

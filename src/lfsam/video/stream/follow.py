@@ -2,7 +2,7 @@
 (docs/design.md section 10, issue 35).
 
 :class:`FrameFollower` watches a folder of frames (each any light field lfsam reads, the
-entries :func:`lfsam.video.frames_folder.frame_entries` counts) and yields each new frame as it
+entries :func:`lfsam.video.io.frames_folder.frame_entries` counts) and yields each new frame as it
 lands, in arrival order (frames found together: in natural name order). A frame counts once its
 entry is there, so writers put complete frames in by renaming (a file or a folder of views
 written under a hidden or other name — ``.frame_7.npz``, ``frame_7.npz.part`` — and renamed to
@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from lfsam.errors import LfsamError
-from lfsam.video.frames_folder import frame_entries
+from lfsam.video.io.frames_folder import frame_entries
 
 __all__ = ["END_FILE", "ArrivedFrame", "FrameFollower", "check_follow_folder"]
 
@@ -123,8 +123,8 @@ class FrameFollower:
 
     def set_busy(self, busy: bool) -> None:
         """Tell the follower, iterated in a thread of its own, that frames it yielded are still
-        being read or segmented (:class:`lfsam.video.feed.FrameFeed`): the timeout counts only
-        the time without a new frame while nothing is being done, and restarts when the
+        being read or segmented (:class:`lfsam.video.stream.feed.FrameFeed`): the timeout counts
+        only the time without a new frame while nothing is being done, and restarts when the
         consumer becomes idle (thread-safe)."""
         if self._busy and not busy:
             self._waiting_since = time.monotonic()

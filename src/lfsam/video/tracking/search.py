@@ -2,7 +2,7 @@
 docs/design.md section 10, "Tracking").
 
 For segmenters without memory (the oracle, SAM 2's image model) each object is carried from the
-frame where it was last found (:mod:`lfsam.video.carry`), and is never dropped for good: an
+frame where it was last found (:mod:`lfsam.video.tracking.carry`), and is never dropped for good: an
 object that is not found in a frame is *hidden* there (empty masks) and keeps its id, its last
 appearance (the template), its motion and its disparity; it is searched for again in every
 later frame and comes back under its own id (*found*). The search of one object in a frame
@@ -21,15 +21,15 @@ later frame and comes back under its own id (*found*). The search of one object 
    *widening*: where the prediction missed (the object turned while hidden, or was hidden
    before its velocity was known), the shifts within the radius where most of the template
    could be by colour and depth, not on objects placed nor on answers refused there
-   (:func:`lfsam.video.match.likely_shifts_many`, every view at once), scored exactly, the
+   (:func:`lfsam.video.tracking.match.likely_shifts_many`, every view at once), scored exactly, the
    :data:`WIDE_VIEWS` views showing most of it prompted (a part found there keeps the
    predicted place and velocity); then the whole of its own view
    and of the center view where the radius did not cover it. An answer in its own view
    covering under :data:`SMALL_SHARE` of its match's support waits for the ring's views
    (:data:`SMALL_ANSWER`: an eroded sliver where another view shows the object whole).
-3. **Matching.** The masked SSD of the template at every shift (:func:`lfsam.video.match.
+3. **Matching.** The masked SSD of the template at every shift (:func:`lfsam.video.tracking.match.
    cost_map`, one batch of FFTs); of its :data:`CANDIDATES` cheapest shifts the one whose
-   *support* (pixels that still look like the template, :func:`lfsam.video.match.
+   *support* (pixels that still look like the template, :func:`lfsam.video.tracking.match.
    robust_costs`) is largest wins, so an object half behind another is still that object.
    With ``disparities`` the view's disparity is a fourth channel: a pixel farther in depth
    from the object's last disparity than :func:`predicted_disparity`'s tolerance is not the
@@ -61,7 +61,7 @@ later frame and comes back under its own id (*found*). The search of one object 
    The support needed is a share of the template's part inside the frame (an object leaving
    the frame shows only that part), and an object cut by the frame's border in its own view
    is prompted in the view that sees most of it. An accepted answer to several clicks larger
-   than the object ever was is split by click (:mod:`lfsam.video.union`).
+   than the object ever was is split by click (:mod:`lfsam.video.tracking.union`).
 
 The template is replaced by the answer when the answer shows most of the object; a mostly
 hidden answer keeps the fuller template (moved to where it was found). Each object's state per
@@ -78,8 +78,8 @@ import numpy as np
 from scipy import ndimage
 
 from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
-from lfsam.video import union
-from lfsam.video.carry import (
+from lfsam.video.tracking import union
+from lfsam.video.tracking.carry import (
     MIN_PIXELS,
     Template,
     box_around,
@@ -87,7 +87,7 @@ from lfsam.video.carry import (
     neighbour_points,
     positive_points,
 )
-from lfsam.video.match import (
+from lfsam.video.tracking.match import (
     cost_map,
     cost_maps,
     likely_shifts_many,
@@ -97,7 +97,7 @@ from lfsam.video.match import (
     support_in_answer,
     with_depth,
 )
-from lfsam.video.motion import (
+from lfsam.video.tracking.motion import (
     KEEP_TEMPLATE,
     STATES,
     Track,
@@ -139,9 +139,9 @@ MIN_ALIKE = 0.35
 #: its template never held; issue 47 fifteenth pass).
 KNOWN_PART = True
 KNOWN_SUPPORT = 0.9
-#: Whether :func:`lfsam.video.frame_search.search_frame` gates the match by depth
+#: Whether :func:`lfsam.video.tracking.frame_search.search_frame` gates the match by depth
 #: (:func:`search_object`'s ``disparities``). On since the object's disparity is the median
-#: over its answer (:func:`lfsam.video.frame_search.object_disparity`): with the mean, an
+#: over its answer (:func:`lfsam.video.tracking.frame_search.object_disparity`): with the mean, an
 #: answer spilling a pixel onto the background (the oracle's jitter) pulled a small object's
 #: disparity towards the background's, and the gate refused the object's own pixels
 #: (development seeds 7-12, jitter 1: 5.49 % of the visible triples lost with the mean and
@@ -161,7 +161,7 @@ UNCOVERED = True
 UNCOVERED_VIEW = 0.25
 #: The widening stage (:func:`search_object`, stage 3): where the prediction missed, the
 #: shifts within the search radius where most of the template's pixels could be the object
-#: (:func:`lfsam.video.match.likely_shifts_many`), at most this many scored exactly per
+#: (:func:`lfsam.video.tracking.match.likely_shifts_many`), at most this many scored exactly per
 #: view; the :data:`WIDE_VIEWS` views whose best shift shows most of the template prompted,
 #: each needing :data:`WIDE_SUPPORT` of the template's part inside the frame supported and
 #: the answer at the object's depth.
@@ -208,7 +208,7 @@ SMALL_SHARE = 0.3
 REFUSED_VALUE = -255.0
 #: An answer found again (the object unseen for frames) that holds this share of an object
 #: placed earlier in the frame, in the answer's view, is that object (its mask carried
-#: there, then as the segmenter answers it there, :mod:`lfsam.video.neighbour`; fresh seed
+#: there, then as the segmenter answers it there, :mod:`lfsam.video.tracking.neighbour`; fresh seed
 #: 1802's disc took a neighbour's place, docs/design.md section 10 "Tracking" step 5).
 HELD = 0.5
 #: The widening stage reads the answers refused in a view this frame (the object's own view
@@ -219,9 +219,9 @@ WIDE_REFUSED = True
 
 def near_support(template: Template, image: np.ndarray, reach: int
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The robust cost (:func:`lfsam.video.match.robust_costs`: the sum over the template of
-    each pixel's distance, summed over channels, truncated at
-    :data:`lfsam.video.carry.MAX_PIXEL_DIFFERENCE`, so that pixels covered by something in
+    """The robust cost (:func:`lfsam.video.tracking.match.robust_costs`: the sum over the template
+    of each pixel's distance, summed over channels, truncated at
+    :data:`lfsam.video.tracking.carry.MAX_PIXEL_DIFFERENCE`, so that pixels covered by something in
     front cost the same wherever the template is: an object mostly behind another is found by
     its visible part, where the SSD is led astray by the cover) of every shift within
     ``reach`` pixels of the template's place.
@@ -241,8 +241,8 @@ def _best_shift(template: Template, image: np.ndarray, radius: int | None, reach
                 ) -> tuple[np.ndarray, np.ndarray, tuple[int, int]] | None:
     """The shifted mask and support of the shift with the least robust cost
     (:func:`near_support`) among the :data:`CANDIDATES` cheapest by masked SSD
-    (:func:`lfsam.video.match.cost_map`; ``costs_given``: its result, computed already) and,
-    with ``reach`` and where none of those shows most of the template, every shift that
+    (:func:`lfsam.video.tracking.match.cost_map`; ``costs_given``: its result, computed already)
+    and, with ``reach`` and where none of those shows most of the template, every shift that
     close to the predicted place (ties: the nearer shift)."""
     cost, du, dv = costs_given if costs_given is not None else cost_map(template, image,
                                                                         radius)
@@ -332,7 +332,7 @@ def search_object(
     held : callable, optional
         ``held(view)``: each object placed earlier in this frame, its mask in that view;
         ``held(view, mask)``: those the segmenter was asked for there, where they meet the
-        answer ``mask`` (:mod:`lfsam.video.neighbour`). An answer found again that holds
+        answer ``mask`` (:mod:`lfsam.video.tracking.neighbour`). An answer found again that holds
         :data:`HELD` of one of them is that object (:func:`_accept`).
 
     Returns
@@ -392,7 +392,7 @@ def search_object(
 
     def widening(views: Sequence[tuple[int, int]]) -> list[tuple]:
         """Stage 3's matches (:func:`widened`, every view's likely shifts from one batch of
-        FFTs, :func:`lfsam.video.match.likely_shifts_many`): the :data:`WIDE_VIEWS` views
+        FFTs, :func:`lfsam.video.tracking.match.likely_shifts_many`): the :data:`WIDE_VIEWS` views
         whose match shows most of the template, the most first."""
         ready = [prepared(v) for v in views]
         likely = likely_shifts_many([r[2][0] for r in ready], [r[2][1] for r in ready],
@@ -624,9 +624,9 @@ def first_look(track: Track, image: np.ndarray, center: tuple[int, int],
 def explaining_shift(mask: np.ndarray, template: Template, image: np.ndarray, radius: int
                      ) -> tuple[int, int] | None:
     """The shift within ``radius`` pixels of the template's place at which its pixels that
-    still look the same (:func:`lfsam.video.match.robust_costs`' support) cover most of
+    still look the same (:func:`lfsam.video.tracking.match.robust_costs`' support) cover most of
     ``mask`` (ties: the nearer shift), if they cover :data:`EXPLAINED` of it and at least
-    :data:`lfsam.video.carry.MIN_PIXELS`; else None (of the shifts within :data:`ALMOST` of
+    :data:`lfsam.video.tracking.carry.MIN_PIXELS`; else None (of the shifts within :data:`ALMOST` of
     the best count, the nearest). An answer is then a part of the object
     near where it should be, whatever the match chose: the support of a partly hidden
     object's match may lie on look-alike pixels beside it."""
@@ -655,7 +655,7 @@ def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: T
     ``held()``: the masks of objects placed earlier in this frame in the answer's view; an
     answer holding :data:`HELD` of one of them is that object; ``held(mask)``, asked once the
     answer passed every other check, the same with the segmenter's masks there
-    (:mod:`lfsam.video.neighbour`)."""
+    (:mod:`lfsam.video.tracking.neighbour`)."""
     area = int(mask.sum())
     covered = int((mask & support).sum())
     grown = area > MAX_GROWTH * max(track.area, 1) + 50

@@ -20,7 +20,7 @@ from typing import Any
 from lfsam.errors import LfsamError
 from lfsam.io import read_lightfield
 from lfsam.lightfield import LightField
-from lfsam.video.source import check_frame
+from lfsam.video.io.source import check_frame
 
 __all__ = ["VIDEO_MARKER", "FolderFrames", "frame_entries", "read_marker"]
 

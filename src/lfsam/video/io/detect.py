@@ -1,10 +1,10 @@
 """Which input is a light-field video, and opening it (docs/design.md section 10).
 
 - a file ``.npy``/``.npz``/``.h5`` whose views are 6-D ``[F, S, T, U, V, 3]``
-  (:mod:`lfsam.video.arrays`);
-- a folder of per-view video files ``view_SS_TT.mp4`` (:mod:`lfsam.video.view_files`);
+  (:mod:`lfsam.video.io.arrays`);
+- a folder of per-view video files ``view_SS_TT.mp4`` (:mod:`lfsam.video.io.view_files`);
 - a folder with the video marker ``lfsam_video.json``, or one that holds no views of its own
-  but sub-folders or light-field files: one frame each (:mod:`lfsam.video.frames_folder`).
+  but sub-folders or light-field files: one frame each (:mod:`lfsam.video.io.frames_folder`).
 
 Everything else is a single light field (:func:`lfsam.io.read_lightfield`).
 :func:`input_kind` tells the four kinds of input of the commands apart (a light field, a
@@ -28,11 +28,11 @@ from lfsam.io.grid_folder import list_images
 from lfsam.io.hci4d import is_hci4d
 from lfsam.io.hci_old import is_hci_old
 from lfsam.io.urbanlf import is_urbanlf
-from lfsam.video.arrays import array_video_shape, npz_shapes, open_h5, open_npy, open_npz
-from lfsam.video.frames_folder import VIDEO_MARKER, FolderFrames, frame_entries, read_marker
-from lfsam.video.result import RESULT_MARKER
-from lfsam.video.source import LightFieldVideo
-from lfsam.video.view_files import VIDEO_SUFFIXES, ViewVideoFrames
+from lfsam.video.io.arrays import array_video_shape, npz_shapes, open_h5, open_npy, open_npz
+from lfsam.video.io.frames_folder import VIDEO_MARKER, FolderFrames, frame_entries, read_marker
+from lfsam.video.io.result import RESULT_MARKER
+from lfsam.video.io.source import LightFieldVideo
+from lfsam.video.io.view_files import VIDEO_SUFFIXES, ViewVideoFrames
 
 __all__ = ["INPUT_KINDS", "input_kind", "is_video", "read_video", "video_kind"]
 
@@ -143,7 +143,7 @@ def input_kind(path: str | os.PathLike) -> str | None:
 
     ``"result"`` is an ``.npz`` with ``labels`` and no views (:func:`lfsam.result.load_result`),
     ``"video-result"`` a folder with ``lfsam_video_result.json``
-    (:mod:`lfsam.video.result`), ``"video"`` what :func:`video_kind` finds, ``"lightfield"``
+    (:mod:`lfsam.video.io.result`), ``"video"`` what :func:`video_kind` finds, ``"lightfield"``
     anything :func:`lfsam.io.detect_format` recognises (or an ``.npz`` / ``.npy`` with a
     5-D views array). Used to check that each input of a command is of a kind it takes
     (docs/design.md section 2, "Outputs and inputs on the command line"; :mod:`lfsam.cli.inputs`).

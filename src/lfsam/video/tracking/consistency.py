@@ -1,7 +1,7 @@
 """A track that jumped: the object looked for where it was going while a look-alike holds its
 id (issue 47, eighth pass; docs/design.md section 10, "Tracking", and section 3.9, "Videos").
 
-The search (:func:`lfsam.video.search.search_object`) accepts a match when enough of the
+The search (:func:`lfsam.video.tracking.search.search_object`) accepts a match when enough of the
 template looks the same there and the answer passes appearance, motion and depth checks one
 frame at a time. A mostly hidden object's match can then slide onto a look-alike (another,
 unclicked object or background of its colours): the accepted answer lies far from where the
@@ -19,11 +19,11 @@ against every onset of a look-alike), so a jump does not refuse the answer: it r
   track's last disparity (motion and depth both inconsistent with the track's history; once
   a velocity is measured, after two sightings), or it lies that far from the prediction on a
   poorly supported match (:data:`POORLY_SUPPORTED`: under
-  :data:`lfsam.video.motion.VELOCITY_SUPPORT` of the template; a sliver that fits the
+  :data:`lfsam.video.tracking.motion.VELOCITY_SUPPORT` of the template; a sliver that fits the
   template at a range of shifts, whose place is no measure of the motion), or its median
   disparity alone lies beyond
-  the depth gate's tolerance (:func:`lfsam.video.search.predicted_disparity`: the gate reads
-  such pixels as not the object; a sliver of background answered under jitter set a track's
+  the depth gate's tolerance (:func:`lfsam.video.tracking.search.predicted_disparity`: the gate
+  reads such pixels as not the object; a sliver of background answered under jitter set a track's
   depth 2.9 px away, and the object, back at its own depth, was refused for good).
 * :func:`doubt`: the track before the jump is kept as its *shadow* (template, motion,
   disparity of the object as it was last trusted).
@@ -44,8 +44,8 @@ from dataclasses import replace
 import numpy as np
 
 from lfsam.prompts import ObjectPrompts
-from lfsam.video.carry import Template
-from lfsam.video.motion import (
+from lfsam.video.tracking.carry import Template
+from lfsam.video.tracking.motion import (
     VELOCITY_SUPPORT,
     Track,
     predicted,
@@ -59,15 +59,15 @@ __all__ = ["CHECK", "DEPTH_JUMP", "DOUBT_FRAMES", "JUMP_SHARE", "POORLY_SUPPORTE
 
 #: Whether the tracker raises doubts and searches for shadows (:func:`look_again`).
 CHECK = True
-#: An accepted answer farther than this share of :func:`lfsam.video.search.search_radius`
+#: An accepted answer farther than this share of :func:`lfsam.video.tracking.search.search_radius`
 #: from the predicted place is a jump in position (with :data:`DEPTH_JUMP`, a doubt).
 JUMP_SHARE = 0.6
 #: An accepted answer whose median disparity is farther than this (pixels) from the track's
 #: last disparity is a jump in depth (with :data:`JUMP_SHARE`, a doubt).
 DEPTH_JUMP = 0.6
 #: An accepted answer farther than :data:`JUMP_SHARE` of the search radius from the
-#: prediction on a match supporting under :data:`lfsam.video.motion.VELOCITY_SUPPORT` of the
-#: template is a jump whatever its depth (fourteenth pass): seed 401, an object behind an
+#: prediction on a match supporting under :data:`lfsam.video.tracking.motion.VELOCITY_SUPPORT` of
+#: the template is a jump whatever its depth (fourteenth pass): seed 401, an object behind an
 #: occluder showing 97 pixels in a corner view, matched there on 81 of its 485 carried
 #: pixels 16 px from the prediction at the object's depth; its velocity jumped from (0.4,
 #: -4.8) to (9.6, -14.3) px a frame and it was lost the next frame, where the shadow (the
@@ -87,7 +87,7 @@ SHADOW_ID = 1_000_000
 
 def jumped(track: Track, view: tuple[int, int], located: Template, disparity: float,
            center: tuple[int, int]) -> bool:
-    """Whether an answer accepted for ``track`` (before :func:`lfsam.video.motion.update`;
+    """Whether an answer accepted for ``track`` (before :func:`lfsam.video.tracking.motion.update`;
     ``located``: its template where it was found in ``view``, ``disparity``: its median
     disparity) jumped: beyond :data:`JUMP_SHARE` of the search radius from the prediction and
     beyond :data:`DEPTH_JUMP` from the track's disparity or on a poorly supported match
@@ -122,7 +122,7 @@ def look_again(obj_id: int, tracks: dict[int, Track], search: Callable[..., tupl
     the id back: the predictor's object is set to the shadow's accepted prompts,
     ``tracks[obj_id]`` becomes the updated shadow, and its view and mask are returned.
 
-    ``search(shadow_id, shadow)`` runs :func:`lfsam.video.search.search_object` for the
+    ``search(shadow_id, shadow)`` runs :func:`lfsam.video.tracking.search.search_object` for the
     shadow in the frame (everything placed so far excluded); ``last_prompts()`` gives the
     prompts of its last answer; ``disparity(view, mask)`` an answer's median disparity."""
     track = tracks[obj_id]

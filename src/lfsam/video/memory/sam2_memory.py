@@ -66,15 +66,15 @@ def reference_memory_for(segmenter: Segmenter, view_shape: tuple[int, int],
                          required: bool = False) -> Any:
     """The video memory of ``segmenter`` over center views of ``view_shape``: Meta's SAM 2
     (:class:`ReferenceMemory`) or a transformers SAM 2 / EdgeTAM video checkpoint
-    (:class:`lfsam.video.hf_memory.TransformersReferenceMemory`); None for a segmenter without
-    one (the oracle, SAM v1), or an :class:`LfsamError` naming the fix when ``required``."""
+    (:class:`lfsam.video.memory.hf_memory.TransformersReferenceMemory`); None for a segmenter
+    without one (the oracle, SAM v1), or an :class:`LfsamError` naming the fix when ``required``."""
     if has_video_memory(segmenter):
         return ReferenceMemory(segmenter, view_shape)
     from lfsam.segmenters.transformers.backend import TransformersSegmenter
 
     if isinstance(segmenter, TransformersSegmenter):
         from lfsam.segmenters.transformers.video_build import video_memory_problem
-        from lfsam.video.hf_memory import TransformersReferenceMemory
+        from lfsam.video.memory.hf_memory import TransformersReferenceMemory
 
         problem = video_memory_problem(segmenter.model)
         if problem is None:

@@ -45,7 +45,7 @@ def hidden_now(states: Mapping[str, str]) -> list[int]:
 
 def hidden_frames_text(spans: Mapping[str, Sequence[Sequence[int]]]) -> str:
     """The end of a stream's line: each object's runs of hidden frames
-    (:func:`lfsam.video.result.hidden_spans`), empty where none was hidden.
+    (:func:`lfsam.video.io.result.hidden_spans`), empty where none was hidden.
 
     Examples
     --------

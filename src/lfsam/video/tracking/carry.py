@@ -8,7 +8,7 @@ overlapping pixel wins; part of the template may fall outside the frame (objects
 coming back through the border). The shifted mask, kept where the new pixels still look like
 the template (not covered by something that moved in front), gives the prompt: a positive
 point at its deepest pixel (away from negative clicks given in that frame), and a box around
-the shifted mask widened by a margin. The search of issue 47 (:mod:`lfsam.video.search`)
+the shifted mask widened by a margin. The search of issue 47 (:mod:`lfsam.video.tracking.search`)
 prompts with :func:`positive_points` (several, apart) and :func:`neighbour_points` (negative
 points on objects placed earlier) and compares colours with :func:`looks_alike`.
 """

@@ -1,11 +1,11 @@
 """Segmenting a live light-field stream: frames segmented as a camera writes them
 (docs/design.md section 10, issue 35; ``lfsam segment FOLDER --follow``, the viewer's Follow).
 
-:func:`segment_stream` joins the three parts: :class:`lfsam.video.follow.FrameFollower` yields
-each frame as it lands, :class:`lfsam.video.online.OnlineTracker` segments it at once (ids and
-video memory kept), and :func:`lfsam.video.result.live_video_result_writer` writes its result
-into the result folder in a writer thread while the next frame is segmented (issue 44: each
-file atomic; the folder reads as a valid result of the frames on disk at any moment, and every
+:func:`segment_stream` joins the three parts: :class:`lfsam.video.stream.follow.FrameFollower`
+yields each frame as it lands, :class:`lfsam.video.tracking.online.OnlineTracker` segments it at
+once (ids and video memory kept), and :func:`lfsam.video.io.result.live_video_result_writer` writes
+its result into the result folder in a writer thread while the next frame is segmented (issue 44:
+each file atomic; the folder reads as a valid result of the frames on disk at any moment, and every
 frame handed over is written before :func:`segment_stream` returns, also on an error or
 Ctrl-C).
 
@@ -37,10 +37,10 @@ from lfsam.io import read_lightfield
 from lfsam.lightfield import LightField
 from lfsam.result import SegmentationResult
 from lfsam.version import __version__
-from lfsam.video.feed import NEWER_FRAME, FrameFeed
-from lfsam.video.follow import ArrivedFrame, FrameFollower
-from lfsam.video.online import OnlineTracker
-from lfsam.video.result import hidden_spans, live_video_result_writer, record_states
+from lfsam.video.io.result import hidden_spans, live_video_result_writer, record_states
+from lfsam.video.stream.feed import NEWER_FRAME, FrameFeed
+from lfsam.video.stream.follow import ArrivedFrame, FrameFollower
+from lfsam.video.tracking.online import OnlineTracker
 
 __all__ = ["RETRY_SECONDS", "FrameTiming", "StreamReport", "segment_stream"]
 
@@ -84,7 +84,7 @@ class StreamReport:
     skipped: list[dict[str, str]] = field(default_factory=list)
     latencies: list[float] = field(default_factory=list)
     object_ids: list[int] = field(default_factory=list)
-    #: Each object's runs of hidden frames (:func:`lfsam.video.result.hidden_spans`).
+    #: Each object's runs of hidden frames (:func:`lfsam.video.io.result.hidden_spans`).
     hidden: dict[str, list[list[int]]] = field(default_factory=dict)
     #: Seconds each frame's file took to write (in the writer thread), in order.
     write_seconds: list[float] = field(default_factory=list)
@@ -94,7 +94,7 @@ class StreamReport:
     def summary(self) -> dict[str, Any]:
         """Frames, skipped frames (of them ``superseded``: left out for a newer frame), how it
         ended, the objects and their runs of hidden frames (``hidden``, as
-        :func:`lfsam.video.result.hidden_spans`), latency median, 95th percentile and worst,
+        :func:`lfsam.video.io.result.hidden_spans`), latency median, 95th percentile and worst,
         and the result files' writing (:meth:`write_summary`), in seconds."""
         lat = self.latencies
         return {
@@ -167,7 +167,7 @@ def segment_stream(
         Holds the model, options, prompts and memory (prompts may be added between frames,
         e.g. from ``on_frame``).
     out : path-like
-        The live result folder (:func:`lfsam.video.result.check_live_folder`: new or empty).
+        The live result folder (:func:`lfsam.video.io.result.check_live_folder`: new or empty).
     value_range : int, optional
         Passed to :func:`lfsam.io.read_lightfield` for each frame.
     on_frame : callable, optional
@@ -180,7 +180,7 @@ def segment_stream(
         Never fall behind (``--latest``): always segment the newest frame that has arrived;
         the frames that arrived before it and were not started are left out, each listed in
         ``meta["skipped"]`` with the reason ``"newer frame available"``
-        (:class:`lfsam.video.feed.FrameFeed`). Either way the next frame is read in a
+        (:class:`lfsam.video.stream.feed.FrameFeed`). Either way the next frame is read in a
         prefetch thread while the current one is segmented.
     on_lightfield : callable, optional
         ``on_lightfield(timing, result, lightfield)`` after ``on_frame``, with the frame's light

@@ -16,8 +16,8 @@ searched in the frame (:func:`rival`): where one of them, at its predicted place
 view within its search radius and at the answer's depth, explains the answer clearly
 better (:func:`explained`: the share of the answer's pixels its template covers with pixels
 that look the same, each weighted by how alike), that object is searched first and the
-first one again after it (:func:`lfsam.video.frame_search.search_frame`): the answer goes to
-the better explanation, and the other object keeps looking elsewhere (the pixels taken read
+first one again after it (:func:`lfsam.video.tracking.frame_search.search_frame`): the answer goes
+to the better explanation, and the other object keeps looking elsewhere (the pixels taken read
 as placed). Each rival is searched once, so the frame's work stays bounded.
 
 An answer grown past :data:`GROWN` times the object's largest area is checked the same way
@@ -33,8 +33,8 @@ from collections.abc import Callable, Iterable
 
 import numpy as np
 
-from lfsam.video.carry import MAX_PIXEL_DIFFERENCE
-from lfsam.video.motion import Track, predicted, predicted_disparity, search_radius
+from lfsam.video.tracking.carry import MAX_PIXEL_DIFFERENCE
+from lfsam.video.tracking.motion import Track, predicted, predicted_disparity, search_radius
 
 __all__ = ["CHECK", "GROWN", "MAX_PAIRS", "RIVAL_MARGIN", "explained", "rival"]
 
@@ -58,9 +58,9 @@ def explained(track: Track, view: tuple[int, int], mask: np.ndarray, image: np.n
     template explains: the largest, over the template's shifts within ``radius`` of its
     predicted place in that view (None: any shift), of the sum over the template's pixels
     landing on the answer of ``MAX_PIXEL_DIFFERENCE - distance`` (the robust cost's
-    truncation, :func:`lfsam.video.match.robust_costs`), divided by ``MAX_PIXEL_DIFFERENCE``
-    times the answer's area: 1 where the template covers every answer pixel with the same
-    colour, 0 where none looks alike.
+    truncation, :func:`lfsam.video.tracking.match.robust_costs`), divided by
+    ``MAX_PIXEL_DIFFERENCE`` times the answer's area: 1 where the template covers every answer pixel
+    with the same colour, 0 where none looks alike.
 
     Every (answer pixel, template pixel) pair votes for the shift that puts one on the other,
     so only shifts overlapping the answer are counted (exact, cost in the two areas'

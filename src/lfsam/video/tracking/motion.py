@@ -19,7 +19,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from lfsam.video.carry import Template
+from lfsam.video.tracking.carry import Template
 
 __all__ = [
     "BASE_RADIUS",
@@ -92,7 +92,7 @@ def search_radius(track: Track) -> int:
 
 def near_reach(track: Track) -> int:
     """How far from the prediction every shift's support is counted
-    (:func:`lfsam.video.search.near_support`)."""
+    (:func:`lfsam.video.tracking.search.near_support`)."""
     return int(min(NEAR_REACH + 2 * track.unseen, 2 * NEAR_REACH))
 
 

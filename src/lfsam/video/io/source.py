@@ -58,14 +58,14 @@ class LightFieldVideo:
     Parameters
     ----------
     source : FrameSource
-        The reader (:mod:`lfsam.video.detect` picks one from a path).
+        The reader (:mod:`lfsam.video.io.detect` picks one from a path).
     meta : dict, optional
         ``source`` (the path), ``format`` (the reader) and reader notes.
 
     Examples
     --------
     >>> import numpy as np
-    >>> from lfsam.video.arrays import ArrayFrames
+    >>> from lfsam.video.io.arrays import ArrayFrames
     >>> video = LightFieldVideo(ArrayFrames(np.zeros((4, 3, 3, 8, 10, 3), np.uint8)))
     >>> len(video), video.shape, video.frame(2).grid_shape
     (4, (4, 3, 3, 8, 10), (3, 3))

@@ -50,7 +50,7 @@ def prompts_at(obj: ObjectPrompts, frame: int) -> ObjectPrompts | None:
 def latest_prompts(obj: ObjectPrompts, frame: int) -> ObjectPrompts | None:
     """The prompts of the latest frame up to ``frame`` that gives ``obj`` a positive point or
     its box, frame tags removed (None: none so far): what an object whose prompts were never
-    answered is asked again (issue 47, :func:`lfsam.video.frame_search.search_frame`).
+    answered is asked again (issue 47, :func:`lfsam.video.tracking.frame_search.search_frame`).
 
     Examples
     --------

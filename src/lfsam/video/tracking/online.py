@@ -6,9 +6,9 @@ frame count up front, keeps the objects' ids, their prompts and the video memory
 and returns that frame's :class:`~lfsam.result.SegmentationResult` at once. Prompts (clicks and
 boxes, each tagged with the frame it belongs to) can be added before any frame
 (:meth:`~OnlineTracker.add_prompts`). Memory and time per frame stay flat however long the
-stream runs: SAM 2's memory keeps a bounded window (:mod:`lfsam.video.memory`), constrained
-prompts keep one template per object, and nothing else is kept per frame.
-:func:`lfsam.video.track.track_video` is a loop over it.
+stream runs: SAM 2's memory keeps a bounded window (:mod:`lfsam.video.memory.sam2_memory`),
+constrained prompts keep one template per object, and nothing else is kept per frame.
+:func:`lfsam.video.tracking.track.track_video` is a loop over it.
 
 Each frame is segmented across its views by the light-field pipeline
 (:class:`lfsam.predictor.LightFieldPredictor`, with every option of
@@ -26,21 +26,21 @@ at frame f + 1 comes from frame f:
   encoder pass per refined view per frame);
 - with segmenters without memory (the oracle), through constrained prompts: each object is
   carried from the frame where it was last found and searched for in every frame
-  (:mod:`lfsam.video.search`, issue 47: predicted place in its own view, the center view and
-  the outer ring's views, ranked by how much of it they show, with a radius growing while it
+  (:mod:`lfsam.video.tracking.search`, issue 47: predicted place in its own view, the center view
+  and the outer ring's views, ranked by how much of it they show, with a radius growing while it
   is unseen, then the whole view; several
   positive points, negative points on neighbours; the user's negative clicks of earlier frames
   stay unless they land on the carried mask, those given in the frame itself always stay). An
   object not found is *hidden* there (empty masks) and keeps its id, template and motion; it
   comes back under its id when found again. ``search=False`` keeps the carrying before issue 47
-  (:mod:`lfsam.video.carry` alone: an answer is rejected when it holds less than half of the
-  carried pixels, is more than :data:`MAX_GROWTH` times larger than the object was, or lies
+  (:mod:`lfsam.video.tracking.carry` alone: an answer is rejected when it holds less than half of
+  the carried pixels, is more than :data:`MAX_GROWTH` times larger than the object was, or lies
   mostly on an object already placed in that frame; a lost object is matched over the whole
   view only).
 
 Each frame result's ``meta["tracks"]`` gives every object's state there
-(:data:`lfsam.video.search.STATES`: prompted, tracked, found, hidden, waiting), with the video
-memory too (:func:`memory_states`: an object the memory scores absent is hidden, keeps its id,
+(:data:`lfsam.video.tracking.search.STATES`: prompted, tracked, found, hidden, waiting), with the
+video memory too (:func:`memory_states`: an object the memory scores absent is hidden, keeps its id,
 and is found when the memory sees it again).
 
 Objects start at the first frame of their prompts (absent before); prompts given at a later
@@ -70,12 +70,12 @@ from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt, TextPrompt, val
 from lfsam.result import SegmentationResult
 from lfsam.segmenters.base import Segmenter
 from lfsam.text_search import find_text
-from lfsam.video.carry import Template, carry
-from lfsam.video.frame_search import object_disparity, search_frame
-from lfsam.video.memory import reference_memory_for
-from lfsam.video.prompts import frame_of, negatives_since, prompts_at, start_frame
-from lfsam.video.search import MAX_GROWTH, Track
-from lfsam.video.source import check_frame
+from lfsam.video.io.source import check_frame
+from lfsam.video.memory.sam2_memory import reference_memory_for
+from lfsam.video.tracking.carry import Template, carry
+from lfsam.video.tracking.frame_search import object_disparity, search_frame
+from lfsam.video.tracking.prompts import frame_of, negatives_since, prompts_at, start_frame
+from lfsam.video.tracking.search import MAX_GROWTH, Track
 
 __all__ = ["MAX_GROWTH", "OnlineTracker", "memory_states"]
 
@@ -111,8 +111,9 @@ class OnlineTracker:
         ``options.model``'s text detector; the oracle answers from ground-truth categories),
         tracked from there; what each found is :attr:`text_finds`.
     search : bool
-        Constrained prompts with the search of issue 47 (default; :mod:`lfsam.video.search`),
-        or the carrying before it (False: the benchmark's baseline).
+        Constrained prompts with the search of issue 47 (default;
+        :mod:`lfsam.video.tracking.search`), or the carrying before it (False: the benchmark's
+        baseline).
 
     Examples
     --------
@@ -383,7 +384,7 @@ def _center_mask(predictor: LightFieldPredictor, lf: LightField, obj_id: int) ->
 
 def memory_states(before: dict[int, str], prompted: set[int], masks: dict[int, np.ndarray],
                   objects: dict[int, ObjectPrompts]) -> dict[int, str]:
-    """Each object's state (:data:`lfsam.video.search.STATES`) in a frame tracked with the
+    """Each object's state (:data:`lfsam.video.tracking.search.STATES`) in a frame tracked with the
     video memory: prompted there, tracked (a mask), hidden (the memory's occlusion score says
     absent: an empty mask; the object stays in the memory under its id) or found again (a mask
     after hidden frames), waiting before its start."""
