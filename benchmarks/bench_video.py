@@ -456,7 +456,7 @@ def write_stream(result, lf, work: Path, frames: int, rate: float, mode: str) ->
 
 def write_part(args: argparse.Namespace, work: Path) -> None:
     from lfsam.result import FAST_LEVEL, label_ids, save_result
-    from lfsam.video.io.result import live_video_result_writer
+    from lfsam.video.io.live_result import live_video_result_writer
 
     size, repeats = parse_size(args.write_size), args.write_repeats
     lf = next(iter(generate_video(grid=(5, 5), size=size, frames=1, seed=0, num_objects=3)))

@@ -27,10 +27,10 @@ from lfsam.pipeline import PipelineConfig
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.segmenters import load_segmenter
 from lfsam.video import read_video
+from lfsam.video.io.live_result import live_video_result_writer
 from lfsam.video.io.result import (
     RESULT_MARKER,
     hidden_spans,
-    live_video_result_writer,
     load_video_result,
 )
 from lfsam.video.io.synth import generate_video, write_video_frames

@@ -111,7 +111,7 @@ def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
     :class:`LfsamError` at its first frame (exit 2, ``lfsam.video.stream.live``)."""
     from lfsam.api import RunOptions, SegmentOptions
     from lfsam.video.io.frames_folder import frame_entries
-    from lfsam.video.io.result import check_live_folder
+    from lfsam.video.io.live_result import check_live_folder
     from lfsam.video.stream.follow import FrameFollower, check_follow_folder
     from lfsam.video.stream.hidden_lines import HiddenSince, hidden_frames_text, hidden_now
     from lfsam.video.stream.live import segment_stream

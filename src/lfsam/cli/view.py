@@ -135,7 +135,7 @@ def check_follow(args: argparse.Namespace) -> None:
         folder, a missing one, ``--result``, ``--text`` with ``--auto``, a disparity file, or
         an ``--out`` that is not a new or empty folder.
     """
-    from lfsam.video.io.result import check_live_folder
+    from lfsam.video.io.live_result import check_live_folder
     from lfsam.video.stream.follow import check_follow_folder
 
     if not getattr(args, "follow", False):

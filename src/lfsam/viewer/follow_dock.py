@@ -43,7 +43,8 @@ from lfsam.pipeline.config import PipelineConfig
 from lfsam.prompts import ObjectPrompts, TextPrompt
 from lfsam.result import SegmentationResult
 from lfsam.segmenters.registry import ORACLE
-from lfsam.video.io.result import check_live_folder, load_video_result
+from lfsam.video.io.live_result import check_live_folder
+from lfsam.video.io.result import load_video_result
 from lfsam.video.io.source import LightFieldVideo, check_frame
 from lfsam.video.stream.follow import FrameFollower, check_follow_folder
 from lfsam.video.stream.hidden_lines import HiddenSince, hidden_frames_text, hidden_now

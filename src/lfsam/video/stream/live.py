@@ -3,10 +3,10 @@
 
 :func:`segment_stream` joins the three parts: :class:`lfsam.video.stream.follow.FrameFollower`
 yields each frame as it lands, :class:`lfsam.video.tracking.online.OnlineTracker` segments it at
-once (ids and video memory kept), and :func:`lfsam.video.io.result.live_video_result_writer` writes
-its result into the result folder in a writer thread while the next frame is segmented (issue 44:
-each file atomic; the folder reads as a valid result of the frames on disk at any moment, and every
-frame handed over is written before :func:`segment_stream` returns, also on an error or
+once (ids and video memory kept), and :func:`lfsam.video.io.live_result.live_video_result_writer`
+writes its result into the result folder in a writer thread while the next frame is segmented (issue
+44: each file atomic; the folder reads as a valid result of the frames on disk at any moment, and
+every frame handed over is written before :func:`segment_stream` returns, also on an error or
 Ctrl-C).
 
 A frame at fault (:class:`lfsam.errors.FrameError`: one that cannot be read — damaged,
@@ -37,7 +37,8 @@ from lfsam.io import read_lightfield
 from lfsam.lightfield import LightField
 from lfsam.result import SegmentationResult
 from lfsam.version import __version__
-from lfsam.video.io.result import hidden_spans, live_video_result_writer, record_states
+from lfsam.video.io.live_result import live_video_result_writer
+from lfsam.video.io.result import hidden_spans, record_states
 from lfsam.video.stream.feed import NEWER_FRAME, FrameFeed
 from lfsam.video.stream.follow import ArrivedFrame, FrameFollower
 from lfsam.video.tracking.online import OnlineTracker
@@ -167,7 +168,7 @@ def segment_stream(
         Holds the model, options, prompts and memory (prompts may be added between frames,
         e.g. from ``on_frame``).
     out : path-like
-        The live result folder (:func:`lfsam.video.io.result.check_live_folder`: new or empty).
+        The live result folder (:func:`lfsam.video.io.live_result.check_live_folder`: new or empty).
     value_range : int, optional
         Passed to :func:`lfsam.io.read_lightfield` for each frame.
     on_frame : callable, optional

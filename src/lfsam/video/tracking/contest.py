@@ -21,7 +21,7 @@ anything was placed) lay on those pixels. Hidden for three frames while it showe
 in the center view: 75 lost triples.
 
 So an object about to be hidden for an answer, or a first look near its prediction (the
-template's place there, where the support reached :data:`lfsam.video.tracking.search.NEAR_SUPPORT`),
+template's place there, where the support reached :data:`lfsam.video.tracking.rules.NEAR_SUPPORT`),
 that an object placed earlier in the frame holds (:func:`blocker`: more than half of it)
 contests it where that object was placed from
 several positive points, one of them on the contested answer: the placed object is asked
@@ -46,7 +46,8 @@ __all__ = ["CHECK", "HELD", "KEPT", "blocker", "gives_up", "without_points"]
 #: Whether an object refused for an answer placed earlier contests it.
 CHECK = True
 #: An answer is held by a placed object where that object's mask covers more than this share
-#: of it (the share at which :func:`lfsam.video.tracking.search._accept` refuses it as placed).
+#: of it (the share at which :func:`lfsam.video.tracking.answer.accept_answer` refuses it as
+#: placed).
 HELD = 0.5
 #: A placed object gives the contested part up where its new answer lies at least this much
 #: inside its old one (and keeps more than :data:`HELD` of the old one outside the contested

@@ -23,7 +23,7 @@ from scipy import ndimage
 
 from lfsam.pipeline.references import reference_views
 from lfsam.prompts import ObjectPrompts
-from lfsam.video.tracking import claims, consistency, contest, neighbour, placement, search
+from lfsam.video.tracking import claims, consistency, contest, neighbour, placement, rules, search
 from lfsam.video.tracking.carry import Template
 from lfsam.video.tracking.motion import KEEP_TEMPLATE, VELOCITY_SUPPORT, update
 from lfsam.video.tracking.prompts import latest_prompts, negatives_since, prompts_at, start_frame
@@ -75,7 +75,7 @@ def object_disparity(disparity: object, mask: np.ndarray) -> float:
     """An object's disparity: :func:`median_disparity` over its answer (0 where it has none).
     The median, not the mean: an answer whose boundary spills a pixel onto the background
     (the oracle's jitter, SAM's soft edges) would pull a small object's mean towards the
-    background's depth, and the depth gate (:data:`lfsam.video.tracking.search.DEPTH_GATE`) would
+    background's depth, and the depth gate (:data:`lfsam.video.tracking.rules.DEPTH_GATE`) would
     then refuse the object's own pixels."""
     value = median_disparity(disparity, mask)
     return 0.0 if value is None else value
@@ -184,7 +184,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
     # the surest first (most of the template still seen at its predicted place), so that an
     # object that went behind another cannot take that one's place
     first = {i: first_look(tracks[i], view_of(tracks[i].view), center,
-                           disparity_of(tracks[i].view) if search.DEPTH_GATE else None)
+                           disparity_of(tracks[i].view) if rules.DEPTH_GATE else None)
              for i in carried}
     carried.sort(key=lambda i: (tracks[i].unseen > 0, -first[i][0], i))
 
@@ -245,7 +245,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         fresh = () if own is None else tuple(p for p in own.points if not p.positive)
         return search_object(search_id, track, image, center, ring, answer, placed_in,
                              placed_ids, negatives, use_box, hint, fresh,
-                             disparity_of if search.DEPTH_GATE else None, answer_depth,
+                             disparity_of if rules.DEPTH_GATE else None, answer_depth,
                              held_by)
 
     def settle(obj_id: int, track: Track, view: tuple[int, int], mask: np.ndarray,
@@ -285,7 +285,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
         # then read as placed: nothing was asked), the template's place there
         answers = [(v, m) for v, m, _ in tried]
         share, look = first[obj_id]
-        if look is not None and share >= search.NEAR_SUPPORT:
+        if look is not None and share >= rules.NEAR_SUPPORT:
             answers.append((tracks[obj_id].view, look[0]))
         held = contest.blocker(answers, list(clicks), placed_one)
         if held is None:
@@ -351,7 +351,7 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
     def shadow_image(view: tuple[int, int]) -> np.ndarray:
         """A view with the objects placed in this frame read as not the object (a shadow's
         search, consistency.look_again: the look-alike its id holds is no candidate)."""
-        return np.where(placed_in(view)[..., None], np.float32(search.REFUSED_VALUE),
+        return np.where(placed_in(view)[..., None], np.float32(rules.REFUSED_VALUE),
                         view_of(view))
 
     for obj_id in carried if consistency.CHECK else ():

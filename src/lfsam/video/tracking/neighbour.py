@@ -2,7 +2,7 @@
 eighteenth pass; docs/design.md section 10, "Tracking", step 5).
 
 An answer found again (the object unseen for frames) that holds half of an object placed
-earlier in the frame is that object (:data:`lfsam.video.tracking.search.HELD`). Where the answer
+earlier in the frame is that object (:data:`lfsam.video.tracking.rules.HELD`). Where the answer
 lies in another view than the placed object's reference view, that object's mask there is its
 reference mask carried by disparity (:func:`lfsam.video.tracking.frame_search.carried_to`), which
 leaves out what the reference view does not see. A thin, mostly hidden object shows

@@ -75,7 +75,8 @@ from lfsam.video.memory.sam2_memory import reference_memory_for
 from lfsam.video.tracking.carry import Template, carry
 from lfsam.video.tracking.frame_search import object_disparity, search_frame
 from lfsam.video.tracking.prompts import frame_of, negatives_since, prompts_at, start_frame
-from lfsam.video.tracking.search import MAX_GROWTH, Track
+from lfsam.video.tracking.rules import MAX_GROWTH
+from lfsam.video.tracking.search import Track
 
 __all__ = ["MAX_GROWTH", "OnlineTracker", "memory_states"]
 

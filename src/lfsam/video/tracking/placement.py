@@ -45,7 +45,7 @@ CHECK = True
 #: answer, contradicts the template lying on it.
 FARTHER = 0.5
 #: The template's share inside the frame below which its place stands (as
-#: :data:`lfsam.video.tracking.search.SURE`'s cut objects).
+#: :data:`lfsam.video.tracking.rules.SURE`'s cut objects).
 INSIDE = 0.6
 #: Shifts ranked by where the template lies that are also scored by its look.
 CANDIDATES = 12

@@ -71,21 +71,16 @@ frame is one of :data:`STATES` (``meta["tracks"]`` of each frame's result).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import replace
-from functools import partial
 
 import numpy as np
-from scipy import ndimage
 
-from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
-from lfsam.video.tracking import union
+from lfsam.prompts import ObjectPrompts, PointPrompt
+from lfsam.video.tracking import rules
+from lfsam.video.tracking.answer import explaining_shift, prompt_stage
 from lfsam.video.tracking.carry import (
     MIN_PIXELS,
     Template,
-    box_around,
     looks_alike,
-    neighbour_points,
-    positive_points,
 )
 from lfsam.video.tracking.match import (
     cost_map,
@@ -94,11 +89,9 @@ from lfsam.video.tracking.match import (
     margins_in,
     placed_at,
     robust_costs,
-    support_in_answer,
     with_depth,
 )
 from lfsam.video.tracking.motion import (
-    KEEP_TEMPLATE,
     STATES,
     Track,
     near_reach,
@@ -108,10 +101,6 @@ from lfsam.video.tracking.motion import (
 )
 
 __all__ = [
-    "CANDIDATES",
-    "FAR_SUPPORT",
-    "MAX_GROWTH",
-    "NEAR_SUPPORT",
     "STATES",
     "Track",
     "explaining_shift",
@@ -119,102 +108,6 @@ __all__ = [
     "search_object",
     "search_radius",
 ]
-
-#: An answer more than this many times larger than the object's largest area is rejected.
-MAX_GROWTH = 4.0
-#: Cheapest template shifts whose support is compared.
-CANDIDATES = 12
-#: Fraction of the template that must still look the same near the prediction / elsewhere.
-NEAR_SUPPORT = 0.1
-FAR_SUPPORT = 0.3
-#: A match showing this fraction of the template is not searched further near the prediction.
-SURE = 0.6
-#: Views of the ring (ranked by their SSD match) where every shift near the prediction is
-#: scored too before prompting.
-RESCORED = 2
-#: Colour histogram intersection an answer away from the prediction needs.
-MIN_ALIKE = 0.35
-#: An answer holding :data:`KNOWN_SUPPORT` of the support may look unlike the template as a
-#: whole where its part inside the carried template looks like it (an object showing a part
-#: its template never held; issue 47 fifteenth pass).
-KNOWN_PART = True
-KNOWN_SUPPORT = 0.9
-#: Whether :func:`lfsam.video.tracking.frame_search.search_frame` gates the match by depth
-#: (:func:`search_object`'s ``disparities``). On since the object's disparity is the median
-#: over its answer (:func:`lfsam.video.tracking.frame_search.object_disparity`): with the mean, an
-#: answer spilling a pixel onto the background (the oracle's jitter) pulled a small object's
-#: disparity towards the background's, and the gate refused the object's own pixels
-#: (development seeds 7-12, jitter 1: 5.49 % of the visible triples lost with the mean and
-#: the gate, 3.74 % without the gate, 3.49 % with the median and the gate).
-DEPTH_GATE = True
-#: An answer whose support lies mostly beside it (look-alike pixels around a partly hidden
-#: object) is still the object where, at a shift within the search radius, the template
-#: shows this fraction of the answer's pixels (:func:`explaining_shift`).
-EXPLAINED = 0.5
-#: Of the shifts explaining an answer this nearly as well as the best, the nearest to the
-#: prediction is taken.
-ALMOST = 0.9
-#: An answer grown past :data:`MAX_GROWTH` (an object first seen mostly covered, then
-#: uncovered) is accepted where it holds 90 % of the support, is at most this share of the
-#: view and lies at the object's depth (:func:`_accept`).
-UNCOVERED = True
-UNCOVERED_VIEW = 0.25
-#: The widening stage (:func:`search_object`, stage 3): where the prediction missed, the
-#: shifts within the search radius where most of the template's pixels could be the object
-#: (:func:`lfsam.video.tracking.match.likely_shifts_many`), at most this many scored exactly per
-#: view; the :data:`WIDE_VIEWS` views whose best shift shows most of the template prompted,
-#: each needing :data:`WIDE_SUPPORT` of the template's part inside the frame supported and
-#: the answer at the object's depth.
-WIDE_CANDIDATES = 150
-WIDE_VIEWS = 2
-WIDE_SUPPORT = 0.15
-#: In the views of the ring, the support needed near the prediction is a share of the
-#: template's interior (its part inside the frame less its border pixels): a template cut
-#: from an answer one pixel too wide (the oracle's jitter, a trained SAM's boundary) holds a
-#: ring of pixels that were never the object (seed 901: an object mostly covered, 100 of its
-#: 1032-pixel template supported in an outer view, 103 needed, was hidden for a frame). In
-#: its own view the whole template counts: there a barely supported match is better
-#: prompted in a view that sees more of it (seed 1203: two triples lost otherwise).
-CORE_SUPPORT = True
-#: In the views of the ring, the support needed near the prediction leaves out the
-#: template's pixels that an object placed earlier in the frame covers: they cannot show the
-#: object (sixteenth pass; fresh seed 2701: an object of 1451 pixels, 91 % behind a tracked
-#: one, showed 115-141 pixels a view and was supported on 76-119 of them, 145 needed; hidden
-#: for a frame, 25 lost triples). In its own view the whole template counts, as for
-#: :data:`CORE_SUPPORT` (seed 903 at jitter 1 lost 27 triples more with it there).
-PLACED_SUPPORT = True
-#: Where the answers at the predicted place in the object's own view are refused and the
-#: ring finds nothing, that view is matched once more with the refused answers' pixels
-#: counted as not the object (every shift near the prediction scored): a mostly covered
-#: object beside a background of its own colours had its match, and so its prompts, on that
-#: background (seed 802: hidden for its last three frames while it showed 127-174 pixels in
-#: the center view). After the ring: before it, the rematch took a poor answer in its own
-#: view where an outer view saw the object whole (seed 1101, 5 triples).
-REFUSED_AGAIN = True
-#: An answer accepted in the object's own view that covers under :data:`SMALL_SHARE` of its
-#: match's support there is held back while the ring's views are tried (the view where the
-#: match shows most first), and given back where none of them is accepted. A thin object
-#: mostly hidden in its own view, its answer there eroded by a segmenter's boundary error
-#: to a sliver (fresh seed 1401 under the oracle's jitter: 9 pixels of the 42 it showed,
-#: from a support of 32), set every view's refinement prompts (their boxes cut from it),
-#: while a corner view showed all 118 of its pixels. Exact answers cover their support (no
-#: answer changed without jitter on 87 videos); with jitter 1, 53 fewer lost triples (docs/
-#: performance.md, issue 47 seventeenth pass; at 0.5 a ring view's answer lost seed 1301's
-#: object two frames later, 38 more).
-SMALL_ANSWER = True
-SMALL_SHARE = 0.3
-#: What a refused answer's pixels read as when the view is matched again: far from any
-#: colour (every channel 255 below black), so they support no template.
-REFUSED_VALUE = -255.0
-#: An answer found again (the object unseen for frames) that holds this share of an object
-#: placed earlier in the frame, in the answer's view, is that object (its mask carried
-#: there, then as the segmenter answers it there, :mod:`lfsam.video.tracking.neighbour`; fresh seed
-#: 1802's disc took a neighbour's place, docs/design.md section 10 "Tracking" step 5).
-HELD = 0.5
-#: The widening stage reads the answers refused in a view this frame (the object's own view
-#: and the ring's) as not the object, as it reads the objects placed (fresh seed 1801: every
-#: match of a hidden object on a background of its colours; docs/design.md section 10).
-WIDE_REFUSED = True
 
 
 def near_support(template: Template, image: np.ndarray, reach: int
@@ -250,16 +143,16 @@ def _best_shift(template: Template, image: np.ndarray, radius: int | None, reach
     finite = np.flatnonzero(np.isfinite(flat))
     best: tuple[float, int, tuple[int, int]] | None = None
     values = flat[finite]
-    if values.size > CANDIDATES:  # the CANDIDATES cheapest, in the order a stable sort gives
-        keep = values <= np.partition(values, CANDIDATES - 1)[CANDIDATES - 1]
+    if values.size > rules.CANDIDATES:  # the CANDIDATES cheapest, in the order a stable sort gives
+        keep = values <= np.partition(values, rules.CANDIDATES - 1)[rules.CANDIDATES - 1]
         finite, values = finite[keep], values[keep]
-    chosen = finite[np.argsort(values, kind="stable")[:CANDIDATES]]
+    chosen = finite[np.argsort(values, kind="stable")[:rules.CANDIDATES]]
     if chosen.size:
         costs, counts = robust_costs(template, image, du.ravel()[chosen], dv.ravel()[chosen])
         k = int(np.argmin(costs))  # the first of equal costs, as the cheaper SSD
         best = (float(costs[k]), int(counts[k]),
                 (int(du.ravel()[chosen[k]]), int(dv.ravel()[chosen[k]])))
-    if reach > 0 and (best is None or best[1] < SURE * template.mask.sum()):
+    if reach > 0 and (best is None or best[1] < rules.SURE * template.mask.sum()):
         costs, ru, rv = near_support(template, image, reach)
         index = np.lexsort(((ru**2 + rv**2).ravel(), costs.ravel()))[0]
         if best is None or costs.ravel()[index] <= best[0]:
@@ -328,12 +221,13 @@ def search_object(
         ``depth(view, mask)``: an answer's median disparity in that view (None: unknown). An
         answer found again after hidden frames, or accepted by :func:`explaining_shift`,
         must then lie within :func:`predicted_disparity`'s tolerance of the object's
-        disparity (:func:`_accept`).
+        disparity (:func:`~lfsam.video.tracking.answer.accept_answer`).
     held : callable, optional
         ``held(view)``: each object placed earlier in this frame, its mask in that view;
         ``held(view, mask)``: those the segmenter was asked for there, where they meet the
         answer ``mask`` (:mod:`lfsam.video.tracking.neighbour`). An answer found again that holds
-        :data:`HELD` of one of them is that object (:func:`_accept`).
+        :data:`HELD` of one of them is that object
+        (:func:`~lfsam.video.tracking.answer.accept_answer`).
 
     Returns
     -------
@@ -396,14 +290,14 @@ def search_object(
         whose match shows most of the template, the most first."""
         ready = [prepared(v) for v in views]
         likely = likely_shifts_many([r[2][0] for r in ready], [r[2][1] for r in ready],
-                                    radius, WIDE_CANDIDATES,
+                                    radius, rules.WIDE_CANDIDATES,
                                     [not_the_object(v) for v in views])
         # every view where some shift could hold MIN_PIXELS is scored exactly: ranked by the
         # bound alone, the view showing the object was left out on seed 703 (its return a
         # frame late)
         return sorted((widened(v, du, dv) for v, (du, dv, bound) in zip(views, likely,
                                                                         strict=True)
-                       if bound >= MIN_PIXELS), key=lambda st: -share(st))[:WIDE_VIEWS]
+                       if bound >= MIN_PIXELS), key=lambda st: -share(st))[:rules.WIDE_VIEWS]
 
     def widened(view: tuple[int, int], du: np.ndarray, dv: np.ndarray) -> tuple:
         """:func:`match` over the likely shifts ``du, dv`` within the radius (stage 3)."""
@@ -411,7 +305,7 @@ def search_object(
         _, counts = robust_costs(gated, view_image, du, dv)
         # of the shifts supported nearly as well as the best, the nearest to the prediction:
         # a part of the object fits the template at a range of shifts (the motion decides)
-        k = int(np.argmin(np.where(counts >= ALMOST * counts.max(), du**2 + dv**2,
+        k = int(np.argmin(np.where(counts >= rules.ALMOST * counts.max(), du**2 + dv**2,
                                    np.iinfo(np.int64).max)))
         # scored on a sample of the template's pixels where the plateau is wide: the best
         # refined around it on all of them
@@ -427,7 +321,8 @@ def search_object(
         """What the widening reads as not the object in ``view``: the objects placed earlier
         in the frame and, with :data:`WIDE_REFUSED`, the answers refused there."""
         known = placed(view)
-        extra = [m[view] for m in (refused, refused_ring) if view in m] if WIDE_REFUSED else []
+        extra = ([m[view] for m in (refused, refused_ring) if view in m]
+                 if rules.WIDE_REFUSED else [])
         if not extra:
             return known
         out = np.zeros(extra[0].shape, bool) if known is None else known.copy()
@@ -441,7 +336,7 @@ def search_object(
         prediction scored (:data:`REFUSED_AGAIN`)."""
         image, template, _ = prepared(view)
         masked = image.copy()
-        masked[refused] = REFUSED_VALUE
+        masked[refused] = rules.REFUSED_VALUE
         gated = with_depth(template, masked, None if disparities is None
                            else disparities(view), expected, tolerance)
         return staged(view, radius, image, template,
@@ -460,7 +355,7 @@ def search_object(
     # an object cut by the frame's border in its own view (less than SURE of its template
     # inside) is prompted in the view that sees most of it: its own view joins the ranking
     cut = bool(first_stage[4] is not None
-               and first_stage[4][0].sum() < SURE * track.template.mask.sum())
+               and first_stage[4][0].sum() < rules.SURE * track.template.mask.sum())
     refused: dict[tuple[int, int], np.ndarray] = {}
     small = None  # an answer in its own view much smaller than its match (SMALL_ANSWER)
     if not cut:
@@ -470,21 +365,21 @@ def search_object(
             asked.append(prompts)
             return answer(prompts)
 
-        found = _prompt_stage(obj_id, track, first_stage, center, asking, placed, placed_ids,
+        found = prompt_stage(obj_id, track, first_stage, center, asking, placed, placed_ids,
                               negatives, use_box, fresh, depth, held, refused=refused)
         if found is not None:
-            if not (SMALL_ANSWER and np.count_nonzero(found[1])
-                    < SMALL_SHARE * np.count_nonzero(first_stage[5])):
+            if not (rules.SMALL_ANSWER and np.count_nonzero(found[1])
+                    < rules.SMALL_SHARE * np.count_nonzero(first_stage[5])):
                 return found
             small = (found, asked[-1], track.support)
     # the views are ranked by their SSD candidates alone; every shift near the prediction
     # is scored (near_support) only in the RESCORED best-ranked views, about to be prompted
     near = sorted([*ranked(others), *([first_stage] * cut)], key=lambda st: -share(st))
-    near = (st if share(st) >= SURE or rank >= RESCORED else match(st[0], radius)
+    near = (st if share(st) >= rules.SURE or rank >= rules.RESCORED else match(st[0], radius)
             for rank, st in enumerate(near))
     refused_ring: dict[tuple[int, int], np.ndarray] = {}  # the answers refused in the ring
     for stage in near:
-        found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
+        found = prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
                               negatives, use_box, fresh, depth, held, refused=refused_ring)
         if found is not None:
             return found
@@ -495,8 +390,8 @@ def search_object(
     # the answers refused in its own view were not the object: that view matched again
     # without them (a match on a background of its colours beside it), after the ring (a
     # view that sees more of it first: seed 1101)
-    if REFUSED_AGAIN and track.view in refused:
-        found = _prompt_stage(obj_id, track, rematch(track.view, refused[track.view]),
+    if rules.REFUSED_AGAIN and track.view in refused:
+        found = prompt_stage(obj_id, track, rematch(track.view, refused[track.view]),
                               center, answer, placed, placed_ids, negatives, use_box,
                               fresh, depth, held)
         if found is not None:
@@ -506,7 +401,7 @@ def search_object(
     # it): the likeliest shifts within the radius in every view, the views showing most of
     # it prompted, the answer at the object's depth
     for stage in widening([track.view, *others]):
-        found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
+        found = prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
                               negatives, use_box, fresh, depth, held, widened=True)
         if found is not None:
             return found
@@ -517,93 +412,10 @@ def search_object(
              if margins_in([prepared(v)[1]], [prepared(v)[0]], radius)
              != margins_in([prepared(v)[1]], [prepared(v)[0]], None)]
     for stage in (match(v, None) for v in whole):
-        found = _prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
+        found = prompt_stage(obj_id, track, stage, center, answer, placed, placed_ids,
                               negatives, use_box, fresh, depth, held)
         if found is not None:
             return found
-    return None
-
-
-def _prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, int],
-                  answer: Callable, placed: Callable, placed_ids: np.ndarray | None,
-                  negatives: Sequence[PointPrompt], use_box: bool,
-                  fresh: Sequence[PointPrompt], depth: Callable | None = None,
-                  held: Callable | None = None, widened: bool = False,
-                  refused: dict[tuple[int, int], np.ndarray] | None = None
-                  ) -> tuple[tuple[int, int], np.ndarray, tuple[int, int], Template] | None:
-    """Prompt one stage's match (:func:`search_object`, steps 4 and 5): the accepted view,
-    mask, shift and located template, or None (``widened``: a match of the widening stage,
-    needing :data:`WIDE_SUPPORT` and the answer at the object's depth, its shift None where
-    the answer is a part of the object). The support needed near the prediction is a
-    share of the template's part inside the frame (an object leaving the frame shows only
-    that part; in the ring's views its interior, :data:`CORE_SUPPORT`, less what objects
-    placed in this frame cover there, :data:`PLACED_SUPPORT`), elsewhere of the whole
-    template. ``refused``: where given, the answers refused in the stage's view are
-    added to it (``{view: mask}``, :data:`REFUSED_AGAIN`)."""
-    view, radius, image, template, found, support = stage
-    if found is None:
-        return None
-    carried, _, shift = found
-    # near the prediction a share of the template's part inside the frame (an object leaving
-    # the frame shows only that part); away from it a share of the whole template: a sliver
-    # at the frame's border far from where the object should be is not enough to give its
-    # id back (a look-alike entering there took a hidden object's id); in the ring's views
-    # the template's interior (a border one pixel too wide was never the object)
-    core = (carried if widened or not CORE_SUPPORT or view == track.view
-            else ndimage.binary_erosion(carried))
-    known = placed(view)
-    if PLACED_SUPPORT and known is not None and view != track.view:
-        core = core & ~known  # covered by an object placed in this frame: cannot show it
-    needed = ((WIDE_SUPPORT if widened else NEAR_SUPPORT) * np.count_nonzero(core)
-              if radius is not None else FAR_SUPPORT * template.mask.sum())
-    if np.count_nonzero(support) < max(MIN_PIXELS, needed):
-        return None
-    seeds = support.copy()
-    for p in fresh:  # the positive point keeps away from a correction in this frame
-        if (p.view or center) == view:
-            seeds[min(max(round(p.y), 0), seeds.shape[0] - 1),
-                  min(max(round(p.x), 0), seeds.shape[1] - 1)] = False
-    positives = positive_points(seeds, 1 if fresh else 3)
-    negative_xy = neighbour_points(carried, support, placed_ids if view == center else None)
-    user = [p for p in negatives if (p.view or center) == view
-            and (p in fresh or not carried[round(p.y), round(p.x)])]
-    negative = (*(PointPrompt(x, y, False, view) for x, y in negative_xy),
-                *(PointPrompt(p.x, p.y, False, view) for p in user))
-    box = BoxPrompt(*box_around(carried, 0.15), view=view) if use_box else None
-    # all positive points together; where that answer is refused, each alone (a point on a
-    # look-alike pixel of the background must not sink the others)
-    tries = [positives] + ([[p] for p in positives] if len(positives) > 1 else [])
-
-    def ask(chosen: Sequence[tuple[float, float]]) -> tuple[tuple[int, int], np.ndarray]:
-        points = (*(PointPrompt(x, y, True, view) for x, y in chosen), *negative)
-        return answer(ObjectPrompts(obj_id, points, box))
-
-    def judge(ref_view: tuple[int, int], mask: np.ndarray) -> tuple[int, int] | None:
-        return _accept(mask, support, carried, track,
-                       known if ref_view == view else placed(ref_view), image, template,
-                       shift, None if widened else radius,
-                       (ref_view, depth) if depth is not None else None, checked=widened,
-                       held=None if held is None or track.unseen == 0 else partial(held, ref_view))
-
-    for chosen in tries:
-        ref_view, mask = ask(chosen)
-        at = judge(ref_view, mask)
-        track.support = np.count_nonzero(support) / max(np.count_nonzero(carried), 1)
-        if at is not None:  # larger than the object ever was: a click on a neighbour?
-            (ref_view, mask), at = union.checked(ask, judge, chosen, (ref_view, mask), at,
-                                                 support, track.area)
-        if at is not None and widened and mask.sum() < KEEP_TEMPLATE * track.area:
-            # a part of the object found away from the prediction: the template fits that
-            # part at a range of shifts, so the place it gives is no measure of the motion
-            # (a velocity of tens of pixels); the object is kept where it was predicted, its
-            # motion unchanged (no shift: :func:`update`)
-            return ref_view, mask, None, template
-        if at is not None:
-            located = replace(template, origin=(template.origin[0] + at[0],
-                                                template.origin[1] + at[1]))
-            return ref_view, mask, at, located
-        if refused is not None and ref_view == view and mask.any():
-            refused[view] = refused[view] | mask if view in refused else mask.copy()
     return None
 
 
@@ -619,82 +431,3 @@ def first_look(track: Track, image: np.ndarray, center: tuple[int, int],
     if found is None:
         return 0.0, None
     return np.count_nonzero(found[1]) / max(np.count_nonzero(template.mask), 1), found
-
-
-def explaining_shift(mask: np.ndarray, template: Template, image: np.ndarray, radius: int
-                     ) -> tuple[int, int] | None:
-    """The shift within ``radius`` pixels of the template's place at which its pixels that
-    still look the same (:func:`lfsam.video.tracking.match.robust_costs`' support) cover most of
-    ``mask`` (ties: the nearer shift), if they cover :data:`EXPLAINED` of it and at least
-    :data:`lfsam.video.tracking.carry.MIN_PIXELS`; else None (of the shifts within :data:`ALMOST` of
-    the best count, the nearest). An answer is then a part of the object
-    near where it should be, whatever the match chose: the support of a partly hidden
-    object's match may lie on look-alike pixels beside it."""
-    du, dv = np.mgrid[-radius:radius + 1, -radius:radius + 1]
-    du, dv = du.ravel(), dv.ravel()
-    counts = support_in_answer(template, image, mask, du, dv)
-    if counts.max() < max(MIN_PIXELS, EXPLAINED * mask.sum()):
-        return None
-    # a part of the object fits the template at a range of shifts: of those within
-    # ALMOST of the best, the nearest to the prediction (the motion decides)
-    near = np.where(counts >= ALMOST * counts.max(), du**2 + dv**2, np.iinfo(np.int64).max)
-    k = int(np.argmin(near))
-    return int(du[k]), int(dv[k])
-
-
-def _accept(mask: np.ndarray, support: np.ndarray, carried: np.ndarray, track: Track,
-            placed: np.ndarray | None, image: np.ndarray, template: Template,
-            shift: tuple[int, int] = (0, 0), radius: int | None = None,
-            depth: tuple | None = None, checked: bool = False,
-            held: Callable[..., Sequence[np.ndarray]] | None = None) -> tuple[int, int] | None:
-    """Whether an answer is the searched object (see the module docstring, step 5): the
-    template's shift where it is (``shift``, or :func:`explaining_shift`'s), or None.
-
-    ``depth``: ``(view, depth(view, mask))`` of :func:`search_object`: an object found again
-    after hidden frames, or by :func:`explaining_shift`, must also lie at its depth.
-    ``held()``: the masks of objects placed earlier in this frame in the answer's view; an
-    answer holding :data:`HELD` of one of them is that object; ``held(mask)``, asked once the
-    answer passed every other check, the same with the segmenter's masks there
-    (:mod:`lfsam.video.tracking.neighbour`)."""
-    area = int(mask.sum())
-    covered = int((mask & support).sum())
-    grown = area > MAX_GROWTH * max(track.area, 1) + 50
-    # an object first seen mostly covered grows past MAX_GROWTH as it is uncovered: it is
-    # still the object where the answer holds its whole support, is at most UNCOVERED_VIEW of
-    # the view (not the background) and lies at its depth (checked below)
-    if area == 0 or (grown and not (UNCOVERED and depth is not None
-                                    and covered >= 0.9 * support.sum()
-                                    and area <= UNCOVERED_VIEW * mask.size)):
-        return None
-    if placed is not None and (mask & placed).sum() > 0.5 * area:
-        return None
-    if held is not None and _holds(mask, held()):
-        return None
-    explained = False
-    if covered < 0.5 * support.sum():
-        # a support partly on look-alike pixels around the object: the answer must then lie
-        # where the object was carried to and hold a quarter of the support, or be a part of
-        # the template near the prediction
-        inside = int((mask & ndimage.binary_dilation(carried, iterations=2)).sum())
-        if covered < 0.25 * support.sum() or inside < 0.7 * area:
-            at = None if radius is None else explaining_shift(mask, template, image, radius)
-            if at is None:
-                return None
-            shift, explained = at, True
-    look = template.image[template.mask]
-    if looks_alike(image[mask], look) < MIN_ALIKE and not (
-            KNOWN_PART and covered >= KNOWN_SUPPORT * support.sum()
-            and looks_alike(image[mask & carried], look) >= MIN_ALIKE):
-        return None
-    if depth is not None and (checked or explained or grown or track.unseen > 0):
-        value = depth[1](depth[0], mask)
-        expected, tolerance = predicted_disparity(track)
-        if value is not None and abs(value - expected) > tolerance:
-            return None
-    return None if held is not None and _holds(mask, held(mask)) else shift
-
-
-def _holds(mask: np.ndarray, others: Sequence[np.ndarray]) -> bool:
-    """Whether ``mask`` holds :data:`HELD` of one of ``others`` (their pixels)."""
-    return any(np.count_nonzero(mask & other) >= HELD * max(np.count_nonzero(other), MIN_PIXELS)
-               for other in others)

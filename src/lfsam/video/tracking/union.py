@@ -10,7 +10,7 @@ the neighbour is a tracked object; where it is not (an object nobody clicked), n
 seed 3303 without jitter, frame 2, object 3 (1,453 pixels, 670 of them showing behind an
 unprompted object at disparity 2.0 against its 1.8, within the depth gate's tolerance of 1.2)
 was supported on 808 pixels, 165 of them on the neighbour; its three clicks answered both
-objects (1,823 pixels, colours 0.37 alike, over :data:`lfsam.video.tracking.search.MIN_ALIKE`). The
+objects (1,823 pixels, colours 0.37 alike, over :data:`lfsam.video.tracking.rules.MIN_ALIKE`). The
 track's template became the union, and from frame 3 on it followed the neighbour: 250 of the
 701 visible triples lost over ten frames (38 %), while the object showed 1,441-1,453 pixels
 from frame 4 on.
@@ -85,8 +85,8 @@ def checked(ask: Callable[[Sequence[Click]], Answer],
             support: np.ndarray, largest: int) -> tuple[Answer, tuple[int, int]]:
     """An accepted ``answer`` to ``clicks`` (its template ``shift``), or, where it is
     :func:`suspect`, the answer to its clicks on the support where ``judge`` (the search's
-    acceptance, :func:`lfsam.video.tracking.search._accept`) accepts that one too (its shift with
-    it). The predictor is left holding the prompt of the answer returned."""
+    acceptance, :func:`lfsam.video.tracking.answer.accept_answer`) accepts that one too (its shift
+    with it). The predictor is left holding the prompt of the answer returned."""
     if not suspect(int(np.count_nonzero(answer[1])), largest, len(clicks)):
         return answer, shift
     split = supported_clicks(ask, clicks, answer[0], support)
