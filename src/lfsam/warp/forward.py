@@ -1,28 +1,14 @@
-"""Moving pixels and masks from one view into another: the package's only warp.
+"""The forward warp (:mod:`lfsam.warp`): every source pixel moved to its landing pixel in a
+target view, and the z-buffer there (the largest disparity landing on each target pixel).
 
-Everything that carries pixels between views by disparity goes through this module: disparity
-propagation (:mod:`lfsam.pipeline.propagation`), geometric occluding
-(:mod:`lfsam.pipeline.propagation`) and the metrics' projection into the center view
-(:mod:`lfsam.metrics.projection`). It is reference-agnostic: a *source* view (any view whose
-disparity is known, not only the center) is warped into a *target* view at offset
-``(ds, dt) = (s_target - s_source, t_target - t_source)`` by the convention of
-:func:`lfsam.geometry.project_pixels` (docs/design.md sections 1 and 8).
-
-* :func:`landing_pixels` — the nearest target pixel of each source pixel (batched);
-* :func:`forward_warp` — that, plus the z-buffer (largest disparity landing on each target pixel),
-  in a :class:`ForwardWarp`, which answers visibility (:meth:`ForwardWarp.visible`,
-  :meth:`ForwardWarp.hides`), hole filling (:meth:`ForwardWarp.fill_holes`) and which target
-  pixels the source sees at all (:meth:`ForwardWarp.seen`, :meth:`ForwardWarp.frame_runs`);
-* :func:`forward_warps` — several (source, target) pairs in one batched pass, hole indices
-  included (docs/design.md section 3.5, "batched warps");
-* :func:`shift_masks` — the whole-mask alternative: each mask translated by one sub-pixel shift,
-  optionally carrying its own disparity along (:func:`shift_masks_with_disparity`);
-* :func:`shift_whole_pixels` — one plane translated by whole pixels (exact, by slicing).
-
-Rounding to the nearest pixel is explicit (``halves``): the pipeline rounds exact halves to even
-(``torch.round``), the metrics round them up (``floor(x + 0.5)``, which keeps a constant
-half-pixel shift a translation); both are kept so that results are unchanged
-(docs/design.md section 5).
+* :func:`forward_warp` — one (source, target) pair, in a :class:`ForwardWarp`, which answers
+  visibility (:meth:`ForwardWarp.visible`, :meth:`ForwardWarp.hides`), hole filling
+  (:meth:`ForwardWarp.fill_holes`) and which target pixels the source sees at all
+  (:meth:`ForwardWarp.seen`, :meth:`ForwardWarp.frame_runs`, :class:`FrameRuns`);
+* :func:`forward_warps` — several pairs in one batched pass, hole indices included
+  (docs/design.md section 3.5, "batched warps");
+* :func:`splat_masks`, :func:`fill_warp_holes` — masks carried through a warp, and the gaps the
+  forward warp leaves filled from the source pixels behind them.
 """
 
 from __future__ import annotations
@@ -33,92 +19,10 @@ from dataclasses import dataclass, field
 import torch
 import torch.nn.functional as F
 
-from lfsam.geometry import project_pixels
+from lfsam.warp.landing import landing_pixels
 
-__all__ = [
-    "HALVES",
-    "ForwardWarp",
-    "FrameRuns",
-    "fill_warp_holes",
-    "forward_warp",
-    "forward_warps",
-    "landing_pixels",
-    "shift_masks",
-    "shift_masks_with_disparity",
-    "shift_whole_pixels",
-    "splat_masks",
-]
-
-HALVES = ("even", "up")
-
-
-def _nearest(x: torch.Tensor, halves: str) -> torch.Tensor:
-    """``x`` rounded to the nearest integer, halves to even or up.
-
-    Raises
-    ------
-    ValueError
-        For a ``halves`` not in :data:`HALVES` (the caller's code is at fault).
-    """
-    if halves == "even":
-        return torch.round(x)
-    if halves == "up":
-        return torch.floor(x + 0.5)
-    raise ValueError(f"unknown rounding of halves {halves!r}; use one of {HALVES}")
-
-
-def landing_pixels(
-    disparity: torch.Tensor,
-    ds: float | torch.Tensor,
-    dt: float | torch.Tensor,
-    *,
-    halves: str = "even",
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """The nearest target pixel of every source pixel (forward warping without a z-buffer).
-
-    Source pixel ``(u, v)`` with disparity ``d`` lands at ``(u - d ds, v - d dt)``
-    (:func:`lfsam.geometry.project_pixels`), rounded to the nearest pixel.
-
-    Parameters
-    ----------
-    disparity : (..., U, V) float tensor
-        Disparity of the source view(s). Non-finite values never land.
-    ds, dt : float or tensor
-        Offsets of the target view from the source view; tensors broadcast against
-        ``disparity`` (e.g. ``(B, 1, 1)`` for a batch of views).
-    halves : {"even", "up"}
-        How exact halves round: to even (``torch.round``) or up (``floor(x + 0.5)``).
-
-    Returns
-    -------
-    target : (..., U * V) int64 tensor
-        Flat index ``u' * V + v'`` of the landing pixel; ``-1`` where not valid.
-    valid : (..., U * V) bool tensor
-        The pixel lands inside the target view.
-
-    Examples
-    --------
-    >>> import torch
-    >>> target, valid = landing_pixels(torch.full((2, 3), 1.0), 0, 1)
-    >>> target.tolist(), valid.tolist()
-    ([-1, 0, 1, -1, 3, 4], [False, True, True, False, True, True])
-    """
-    height, width = disparity.shape[-2:]
-    dtype = disparity.dtype if disparity.is_floating_point() else torch.float32
-    disparity = disparity.to(dtype)
-    rows = torch.arange(height, device=disparity.device, dtype=dtype)[:, None]
-    cols = torch.arange(width, device=disparity.device, dtype=dtype)[None, :]
-    target_u, target_v = project_pixels(rows, cols, disparity, ds, dt)
-    target_u = _nearest(target_u, halves)
-    target_v = _nearest(target_v, halves)
-    # NaN and infinite disparities fail these comparisons (or give NaN), so they drop out.
-    valid = (target_u >= 0) & (target_u <= height - 1) & (target_v >= 0)
-    valid &= target_v <= width - 1
-    # Invalid entries (possibly NaN converted to an arbitrary integer) are overwritten with -1.
-    index = target_u.long() * width + target_v.long()
-    target = torch.where(valid, index, torch.full_like(index, -1))
-    lead = target.shape[:-2]
-    return target.reshape(*lead, -1), valid.reshape(*lead, -1)
+__all__ = ["ForwardWarp", "FrameRuns", "fill_warp_holes", "forward_warp", "forward_warps",
+           "splat_masks"]
 
 
 @dataclass
@@ -586,113 +490,4 @@ def fill_warp_holes(
         values = values & keep[sources][None]
     out = coarse.clone()
     out.reshape(n, -1)[:, hole_u * width + hole_v] = values
-    return out
-
-
-def _shift(planes: torch.Tensor, shifts_uv: torch.Tensor) -> torch.Tensor:
-    """Bilinear translation of ``(N, C, U, V)`` float planes, each of the N by its own shift."""
-    n, _, height, width = planes.shape
-    rows = torch.arange(height, device=planes.device, dtype=torch.float32)
-    cols = torch.arange(width, device=planes.device, dtype=torch.float32)
-    src_u = rows[None, :, None] - shifts_uv[:, 0, None, None]
-    src_v = cols[None, None, :] - shifts_uv[:, 1, None, None]
-    grid = torch.stack(
-        [
-            (2.0 * src_v / max(width - 1, 1) - 1.0).expand(n, height, width),
-            (2.0 * src_u / max(height - 1, 1) - 1.0).expand(n, height, width),
-        ],
-        dim=-1,
-    )
-    return F.grid_sample(
-        planes, grid, mode="bilinear", align_corners=True, padding_mode="zeros"
-    )
-
-
-def shift_masks(masks: torch.Tensor, shifts_uv: torch.Tensor) -> torch.Tensor:
-    """Translate each mask by its own sub-pixel shift (bilinear resampling, threshold 0.5).
-
-    Parameters
-    ----------
-    masks : (N, U, V) bool tensor
-    shifts_uv : (N, 2) float tensor
-        Row and column shift of each mask: output pixel ``(u, v)`` takes input ``(u - du, v - dv)``.
-
-    Returns
-    -------
-    (N, U, V) bool tensor
-
-    Examples
-    --------
-    >>> import torch
-    >>> mask = torch.tensor([[[True, False, False, False]]])
-    >>> shift_masks(mask, torch.tensor([[0.0, 2.0]])).int().tolist()
-    [[[0, 0, 1, 0]]]
-    """
-    if masks.shape[0] == 0:
-        return masks
-    return _shift(masks[:, None].to(torch.float32), shifts_uv)[:, 0] >= 0.5
-
-
-def shift_masks_with_disparity(
-    masks: torch.Tensor, disparity: torch.Tensor, shifts_uv: torch.Tensor
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """:func:`shift_masks`, carrying each mask's own disparity along.
-
-    The disparity a shifted mask shows at a target pixel is the bilinear average of the source
-    disparity over the mask's own pixels around the point it came from (the same weights as the
-    mask), so a slanted surface keeps its slant and nothing outside the mask leaks in.
-
-    Parameters
-    ----------
-    masks : (N, U, V) bool tensor
-    disparity : (U, V) float tensor
-        Source-view disparity.
-    shifts_uv : (N, 2) float tensor
-        As in :func:`shift_masks`.
-
-    Returns
-    -------
-    shifted : (N, U, V) bool tensor
-        Equal to ``shift_masks(masks, shifts_uv)``.
-    shifted_disparity : (N, U, V) float tensor
-        The mask's disparity at each pixel of ``shifted`` (``-inf`` outside it).
-    """
-    n, height, width = masks.shape
-    if n == 0:
-        return masks, torch.empty((0, height, width), device=masks.device)
-    weight = masks.to(torch.float32)
-    planes = torch.stack([weight, weight * disparity.to(torch.float32)[None]], dim=1)
-    sampled = _shift(planes, shifts_uv)
-    shifted = sampled[:, 0] >= 0.5
-    values = sampled[:, 1] / sampled[:, 0].clamp(min=1e-6)
-    return shifted, torch.where(shifted, values, torch.full_like(values, float("-inf")))
-
-
-def shift_whole_pixels(plane: torch.Tensor, su: int, sv: int) -> torch.Tensor:
-    """``plane`` translated by ``(su, sv)`` whole pixels: ``out[u + su, v + sv] = plane[u, v]``
-    (the direction of :func:`shift_masks`); what enters from outside the view is zero (False).
-
-    Parameters
-    ----------
-    plane : (U, V) tensor, any dtype
-    su, sv : int
-        Row and column shift.
-
-    Returns
-    -------
-    (U, V) tensor
-
-    Examples
-    --------
-    >>> import torch
-    >>> shift_whole_pixels(torch.tensor([[1, 2, 3, 4]]), 0, -1).tolist()
-    [[2, 3, 4, 0]]
-    """
-    height, width = plane.shape
-    out = torch.zeros_like(plane)
-    if abs(su) >= height or abs(sv) >= width:
-        return out
-    out[max(su, 0):height + min(su, 0), max(sv, 0):width + min(sv, 0)] = plane[
-        max(-su, 0):height + min(-su, 0), max(-sv, 0):width + min(-sv, 0)
-    ]
     return out
