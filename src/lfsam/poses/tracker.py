@@ -1,39 +1,13 @@
-"""Every object's 6D pose over a light-field video (docs/design.md section 12).
-
-Per object and frame: the rigid **motion** (4x4, metres, the center camera's frame: x right,
-y down, z forward) that carries the object's points at its first frame to its points at this
-frame, and its **pose** (object frame: origin at the first frame's centroid, axes its principal
-axes, largest variance first, right-handed; ``pose = motion @ first_pose``), with a quality
-(``inliers``: the share of the frame's points within 3 mm of the registered model; ``rmse_m``:
-their RMS point-to-plane distance) and a status (``tracked``, ``lost``, ``found again``). A lost
-object gets no pose.
-
-The light-field way to register (:class:`PoseTracker`, plain arrays in and out):
-
-1. the object's points come from every chosen view that sees it (the light field sees around
-   occluders), voxel-averaged to :attr:`PoseOptions.voxel_m`;
-2. coarse: SIFT features inside the object's masks in a few views (the center and the four
-   corners), matched view by view against the last keyframe and the previous frame, lifted to
-   3D with the disparity, RANSAC + Kabsch (:mod:`lfsam.spatial.features`,
-   :mod:`lfsam.spatial.registration`); a constant-velocity guess without enough matches;
-3. fine: point-to-plane ICP of all the frame's points onto the object's **keyframe model** (its
-   points at the first frame, joined by later keyframes' points moved back by their motion), the
-   feature inliers kept as fixed pairs that pin what planes cannot; registering to the model and
-   not only to the previous frame is what keeps the motion from drifting;
-4. a new keyframe when the object has turned :attr:`PoseOptions.keyframe_deg` since the last
-   one or the model explains less than :attr:`PoseOptions.keyframe_inliers` of its points.
-
-:func:`poses_of_video` runs it over ``(result, light field)`` frames with a disparity source
-(``"estimate"``, ``"gt"``, a map) and a camera, as :mod:`lfsam.objects3d` does.
+"""One object's 6D pose tracked frame by frame (:mod:`lfsam.poses`, docs/design.md section 12):
+the options (:class:`PoseOptions`), what the tracker reads of a view (:class:`ViewData`), the
+poses it gives (:class:`FramePose`, :class:`ObjectPoses`, :func:`first_pose`) and
+:class:`PoseTracker`, the registration (the steps of the package docstring).
 """
 
 from __future__ import annotations
 
-import csv
-import io
-import os
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -41,13 +15,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from lfsam.camera import Camera
-from lfsam.disparity.carried import ESTIMATE_MODES, estimate_views
-from lfsam.disparity.source import load_disparity_spec, resolve_view_disparity
 from lfsam.errors import LfsamError
-from lfsam.lightfield import LightField, check_result_shape
 from lfsam.metrics.pose import rotation_error_deg
-from lfsam.objects3d import resolve_camera
-from lfsam.result import SegmentationResult
 from lfsam.spatial import MIN_CONFIDENCE, object_points
 from lfsam.spatial.features import ViewFeatures, match_features, view_features
 from lfsam.spatial.registration import (
@@ -65,15 +34,9 @@ __all__ = [
     "ObjectPoses",
     "PoseOptions",
     "PoseTracker",
-    "VideoPoses",
     "ViewData",
-    "bop_csv",
     "default_pose_views",
     "first_pose",
-    "poses_csv",
-    "poses_json",
-    "poses_of_video",
-    "rotation_error_deg",
 ]
 
 #: Which views' pixels become points: every present view, the center and the four corner views
@@ -440,202 +403,3 @@ class PoseTracker:
             self.tracks[obj_id].result.frames.append(entry)
             out.append(entry)
         return out
-
-
-def _view_arrays(lightfield: LightField, result: SegmentationResult, spec, name: str,
-                 views: str, estimate: str, device: str | None) -> list[ViewData]:
-    present = lightfield.present & result.present_mask
-    center = lightfield.center
-    chosen = [tuple(int(x) for x in v) for v in np.argwhere(present)]
-    if views == "center":
-        chosen = [center]
-    elif views == "corners":
-        last_s, last_t = present.shape[0] - 1, present.shape[1] - 1
-        chosen = [center] + [v for v in ((0, 0), (0, last_t), (last_s, 0), (last_s, last_t))
-                             if present[v] and v != center]
-    estimated = (estimate_views(lightfield, chosen, mode=estimate, device=device)
-                 if isinstance(spec, str) and spec == "estimate" else {})
-    out = []
-    for view in chosen:
-        if view in estimated:
-            disparity, confidence = estimated[view]
-        else:
-            disparity, _, _ = resolve_view_disparity(spec, lightfield, view=view,
-                                                     device=device, name=name)
-            disparity, confidence = np.asarray(disparity), None
-        out.append(ViewData((view[0] - center[0], view[1] - center[1]), lightfield.views[view],
-                            result.labels[view], disparity, confidence))
-    return out
-
-
-def poses_of_video(
-    frames: Iterable[tuple[SegmentationResult, LightField]],
-    *,
-    disparity: str | os.PathLike | np.ndarray = "estimate",
-    camera: Camera | str | os.PathLike | None = None,
-    views: str | None = None,
-    estimate: str = "own",
-    options: PoseOptions | None = None,
-    device: str | None = None,
-    on_frame: Callable[[int, list[FramePose]], None] | None = None,
-) -> tuple[Camera, list[ObjectPoses]]:
-    """Every object's motion and pose over ``(result, light field)`` frames (module docstring).
-
-    Parameters
-    ----------
-    frames : iterable of (SegmentationResult, LightField)
-        One pair per frame (a single pair: each object's pose, motion identity).
-    disparity : {"estimate", "gt"}, .npy path or ndarray
-        As :func:`lfsam.objects3d.objects_in_3d`; a map or file holds for every frame.
-    camera : Camera, ``--camera`` JSON path, or None (the first frame's own)
-    views : {"all", "corners", "center"}, optional
-        The views whose pixels become points (:data:`POSE_VIEWS`; features use the center and
-        the corners of these); default :func:`default_pose_views` (``"corners"`` with an
-        estimate, else ``"all"``).
-    estimate : {"own", "carried"}
-        With ``disparity="estimate"``: every used view's own estimate (one cost volume per view
-        and frame: 5 with ``views="corners"``, 49 on a 7 x 7 grid with ``views="all"``), or the
-        center view's estimate carried to the other views (one per frame, less accurate;
-        :func:`lfsam.disparity.carried.estimate_views`).
-    options : PoseOptions, optional
-    on_frame : callable, optional
-        Called with ``(frame, [FramePose, ...])`` after each frame (live output).
-
-    Returns
-    -------
-    camera, list of ObjectPoses
-
-    Raises
-    ------
-    LfsamError
-        A result that does not match its light field, no camera, a bad disparity source.
-    """
-    session = VideoPoses(disparity=disparity, camera=camera, views=views, estimate=estimate,
-                         options=options, device=device)
-    for result, lightfield in frames:
-        entries = session.add(result, lightfield)
-        if on_frame is not None:
-            on_frame(session.frames - 1, entries)
-    if session.camera is None:
-        raise LfsamError("no frames to register")
-    return session.camera, session.objects
-
-
-class VideoPoses:
-    """:func:`poses_of_video` one frame at a time (a live stream: ``lfsam segment --follow
-    --poses``): :meth:`add` each ``(result, light field)`` as it comes.
-
-    Parameters are :func:`poses_of_video`'s. ``camera`` is resolved at the first frame when it
-    is not a :class:`~lfsam.camera.Camera` (:meth:`check_camera` does it earlier).
-    """
-
-    def __init__(self, *, disparity: str | os.PathLike | np.ndarray = "estimate",
-                 camera: Camera | str | os.PathLike | None = None, views: str | None = None,
-                 estimate: str = "own", options: PoseOptions | None = None,
-                 device: str | None = None) -> None:
-        views = default_pose_views(disparity) if views is None else views
-        if views not in POSE_VIEWS:
-            raise LfsamError(f"views must be one of {POSE_VIEWS}, got {views!r}")
-        if estimate not in ESTIMATE_MODES:
-            raise LfsamError(f"estimate must be one of {ESTIMATE_MODES}, got {estimate!r}")
-        self.estimate = estimate
-        self.disparity, self.views, self.options, self.device = disparity, views, options, device
-        self._camera_spec = camera
-        self.camera: Camera | None = camera if isinstance(camera, Camera) else None
-        self.tracker: PoseTracker | None = None
-        self.frames = 0
-
-    @property
-    def objects(self) -> list[ObjectPoses]:
-        """Every object seen so far."""
-        return [] if self.tracker is None else self.tracker.objects
-
-    def add(self, result: SegmentationResult, lightfield: LightField) -> list[FramePose]:
-        """Register the objects of the next frame (module docstring)."""
-        check_result_shape(result.labels.shape, lightfield, f"the result of frame {self.frames}")
-        if self.camera is None:
-            self.camera = resolve_camera(lightfield, self._camera_spec)
-        if self.tracker is None:
-            categories = {int(k): str(v) for k, v in
-                          (result.meta.get("categories") or {}).items() if v}
-            self.tracker = PoseTracker(self.camera, lightfield.view_shape, self.options,
-                                       categories)
-        spec, name = load_disparity_spec(self.disparity, lightfield)
-        data = _view_arrays(lightfield, result, spec, name, self.views, self.estimate,
-                            self.device)
-        entries = self.tracker.add_frame(data, frame=self.frames)
-        self.frames += 1
-        return entries
-
-
-def poses_json(camera: Camera, objects: Sequence[ObjectPoses], **extra: Any) -> dict[str, Any]:
-    """The ``--json`` document: ``{"camera", "frame", "objects": [{"id", "category",
-    "first_pose", "frames": [...]}]}`` plus ``extra`` keys."""
-    return {"camera": camera.to_json(),
-            "frame": "center view camera: x right, y down, z forward, metres; pose = object "
-                     "frame (origin: first frame's centroid, axes: its principal axes) to camera; "
-                     "motion = pose @ inverse(first_pose)",
-            **extra, "objects": [o.to_json() for o in objects]}
-
-
-def _quaternion(rot: np.ndarray) -> np.ndarray:
-    """Unit quaternion ``(w, x, y, z)`` with ``w >= 0`` of a rotation matrix."""
-    m = rot
-    candidates = np.array([
-        [1 + m[0, 0] + m[1, 1] + m[2, 2], m[2, 1] - m[1, 2], m[0, 2] - m[2, 0], m[1, 0] - m[0, 1]],
-        [m[2, 1] - m[1, 2], 1 + m[0, 0] - m[1, 1] - m[2, 2], m[0, 1] + m[1, 0], m[0, 2] + m[2, 0]],
-        [m[0, 2] - m[2, 0], m[0, 1] + m[1, 0], 1 - m[0, 0] + m[1, 1] - m[2, 2], m[1, 2] + m[2, 1]],
-        [m[1, 0] - m[0, 1], m[0, 2] + m[2, 0], m[1, 2] + m[2, 1], 1 - m[0, 0] - m[1, 1] + m[2, 2]],
-    ])
-    q = candidates[int(np.argmax(np.diag(candidates)))]
-    q = q / np.linalg.norm(q)
-    return -q if q[0] < 0 else q
-
-
-def poses_csv(objects: Sequence[ObjectPoses]) -> str:
-    """One row per object and frame: ``id, category, frame, status, qw, qx, qy, qz, x_m, y_m,
-    z_m`` (the pose) then the motion's ``motion_qw .. motion_z_m``, ``inliers, rmse_m``;
-    empty cells where the object is lost."""
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(["id", "category", "frame", "status", "qw", "qx", "qy", "qz", "x_m", "y_m",
-                     "z_m", "motion_qw", "motion_qx", "motion_qy", "motion_qz", "motion_x_m",
-                     "motion_y_m", "motion_z_m", "inliers", "rmse_m"])
-    for obj in objects:
-        for entry in obj.frames:
-            cells = []
-            for matrix in (entry.pose, entry.motion):
-                if matrix is None:
-                    cells += [""] * 7
-                else:
-                    cells += [f"{v:.9f}" for v in _quaternion(matrix[:3, :3])]
-                    cells += [f"{v:.6f}" for v in matrix[:3, 3]]
-            quality = ["" if x is None or not np.isfinite(x) else f"{x:.6g}"
-                       for x in (entry.inliers, entry.rmse_m)]
-            writer.writerow([obj.object_id, obj.category or "", entry.frame, entry.status,
-                             *cells, *quality])
-    return buffer.getvalue()
-
-
-def bop_csv(objects: Sequence[ObjectPoses], scene_id: int = 0) -> str:
-    """The BOP challenge's results CSV (``scene_id,im_id,obj_id,score,R,t,time``: R row-major
-    and t in millimetres, space-separated; time in seconds, the same for every estimate of an
-    image, -1 where unknown), one row per tracked object and frame (Hodaň et al., BOP 2020)."""
-    lines = ["scene_id,im_id,obj_id,score,R,t,time"]
-    per_frame: dict[int, float] = {}
-    for obj in objects:
-        for entry in obj.frames:
-            per_frame[entry.frame] = per_frame.get(entry.frame, 0.0) + entry.seconds
-    rows = []
-    for obj in objects:
-        for entry in obj.frames:
-            if entry.pose is None:
-                continue
-            rot = " ".join(f"{v:.9f}" for v in entry.pose[:3, :3].ravel())
-            trans = " ".join(f"{v:.4f}" for v in entry.pose[:3, 3] * 1000.0)
-            score = entry.inliers if entry.inliers is not None else 1.0
-            rows.append((entry.frame, obj.object_id,
-                         f"{scene_id},{entry.frame},{obj.object_id},{score:.4f},{rot},{trans},"
-                         f"{per_frame[entry.frame]:.4f}"))
-    lines += [row for _, _, row in sorted(rows)]
-    return "\n".join(lines) + "\n"
