@@ -50,7 +50,8 @@ from lfsam.video.stream.follow import FrameFollower, check_follow_folder
 from lfsam.video.stream.hidden_lines import HiddenSince, hidden_frames_text, hidden_now
 from lfsam.viewer import controls as C
 from lfsam.viewer import layers as L
-from lfsam.viewer.session import SAM2_ONLY_OPTIONS, prompts_from_layers
+from lfsam.viewer.prompt_layers import prompts_from_layers
+from lfsam.viewer.session import SAM2_ONLY_OPTIONS
 
 if TYPE_CHECKING:  # lfsam.api loads torchvision: only after the native libraries (widget.py)
     from lfsam.video.stream.live import FrameTiming, StreamReport
