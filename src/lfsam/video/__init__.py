@@ -6,8 +6,9 @@ import-linter contract (``pyproject.toml``, docs/architecture.md):
 - :mod:`lfsam.video.stream` — live streams: a growing frames folder followed and segmented as
   frames land (:func:`segment_stream`, issue 35); it drives the tracker;
 - :mod:`lfsam.video.tracking` — tracking objects through the frames: :class:`OnlineTracker`
-  (one frame at a time), :func:`track_video` (a whole video), the frame-tagged prompts and the
-  search for an object's place in the next frame with its checks;
+  (one frame at a time), :func:`track_video` (a whole video), the frame-tagged prompts, the
+  search for an object's place in the next frame with its checks, and its rules in one place
+  (:class:`TrackerConfig`);
 - :mod:`lfsam.video.memory` — the models' video memory over the center views (SAM 2's and the
   ``transformers`` backend's);
 - :mod:`lfsam.video.io` — videos in and results out: :class:`LightFieldVideo` and
@@ -27,12 +28,13 @@ from typing import Any
 from lfsam.video.io.detect import is_video, read_video
 from lfsam.video.io.source import LightFieldVideo
 
-__all__ = ["LightFieldVideo", "OnlineTracker", "is_video", "read_video", "segment_stream",
-           "track_video"]
+__all__ = ["LightFieldVideo", "OnlineTracker", "TrackerConfig", "is_video", "read_video",
+           "segment_stream", "track_video"]
 
 _LAZY = {"OnlineTracker": "lfsam.video.tracking.online",
          "segment_stream": "lfsam.video.stream.live",
-         "track_video": "lfsam.video.tracking.track"}
+         "track_video": "lfsam.video.tracking.track",
+         "TrackerConfig": "lfsam.video.tracking.config"}
 
 
 def __getattr__(name: str) -> Any:

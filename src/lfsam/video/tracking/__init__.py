@@ -8,6 +8,9 @@ The drivers:
 - :mod:`~lfsam.video.tracking.frame_search` — every object of one frame: its constrained
   prompts, or its search when the memory lost it.
 
+The tracker's rules in one place: :mod:`~lfsam.video.tracking.config`
+(:class:`TrackerConfig`, each rule's meaning, default and case, and its off switch).
+
 The search for one object's place in the next frame, and its checks:
 
 - :mod:`~lfsam.video.tracking.carry` — the template carried from frame to frame and the

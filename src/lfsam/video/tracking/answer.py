@@ -16,7 +16,7 @@ import numpy as np
 from scipy import ndimage
 
 from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
-from lfsam.video.tracking import rules, union
+from lfsam.video.tracking import motion, rules, union
 from lfsam.video.tracking.carry import (
     MIN_PIXELS,
     Template,
@@ -26,7 +26,7 @@ from lfsam.video.tracking.carry import (
     positive_points,
 )
 from lfsam.video.tracking.match import support_in_answer
-from lfsam.video.tracking.motion import KEEP_TEMPLATE, Track, predicted_disparity
+from lfsam.video.tracking.motion import Track, predicted_disparity
 
 __all__ = ["accept_answer", "explaining_shift", "prompt_stage"]
 
@@ -99,7 +99,7 @@ def prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, int
         if at is not None:  # larger than the object ever was: a click on a neighbour?
             (ref_view, mask), at = union.checked(ask, judge, chosen, (ref_view, mask), at,
                                                  support, track.area)
-        if at is not None and widened and mask.sum() < KEEP_TEMPLATE * track.area:
+        if at is not None and widened and mask.sum() < motion.KEEP_TEMPLATE * track.area:
             # a part of the object found away from the prediction: the template fits that
             # part at a range of shifts, so the place it gives is no measure of the motion
             # (a velocity of tens of pixels); the object is kept where it was predicted, its

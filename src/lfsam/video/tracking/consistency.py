@@ -44,9 +44,9 @@ from dataclasses import replace
 import numpy as np
 
 from lfsam.prompts import ObjectPrompts
+from lfsam.video.tracking import motion
 from lfsam.video.tracking.carry import Template
 from lfsam.video.tracking.motion import (
-    VELOCITY_SUPPORT,
     Track,
     predicted,
     predicted_disparity,
@@ -101,7 +101,7 @@ def jumped(track: Track, view: tuple[int, int], located: Template, disparity: fl
         return False  # no velocity measured yet: the prediction is the last place
     place = predicted(track, view, center).origin
     far = float(np.hypot(located.origin[0] - place[0], located.origin[1] - place[1]))
-    poor = POORLY_SUPPORTED and track.support < VELOCITY_SUPPORT
+    poor = POORLY_SUPPORTED and track.support < motion.VELOCITY_SUPPORT
     return (far > JUMP_SHARE * search_radius(track)
             and (poor or abs(disparity - track.disparity) > DEPTH_JUMP))
 

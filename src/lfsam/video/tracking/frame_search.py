@@ -23,9 +23,18 @@ from scipy import ndimage
 
 from lfsam.pipeline.references import reference_views
 from lfsam.prompts import ObjectPrompts
-from lfsam.video.tracking import claims, consistency, contest, neighbour, placement, rules, search
+from lfsam.video.tracking import (
+    claims,
+    consistency,
+    contest,
+    motion,
+    neighbour,
+    placement,
+    rules,
+    search,
+)
 from lfsam.video.tracking.carry import Template
-from lfsam.video.tracking.motion import KEEP_TEMPLATE, VELOCITY_SUPPORT, update
+from lfsam.video.tracking.motion import update
 from lfsam.video.tracking.prompts import latest_prompts, negatives_since, prompts_at, start_frame
 from lfsam.video.tracking.search import Track, first_look, search_object
 
@@ -260,8 +269,8 @@ def search_frame(predictor: object, lf: object, index: int, order: Sequence[int]
             consistency.doubt(track)
         # a poorly supported match of a partly seen object: its template placed where it
         # explains the answer (placement), whatever texture the match fitted
-        if (placement.CHECK and shift is not None and track.support < VELOCITY_SUPPORT
-                and mask.sum() < KEEP_TEMPLATE * track.area):
+        if (placement.CHECK and shift is not None and track.support < motion.VELOCITY_SUPPORT
+                and mask.sum() < motion.KEEP_TEMPLATE * track.area):
             located = placement.placed_by_answer(located, mask, view_of(view),
                                                  disparity_of(view), disparity,
                                                  search.search_radius(track))

@@ -72,6 +72,7 @@ from lfsam.segmenters.base import Segmenter
 from lfsam.text_search import find_text
 from lfsam.video.io.source import check_frame
 from lfsam.video.memory.sam2_memory import reference_memory_for
+from lfsam.video.tracking import rules
 from lfsam.video.tracking.carry import Template, carry
 from lfsam.video.tracking.frame_search import object_disparity, search_frame
 from lfsam.video.tracking.prompts import frame_of, negatives_since, prompts_at, start_frame
@@ -464,7 +465,7 @@ def _accept(mask: np.ndarray, carried: np.ndarray | None, expected: int,
     if carried is not None:
         if (mask & carried).sum() < 0.5 * min(carried.sum(), area):
             return False
-        if area > MAX_GROWTH * max(expected, 1) + 50:
+        if area > rules.MAX_GROWTH * max(expected, 1) + 50:
             return False
     return (mask & placed).sum() <= 0.5 * area
 
