@@ -54,7 +54,7 @@ from lfsam.spatial.features import match_features, view_features
 from lfsam.spatial.registration import ransac_rigid, transform
 from lfsam.synth.rigid import box_surface_points
 from lfsam.video import read_video
-from lfsam.video.result import load_video_result
+from lfsam.video.io.result import load_video_result
 
 LFSAM = [sys.executable, "-m", "lfsam.cli.main"]
 

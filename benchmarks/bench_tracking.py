@@ -1,6 +1,6 @@
 """Tracks that come back (issue 47; docs/design.md section 10): objects through clutter.
 
-Synthetic videos with the hard cases (:func:`lfsam.video.synth.generate_video` with
+Synthetic videos with the hard cases (:func:`lfsam.video.io.synth.generate_video` with
 ``hard=True``: objects at up to 6 pixels per frame, depth order changing, one small object
 passing fully behind a near occluder for about five frames, one leaving the frame and coming
 back), 5x5 views of 96x128, tracked with the oracle and ground-truth disparity from one click
@@ -65,7 +65,12 @@ Usage::
     OMP_NUM_THREADS=1 python benchmarks/bench_tracking.py [--seeds 101,102,103]
         [--frames 12] [--objects 5] [--jitter 0,1] [--modes search,before,clicked] [--easy]
         [--repeat 2] [--consensus off|on|both] [--model oracle] [--device auto] [--stages]
-        [--ops] [--json OUT]
+        [--ops] [--ablate RULE[,RULE...]|all] [--json OUT]
+
+``--ablate`` adds one mode a rule, ``search-RULE``: the search with that rule switched off
+(:class:`lfsam.video.tracking.config.TrackerConfig`, docs/design.md section 10, "The tracker's
+rules"), so that each row against ``search`` shows what the rule buys on these videos (lost
+share, switches, cost).
 
 At the full size, on a GPU (``make gpu-check`` runs it): ``--size 480x640 --min-pixels 2500
 --frames 8 --seeds 1301 --jitter 0 --modes search,before --repeat 2 --device cuda --stages``; the
@@ -92,8 +97,9 @@ from lfsam.metrics.temporal import frame_matches, identity_switches
 from lfsam.pipeline import PipelineConfig
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.segmenters import load_segmenter
-from lfsam.video.online import OnlineTracker
-from lfsam.video.synth import generate_video
+from lfsam.video.io.synth import generate_video
+from lfsam.video.tracking.config import TrackerConfig, switches
+from lfsam.video.tracking.online import OnlineTracker
 
 MODES = {"search": True, "before": False, "clicked": None}
 #: Issue 47's target covers objects hidden for up to this many frames: found again in the
@@ -303,6 +309,13 @@ def timing(totals: dict, key: tuple) -> dict:
     return out
 
 
+def rules_of(mode: str) -> TrackerConfig:
+    """The tracker's rules of a mode: ``search-RULE`` (``--ablate``) the search with that rule
+    switched off, any other mode today's rules."""
+    rule = mode.removeprefix("search-")
+    return TrackerConfig().without(rule) if rule != mode else TrackerConfig()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__.split("\n\n")[0],
@@ -356,6 +369,11 @@ def main() -> None:
                         help="also count the torch operators dispatched a frame per tracking "
                              "mode, in one more untimed run of each video (each is at least "
                              "one kernel launch on CUDA): the GPU's cost on any machine")
+    parser.add_argument("--ablate", default="", metavar="RULE[,RULE...]|all",
+                        help="also track with the search with each of these rules switched off "
+                             "(lfsam.video.tracking.config.TrackerConfig's switches; all: every "
+                             "one), a mode 'search-RULE' each: what each rule buys (lost, "
+                             "switches, cost against the full search)")
     parser.add_argument("--json", default=None, help="also write the numbers here")
     args = parser.parse_args()
     global DEVICE
@@ -365,6 +383,12 @@ def main() -> None:
     seeds = [int(s) for s in args.seeds.split(",")]
     jitters = [int(j) for j in args.jitter.split(",")]
     modes = args.modes.split(",")
+    ablated = list(switches()) if args.ablate == "all" else [r for r in args.ablate.split(",") if r]
+    try:
+        TrackerConfig().without(*ablated)
+    except ValueError as exc:
+        parser.error(str(exc))
+    modes += [f"search-{rule}" for rule in ablated]
     if args.model != "oracle" and any(jitters):
         parser.error("--jitter is the oracle's: give --jitter 0 with --model")
     totals: dict[tuple[str, int, bool], dict] = {}
@@ -387,14 +411,16 @@ def main() -> None:
                             got = clicked_every_frame(frames, truth, jitter, seed, consensus,
                                                       segmenter)
                         else:
-                            got = track(frames, prompts, MODES[mode], jitter, seed,
-                                        consensus, segmenter,
-                                        stage_runs[(mode, jitter, consensus)])
+                            with rules_of(mode).applied():
+                                got = track(frames, prompts, MODES.get(mode, True), jitter,
+                                            seed, consensus, segmenter,
+                                            stage_runs[(mode, jitter, consensus)])
                         if args.ops and mode != "clicked" and len(runs) < len(
                                 CONSENSUS[args.consensus]):  # once a video and setting
-                            op_runs[(mode, jitter, consensus)].append(count_operators(
-                                frames, prompts, MODES[mode], jitter, seed, consensus,
-                                segmenter))
+                            with rules_of(mode).applied():
+                                op_runs[(mode, jitter, consensus)].append(count_operators(
+                                    frames, prompts, MODES.get(mode, True), jitter, seed,
+                                    consensus, segmenter))
                         old = runs.get(consensus)
                         runs[consensus] = got if old is None else (
                             old[0], list(np.minimum(old[1], got[1])),

@@ -15,7 +15,7 @@ Parts, each printing its table:
 * ``stream`` (issue 35) — a live stream: a writer thread lands the frames of a synthetic 5x5
   video of ``--stream-size`` (default 240x320, 3 objects, ``--stream-frames`` 30) into a
   followed folder at ``--rate`` frames per second (written under a hidden name, renamed in)
-  while :func:`lfsam.video.live.segment_stream` segments each as it lands, for each of
+  while :func:`lfsam.video.stream.live.segment_stream` segments each as it lands, for each of
   ``--stream-runs`` (``MODEL:TRACKING``: the video memory or constrained prompts) with random
   weights, ``--refine-views 1``, ground-truth disparity, the 3 objects clicked in frame 0.
   Random weights score every object absent after frame 0; with the memory, as in the tests,
@@ -31,7 +31,7 @@ Parts, each printing its table:
   measured first (``--latest-model`` on ``--latest-grid`` views of ``--latest-size``, 3 objects
   clicked in frame 0, ground-truth disparity, ``--refine-views 1``; the median of 5 frames), then
   a writer process lands ``--latest-frames`` frames (a 10-frame synthetic clip in turn) at twice
-  that rate while :func:`lfsam.video.live.segment_stream` follows, once with ``latest=True``
+  that rate while :func:`lfsam.video.stream.live.segment_stream` follows, once with ``latest=True``
   (``--latest``) and once without. Printed for each: frames processed per second, latency from
   arrival to result (median, 95th percentile, worst) in seconds and in frame times,
   frames skipped, the process's resident memory after the first 10 % of the frames and at
@@ -84,12 +84,13 @@ from lfsam.api import RunOptions, SegmentOptions, segment
 from lfsam.pipeline import PipelineConfig
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.segmenters import load_segmenter
-from lfsam.video import live, read_video
-from lfsam.video.follow import FrameFollower
-from lfsam.video.live import segment_stream
-from lfsam.video.online import OnlineTracker
-from lfsam.video.synth import generate_video, write_video_frames
-from lfsam.video.track import track_video
+from lfsam.video import read_video
+from lfsam.video.io.synth import generate_video, write_video_frames
+from lfsam.video.stream import live
+from lfsam.video.stream.follow import FrameFollower
+from lfsam.video.stream.live import segment_stream
+from lfsam.video.tracking.online import OnlineTracker
+from lfsam.video.tracking.track import track_video
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -289,7 +290,7 @@ def land_cycle(sources: list[Path], folder: Path, count: int, rate: float) -> No
 
 
 def latest_part(args: argparse.Namespace, work: Path) -> None:
-    from lfsam.video.live import percentile
+    from lfsam.video.stream.live import percentile
 
     size, grid = parse_size(args.latest_size), parse_size(args.latest_grid)
     source = work / "latest_clip"
@@ -407,10 +408,10 @@ def write_stream(result, lf, work: Path, frames: int, rate: float, mode: str) ->
     level 1, the writer thread)."""
     import os
 
-    import lfsam.video.result as video_result
+    import lfsam.video.io.result as video_result
     from lfsam.io.arrays import write_npz
     from lfsam.lightfield import LightField
-    from lfsam.video.live import percentile
+    from lfsam.video.stream.live import percentile
 
     source = work / "source.npz"
     if not source.exists():  # the views only, as a camera writes them
@@ -455,7 +456,7 @@ def write_stream(result, lf, work: Path, frames: int, rate: float, mode: str) ->
 
 def write_part(args: argparse.Namespace, work: Path) -> None:
     from lfsam.result import FAST_LEVEL, label_ids, save_result
-    from lfsam.video.result import live_video_result_writer
+    from lfsam.video.io.live_result import live_video_result_writer
 
     size, repeats = parse_size(args.write_size), args.write_repeats
     lf = next(iter(generate_video(grid=(5, 5), size=size, frames=1, seed=0, num_objects=3)))

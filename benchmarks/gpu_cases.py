@@ -8,7 +8,7 @@ live stream that never falls behind. Imported by ``bench_gpu.py`` (same folder).
   all views.
 - ``stream`` / ``stream-estimate``: a camera lands frames (uncompressed ``.npz`` light fields,
   hard-linked in: landing costs nothing) at ``rate`` per second into a followed folder while
-  :func:`lfsam.video.live.segment_stream` with ``latest=True`` segments the newest one each
+  :func:`lfsam.video.stream.live.segment_stream` with ``latest=True`` segments the newest one each
   time (``OnlineTracker``: the segmenter's video memory, 3 objects clicked in frame 0,
   ``--refine-views 1``; ground-truth disparity, or estimated per frame). Random weights score
   objects absent after frame 0, so the memory's object-score bias is raised as in
@@ -40,10 +40,10 @@ from lfsam.io.arrays import write_npz
 from lfsam.pipeline import PipelineConfig
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.result import FAST_LEVEL, save_result
-from lfsam.video.follow import FrameFollower
-from lfsam.video.live import percentile, segment_stream
-from lfsam.video.online import OnlineTracker
-from lfsam.video.synth import generate_video
+from lfsam.video.io.synth import generate_video
+from lfsam.video.stream.follow import FrameFollower
+from lfsam.video.stream.live import percentile, segment_stream
+from lfsam.video.tracking.online import OnlineTracker
 
 
 def _sync(device: torch.device) -> None:

@@ -13,8 +13,8 @@ import numpy as np
 from lfsam.io import write_lightfield
 from lfsam.result import SegmentationResult, save_result
 from lfsam.synth import generate_scene
-from lfsam.video.result import video_result_writer
-from lfsam.video.synth import generate_video, write_video_frames
+from lfsam.video.io.result import video_result_writer
+from lfsam.video.io.synth import generate_video, write_video_frames
 
 GRID, SIZE = (3, 3), (24, 32)
 

@@ -10,9 +10,9 @@ import numpy as np
 
 from lfsam.api import RunOptions, SegmentOptions
 from lfsam.prompts import ObjectPrompts, PointPrompt
-from lfsam.video.carry import deepest
-from lfsam.video.online import OnlineTracker
-from lfsam.video.search import Track, search_object
+from lfsam.video.tracking.carry import deepest
+from lfsam.video.tracking.online import OnlineTracker
+from lfsam.video.tracking.search import Track, search_object
 
 CENTER = (2, 2)
 QUIET = SegmentOptions(run=RunOptions(progress=False))

@@ -170,7 +170,7 @@ def test_objects_of_several_reference_views_segment_as_each_alone(model, monkeyp
 @given(seed=st.integers(0, 2**16), size=st.tuples(st.integers(1, 3), st.integers(1, 8),
                                                    st.integers(1, 8)))
 def test_the_3x3_maximum_is_max_pooling(seed, size):
-    from lfsam.warp import _max3x3
+    from lfsam.warp.forward import _max3x3
 
     gen = torch.Generator().manual_seed(seed)
     planes = torch.randn(size, generator=gen)

@@ -1,6 +1,6 @@
 """Inputs given in the wrong role (issue 38): a light-field video, a light field, a result or a
 video's result folder where another kind belongs is one line naming what was given and what
-the command takes (lfsam.video.detect.input_kind, lfsam.cli.inputs; docs/design.md section 2,
+the command takes (lfsam.video.io.detect.input_kind, lfsam.cli.inputs; docs/design.md section 2,
 "Outputs and inputs on the command line"). And `lfsam info` never prints null."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from cli_files import make_inputs
 from lfsam.cli.main import main
 from lfsam.io import write_lightfield
 from lfsam.lightfield import LightField
-from lfsam.video.detect import input_kind
+from lfsam.video.io.detect import input_kind
 
 ORACLE = ["--model", "oracle", "--disparity", "gt"]
 VIDEO = "is a light-field video"

@@ -61,7 +61,7 @@ def nothing_read(monkeypatch):
         raise AssertionError("an input was read or a model loaded before the outputs were checked")
 
     modules = ["lfsam.segmenters", "lfsam.segmenters.factory", "lfsam.api", "lfsam.demo",
-               "lfsam.evaluate", "lfsam.video", "lfsam.video.detect", "lfsam.io",
+               "lfsam.evaluate", "lfsam.video", "lfsam.video.io.detect", "lfsam.io",
                *(f"lfsam.cli.{name}" for name in ("segment", "segment_video", "evaluate",
                                                   "export", "disparity", "convert", "show",
                                                   "show_video", "synth", "demo", "metrics"))]

@@ -25,7 +25,7 @@ from lfsam.distributed import ray_mapper, task_resources
 from lfsam.errors import LfsamError
 from lfsam.io import write_lightfield
 from lfsam.synth import generate_scene
-from lfsam.video.synth import generate_video, write_video_frames
+from lfsam.video.io.synth import generate_video, write_video_frames
 
 TIMING_FIELDS = {"seconds", "ms_per_mask_view"}
 
@@ -174,7 +174,7 @@ def test_ray_video_errors_are_the_sequential_rows(local_ray, mixed, tmp_path):
     error row as in a sequential run, and nothing already in the output folder is lost."""
     from lfsam.evaluate import evaluate_dataset
     from lfsam.video.evaluate import VideoTracking
-    from lfsam.video.track import track_video
+    from lfsam.video.tracking.track import track_video
 
     def track(video, folder):
         if "clip_a" in str(video.meta.get("source")):
@@ -206,7 +206,7 @@ def test_ray_refuses_a_result_folder_before_sending_its_task(local_ray, mixed, t
     check runs before its Ray task, not after the worker has tracked the video."""
     from lfsam.evaluate import evaluate_dataset
     from lfsam.video.evaluate import VideoTracking
-    from lfsam.video.track import track_video
+    from lfsam.video.tracking.track import track_video
 
     tracked = tmp_path / "tracked"
     tracked.mkdir()

@@ -16,8 +16,8 @@ from scipy import ndimage
 
 from lfsam.api import ModelOptions, RunOptions, SegmentOptions
 from lfsam.prompts import ObjectPrompts, PointPrompt
-from lfsam.video.online import OnlineTracker
-from lfsam.video.synth import generate_video
+from lfsam.video.io.synth import generate_video
+from lfsam.video.tracking.online import OnlineTracker
 
 pytestmark = pytest.mark.cuda
 

@@ -17,7 +17,7 @@ from lfsam.objects3d import objects_in_3d, objects_over_video
 from lfsam.result import SegmentationResult, save_result
 from lfsam.spatial import read_ply, write_ply
 from lfsam.synth import generate_scene
-from lfsam.video.synth import generate_video, write_video_frames
+from lfsam.video.io.synth import generate_video, write_video_frames
 
 
 def truth_points(lf, object_label: int) -> np.ndarray:

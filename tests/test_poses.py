@@ -34,7 +34,7 @@ from lfsam.poses import (
 from lfsam.result import SegmentationResult
 from lfsam.spatial.registration import estimate_normals, icp, kabsch, ransac_rigid, transform
 from lfsam.synth.rigid import RIGID_CAMERA, box_surface_points, rotation_about
-from lfsam.video.synth import write_video_frames
+from lfsam.video.io.synth import write_video_frames
 
 SMALL = {"boxes": 1, "grid": (5, 5), "size": (120, 160), "box_size_m": (0.08, 0.1),
          "texels": 64}

@@ -13,7 +13,7 @@ from lfsam.cli.main import main
 from lfsam.metrics.pose import add_error
 from lfsam.spatial.registration import transform
 from lfsam.synth.rigid import box_surface_points, generate_rigid_video
-from lfsam.video.synth import write_video_frames
+from lfsam.video.io.synth import write_video_frames
 
 
 def test_follow_writes_poses_frame_by_frame(tmp_path, capsys):

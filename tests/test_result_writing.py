@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 import lfsam
 import lfsam.result
-import lfsam.video.result as video_result
+import lfsam.video.io.result as video_result
 from lfsam.errors import LfsamError
 from lfsam.result import (
     FAST_LEVEL,
@@ -27,7 +27,8 @@ from lfsam.result import (
     load_result,
     save_result,
 )
-from lfsam.video.result import QUEUE_FRAMES, RESULT_MARKER, frame_name, live_video_result_writer
+from lfsam.video.io.live_result import QUEUE_FRAMES, live_video_result_writer
+from lfsam.video.io.result import RESULT_MARKER, frame_name
 
 
 def _labels(top: int, seed: int = 0) -> np.ndarray:

@@ -268,7 +268,7 @@ def test_tiny_edgetam_with_corner_references_and_text(scene_dir, tmp_path, capsy
 
 
 def test_tiny_edgetam_tracks_a_video_with_prompts(tmp_path, capsys):
-    from lfsam.video.synth import generate_video, write_video_frames
+    from lfsam.video.io.synth import generate_video, write_video_frames
 
     video = tmp_path / "video"
     write_video_frames(generate_video(grid=(3, 3), size=(40, 56), frames=3, num_objects=2,

@@ -12,10 +12,10 @@ from scipy import ndimage
 
 from lfsam.api import ModelOptions, RunOptions, SegmentOptions
 from lfsam.prompts import ObjectPrompts, PointPrompt
-from lfsam.video.online import OnlineTracker, memory_states
-from lfsam.video.result import record_states
-from lfsam.video.search import Track, looks_alike, near_support, predicted, search_radius
-from lfsam.video.synth import HARD_SPEED, generate_video, video_specs
+from lfsam.video.io.result import record_states
+from lfsam.video.io.synth import HARD_SPEED, generate_video, video_specs
+from lfsam.video.tracking.online import OnlineTracker, memory_states
+from lfsam.video.tracking.search import Track, looks_alike, near_support, predicted, search_radius
 
 QUIET = SegmentOptions(run=RunOptions(progress=False))
 
@@ -111,7 +111,7 @@ def test_search_off_is_the_tracking_before_issue_47(hard):
 
 
 def test_the_search_grows_while_unseen_and_predicts_constant_velocity():
-    from lfsam.video.carry import Template
+    from lfsam.video.tracking.carry import Template
 
     image = np.zeros((40, 50, 3), np.float32)
     template = Template(np.full((4, 4, 3), 200, np.float32), np.ones((4, 4), bool), (10, 10))
@@ -142,8 +142,8 @@ def replace_origin(template, origin):
 
 def test_states_are_recorded_per_object_and_frame_in_the_manifest(tmp_path, hard):
     from lfsam.video import read_video
-    from lfsam.video.synth import write_video_frames
-    from lfsam.video.track import track_video
+    from lfsam.video.io.synth import write_video_frames
+    from lfsam.video.tracking.track import track_video
 
     write_video_frames(iter(hard[:4]), tmp_path / "clip")
     video = read_video(tmp_path / "clip")

@@ -12,9 +12,9 @@ import pytest
 from lfsam.cli.main import main
 from lfsam.evaluate import evaluate_dataset
 from lfsam.video.evaluate import VideoTracking
-from lfsam.video.result import is_video_result, load_video_result
-from lfsam.video.synth import generate_video, write_video_frames
-from lfsam.video.track import track_video
+from lfsam.video.io.result import is_video_result, load_video_result
+from lfsam.video.io.synth import generate_video, write_video_frames
+from lfsam.video.tracking.track import track_video
 
 GRID, SIZE, FRAMES = (3, 3), (32, 48), 3
 
@@ -118,7 +118,7 @@ def test_tracking_switch_reaches_track_video(clips, tmp_path, monkeypatch, mode,
         seen.append(kwargs.get("memory"))
         return real(*args, **kwargs)
 
-    monkeypatch.setattr("lfsam.video.track.track_video", spy)
+    monkeypatch.setattr("lfsam.video.tracking.track.track_video", spy)
     out = tmp_path / "run"
     assert main(["evaluate", str(clips), "--model", "oracle", "--disparity", "gt",
                  "--tracking", mode, "--out", str(out)]) == 0

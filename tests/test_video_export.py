@@ -15,7 +15,7 @@ from lfsam.cli.main import main
 from lfsam.errors import LfsamError
 from lfsam.export import export_video
 from lfsam.result import SegmentationResult
-from lfsam.video.result import video_result_writer
+from lfsam.video.io.result import video_result_writer
 
 F, S, T, U, V = 3, 2, 2, 4, 5
 

@@ -27,17 +27,17 @@ from lfsam.pipeline import PipelineConfig
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.segmenters import load_segmenter
 from lfsam.video import read_video
-from lfsam.video.follow import FrameFollower
-from lfsam.video.live import segment_stream
-from lfsam.video.online import OnlineTracker
-from lfsam.video.result import (
+from lfsam.video.io.live_result import live_video_result_writer
+from lfsam.video.io.result import (
     RESULT_MARKER,
     hidden_spans,
-    live_video_result_writer,
     load_video_result,
 )
-from lfsam.video.synth import generate_video, write_video_frames
-from lfsam.video.track import track_video
+from lfsam.video.io.synth import generate_video, write_video_frames
+from lfsam.video.stream.follow import FrameFollower
+from lfsam.video.stream.live import segment_stream
+from lfsam.video.tracking.online import OnlineTracker
+from lfsam.video.tracking.track import track_video
 from stream_files import land_frame
 
 QUIET = SegmentOptions(run=RunOptions(progress=False))

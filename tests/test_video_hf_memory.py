@@ -15,7 +15,7 @@ from lfsam.segmenters.transformers.video_build import (
     tiny_edgetam_video_config,
     video_model_for,
 )
-from lfsam.video.hf_memory import TransformersReferenceMemory, has_transformers_video_memory
+from lfsam.video.memory.hf_memory import TransformersReferenceMemory, has_transformers_video_memory
 
 SHAPE = (64, 80)
 

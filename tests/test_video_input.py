@@ -11,7 +11,7 @@ from lfsam.errors import LfsamError
 from lfsam.io import write_lightfield
 from lfsam.lightfield import LightField
 from lfsam.video import is_video, read_video
-from lfsam.video.view_files import write_view_videos
+from lfsam.video.io.view_files import write_view_videos
 
 SHAPE = (4, 3, 3, 8, 10)
 

@@ -16,16 +16,16 @@ import numpy as np
 import pytest
 
 import lfsam
-import lfsam.video.live as live
+import lfsam.video.stream.live as live
 from lfsam.api import RunOptions, SegmentOptions
 from lfsam.cli.main import main
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.video import read_video
-from lfsam.video.feed import NEWER_FRAME, FrameFeed
-from lfsam.video.follow import FrameFollower
-from lfsam.video.live import percentile, segment_stream
-from lfsam.video.online import OnlineTracker
-from lfsam.video.synth import generate_video, write_video_frames
+from lfsam.video.io.synth import generate_video, write_video_frames
+from lfsam.video.stream.feed import NEWER_FRAME, FrameFeed
+from lfsam.video.stream.follow import FrameFollower
+from lfsam.video.stream.live import percentile, segment_stream
+from lfsam.video.tracking.online import OnlineTracker
 
 QUIET = SegmentOptions(run=RunOptions(progress=False))
 OBJECT = 3  # the ground-truth label clicked (label 1 is the backdrop)

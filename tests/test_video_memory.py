@@ -11,9 +11,9 @@ from lfsam.baseline.frames import init_video_state, video_frames
 from lfsam.baseline.predictor import video_predictor_for
 from lfsam.errors import LfsamError
 from lfsam.segmenters import load_segmenter
-from lfsam.video.memory import ReferenceMemory, has_video_memory
-from lfsam.video.synth import generate_video
-from lfsam.video.track import track_video
+from lfsam.video.io.synth import generate_video
+from lfsam.video.memory.sam2_memory import ReferenceMemory, has_video_memory
+from lfsam.video.tracking.track import track_video
 
 SHAPE = (48, 64)
 
@@ -100,7 +100,7 @@ def test_tracking_with_memory_covers_every_frame_and_view(present, tmp_path):
     from lfsam.api import RunOptions, SegmentOptions
     from lfsam.prompts import ObjectPrompts, PointPrompt
     from lfsam.video import read_video
-    from lfsam.video.synth import write_video_frames
+    from lfsam.video.io.synth import write_video_frames
 
     write_video_frames(generate_video(grid=(3, 3), size=SHAPE, frames=3, seed=0,
                                       num_objects=2), tmp_path / "clip")

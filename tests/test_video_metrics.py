@@ -11,7 +11,7 @@ import pytest
 from lfsam.cli.main import main
 from lfsam.metrics.temporal import evaluate_frames, frame_matches, identity_switches
 from lfsam.result import SegmentationResult
-from lfsam.video.result import video_result_writer
+from lfsam.video.io.result import video_result_writer
 
 F, S, T, U, V = 3, 3, 3, 4, 8
 
@@ -104,7 +104,7 @@ def test_track_scores_equal_the_tracking_benchmarks_own_count():
     from pathlib import Path
 
     from lfsam.metrics.tracks import frame_overlaps, track_scores
-    from lfsam.video.synth import generate_video
+    from lfsam.video.io.synth import generate_video
 
     script = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_tracking.py"
     spec = importlib.util.spec_from_file_location("bench_tracking_for_metrics", script)

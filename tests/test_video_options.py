@@ -10,7 +10,7 @@ import pytest
 import lfsam
 from lfsam.cli.main import main
 from lfsam.video import read_video
-from lfsam.video.synth import generate_video, write_video_frames
+from lfsam.video.io.synth import generate_video, write_video_frames
 
 FRAMES, GRID, SIZE = 4, (3, 3), (40, 56)
 

@@ -14,11 +14,11 @@ from hypothesis import strategies as st
 
 from lfsam.api import RunOptions, SegmentOptions
 from lfsam.prompts import ObjectPrompts, PointPrompt
-from lfsam.video import placement, search
-from lfsam.video.carry import Template, deepest
-from lfsam.video.online import OnlineTracker
-from lfsam.video.placement import answer_place, placed_by_answer
-from lfsam.video.synth import generate_video
+from lfsam.video.io.synth import generate_video
+from lfsam.video.tracking import placement, rules
+from lfsam.video.tracking.carry import Template, deepest
+from lfsam.video.tracking.online import OnlineTracker
+from lfsam.video.tracking.placement import answer_place, placed_by_answer
 
 QUIET = SegmentOptions(run=RunOptions(progress=False))
 
@@ -145,5 +145,5 @@ def test_a_behind_the_occluder_is_kept_where_its_answers_place_it(behind,
     # that also finds it there)
     monkeypatch.setattr(placement, "CHECK", False)
     assert _center_ious(behind, 6)[8] >= 0.9
-    monkeypatch.setattr(search, "PLACED_SUPPORT", False)
+    monkeypatch.setattr(rules, "PLACED_SUPPORT", False)
     assert _center_ious(behind, 6)[8] < 0.5

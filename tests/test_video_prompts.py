@@ -15,7 +15,7 @@ from lfsam.prompts import (
     prompts_to_json,
     validate_objects,
 )
-from lfsam.video.prompts import negatives_since, prompts_at, start_frame
+from lfsam.video.tracking.prompts import negatives_since, prompts_at, start_frame
 
 
 def test_command_line_frame_tags():

@@ -8,7 +8,7 @@ import pytest
 import lfsam
 from lfsam.errors import LfsamError
 from lfsam.result import SegmentationResult
-from lfsam.video.result import frame_name, load_video_result, video_result_writer
+from lfsam.video.io.result import frame_name, load_video_result, video_result_writer
 
 
 def _frames(count):
@@ -64,7 +64,7 @@ def test_objects_prompts_kept_in_the_manifest_and_old_folders_have_none(tmp_path
     import json
 
     from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
-    from lfsam.video.result import RESULT_MARKER
+    from lfsam.video.io.result import RESULT_MARKER
 
     objects = [
         ObjectPrompts(1, (PointPrompt(2, 3, True, (1, 1), 0), PointPrompt(4, 1, False, None, 2))),

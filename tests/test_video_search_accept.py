@@ -8,13 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from lfsam.video.carry import Template
-from lfsam.video.search import (
-    EXPLAINED,
-    Track,
-    _accept,
-    explaining_shift,
-)
+from lfsam.video.tracking import rules
+from lfsam.video.tracking.answer import accept_answer as _accept
+from lfsam.video.tracking.answer import explaining_shift
+from lfsam.video.tracking.carry import Template
+from lfsam.video.tracking.rules import EXPLAINED
+from lfsam.video.tracking.search import Track
 from search_oracle import label_answer, search_one_image
 
 SIZE, CENTER = (40, 50), (2, 2)
@@ -101,8 +100,8 @@ def test_the_objects_disparity_is_the_median_over_an_answer_spilling_onto_the_ba
     """A 6x6 object at disparity 2 on a background at -1, answered one pixel too wide (the
     oracle's jitter): the median stays on the object (the mean, 0.3, was 1.7 off, beyond the
     depth gate's tolerance, so the gate refused the object's own pixels)."""
-    from lfsam.video.frame_search import median_disparity, object_disparity
-    from lfsam.video.motion import DISPARITY_TOLERANCE
+    from lfsam.video.tracking.frame_search import median_disparity, object_disparity
+    from lfsam.video.tracking.motion import DISPARITY_TOLERANCE
 
     disparity = np.full(SIZE, -1.0, np.float32)
     disparity[10:16, 10:16] = 2.0
@@ -171,9 +170,8 @@ def test_an_answer_found_again_that_holds_a_placed_neighbour_is_that_neighbour()
     """Fresh seed 1802's case: a hidden object's answer lies on a neighbour's region, of
     which an object placed earlier in the frame holds 46 % of the answer (under the limit of
     half the answer) but most of its own mask: the answer is that object, so the hidden one
-    is not found there (:data:`lfsam.video.search.HELD`); an answer that only touches a
+    is not found there (:data:`lfsam.video.tracking.rules.HELD`); an answer that only touches a
     placed object, or a tracked object's answer, is not refused so."""
-    from lfsam.video import search
 
     rng = np.random.default_rng(3)
     look = (np.array([60.0, 200.0, 90.0]) + rng.uniform(-4, 4, (12, 16, 3))).astype(np.float32)
@@ -197,7 +195,7 @@ def test_an_answer_found_again_that_holds_a_placed_neighbour_is_that_neighbour()
     assert find(hidden(), []) is not None  # without the check: found on the neighbour
     assert find(hidden(), [touched]) is not None
     assert find(hidden(), [neighbour, touched]) is None
-    assert search.HELD * neighbour.sum() <= (neighbour & (labels == 2)).sum()
+    assert rules.HELD * neighbour.sum() <= (neighbour & (labels == 2)).sum()
     tracked = Track(CENTER, template, area=192, sightings=3)
     assert find(tracked, [neighbour, touched]) is not None
 
@@ -224,14 +222,13 @@ def _showing_a_new_part(support_outside: int = 0):
 
 
 def test_an_answer_holding_its_support_is_judged_by_the_part_its_template_held(monkeypatch):
-    import lfsam.video.search as search
 
     template, image, mask, support, carried = _showing_a_new_part()
     track = Track(CENTER, template, area=144, sightings=3, disparity=1.0)
     assert _accept(mask, support, carried, track, None, image, template, (0, 0), 6) == (0, 0)
-    monkeypatch.setattr(search, "KNOWN_PART", False)  # judged as a whole: unlike
+    monkeypatch.setattr(rules, "KNOWN_PART", False)  # judged as a whole: unlike
     assert _accept(mask, support, carried, track, None, image, template, (0, 0), 6) is None
-    monkeypatch.setattr(search, "KNOWN_PART", True)
+    monkeypatch.setattr(rules, "KNOWN_PART", True)
     # the part the template held looks otherwise: another object there
     other = image.copy()
     other[10:22, 10:22] = np.array([60.0, 230.0, 60.0])

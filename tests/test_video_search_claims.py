@@ -1,6 +1,6 @@
 """Competing claims on an answer found again (issue 47, ninth pass; docs/design.md section
-10, "Tracking", :mod:`lfsam.video.claims`): two clicked objects hidden at once, the small one
-a look-alike of a part of the other; where the larger one comes out, the small one's search
+10, "Tracking", :mod:`lfsam.video.tracking.claims`): two clicked objects hidden at once, the small
+one a look-alike of a part of the other; where the larger one comes out, the small one's search
 (first in the frame's order: its template is wholly supported there) accepts it. The larger
 object explains the answer better (its whole template against a sixth), so it is searched
 first and keeps its id; before, the small one took it and the two ids swapped."""
@@ -12,10 +12,10 @@ import numpy as np
 from lfsam.api import RunOptions, SegmentOptions
 from lfsam.lightfield import LightField
 from lfsam.prompts import ObjectPrompts, PointPrompt
-from lfsam.video import claims
-from lfsam.video.carry import Template
-from lfsam.video.online import OnlineTracker
-from lfsam.video.search import Track
+from lfsam.video.tracking import claims
+from lfsam.video.tracking.carry import Template
+from lfsam.video.tracking.online import OnlineTracker
+from lfsam.video.tracking.search import Track
 
 GRID, CENTER, SIZE = (3, 3), (1, 1), (44, 60)
 #: The large object (id 2, label 3): 10 x 14 pixels at ROW, its first column per frame
@@ -122,8 +122,8 @@ def test_explained_is_the_best_shifts_truncated_colour_agreement():
     template's shifts within the radius of its predicted place, of the summed
     ``MAX_PIXEL_DIFFERENCE - distance`` (truncated at 0) over template pixels landing on the
     answer, over ``MAX_PIXEL_DIFFERENCE`` times the answer's area."""
-    from lfsam.video.carry import MAX_PIXEL_DIFFERENCE
-    from lfsam.video.motion import predicted
+    from lfsam.video.tracking.carry import MAX_PIXEL_DIFFERENCE
+    from lfsam.video.tracking.motion import predicted
 
     rng = np.random.default_rng(11)
     for case in range(12):

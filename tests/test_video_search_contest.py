@@ -1,6 +1,6 @@
 """An answer that took a neighbour through one of its clicks (issue 47, seventeenth pass;
-docs/design.md section 10, "Tracking", step 9; :mod:`lfsam.video.contest`). Fresh seed 2901,
-frame 6: object 5's three clicks, one on object 2 (which moved in front of it, alike in
+docs/design.md section 10, "Tracking", step 9; :mod:`lfsam.video.tracking.contest`). Fresh seed
+2901, frame 6: object 5's three clicks, one on object 2 (which moved in front of it, alike in
 colour and depth), answered both; object 2's own answers were refused as placed already and
 it was hidden for a frame while it showed 218-277 pixels a view. Fresh seed 3202 under the
 oracle's jitter, frame 2: the same with nothing asked for object 2 (its support, read as
@@ -15,8 +15,8 @@ import pytest
 
 from lfsam.api import ModelOptions, RunOptions, SegmentOptions
 from lfsam.prompts import ObjectPrompts, PointPrompt
-from lfsam.video import contest
-from lfsam.video.synth import generate_video
+from lfsam.video.io.synth import generate_video
+from lfsam.video.tracking import contest
 from search_oracle import CENTER, least_ious
 
 #: Seed 2901's labels of objects 2 and 5 (ids in label order, one click each in frame 0).

@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lfsam.video import search
-from lfsam.video.carry import Template
-from lfsam.video.search import Track
+from lfsam.video.tracking import rules
+from lfsam.video.tracking.carry import Template
+from lfsam.video.tracking.search import Track
 from search_oracle import CENTER, covered_object, label_answer, search_one_image
 
 OWN = (0, 0)
@@ -45,7 +45,7 @@ def test_a_mostly_covered_object_needs_a_share_of_its_template_interior(monkeypa
     view, where the whole template counts); without the interior rule hidden."""
     found = _search(66)
     assert found is not None and found[0] == CENTER and found[1].sum() == 66
-    monkeypatch.setattr(search, "CORE_SUPPORT", False)
+    monkeypatch.setattr(rules, "CORE_SUPPORT", False)
     assert _search(66) is None
 
 

@@ -1,5 +1,5 @@
 """A track that jumps onto a look-alike keeps its shadow (issue 47, eighth pass;
-docs/design.md section 10, "Tracking", :mod:`lfsam.video.consistency`): an object that goes
+docs/design.md section 10, "Tracking", :mod:`lfsam.video.tracking.consistency`): an object that goes
 behind an occluder while a look-alike of its pixels sits near its path at another depth is
 matched on the look-alike (a well supported match); the jump, far from the prediction and at
 another depth, keeps the track before it as a shadow, searched for every frame, and the
@@ -15,11 +15,11 @@ import pytest
 from lfsam.api import RunOptions, SegmentOptions
 from lfsam.lightfield import LightField
 from lfsam.prompts import ObjectPrompts, PointPrompt
-from lfsam.video import consistency
-from lfsam.video.carry import Template
-from lfsam.video.motion import VELOCITY_SUPPORT, Track, search_radius
-from lfsam.video.online import OnlineTracker
-from lfsam.video.synth import generate_video
+from lfsam.video.io.synth import generate_video
+from lfsam.video.tracking import consistency
+from lfsam.video.tracking.carry import Template
+from lfsam.video.tracking.motion import VELOCITY_SUPPORT, Track, search_radius
+from lfsam.video.tracking.online import OnlineTracker
 from search_oracle import least_ious
 
 GRID, CENTER, SIZE, SIDE = (5, 5), (2, 2), (44, 60), 8

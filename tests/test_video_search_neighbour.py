@@ -1,8 +1,9 @@
 """A placed object asked in the view of a found-again answer that meets it (issue 47,
-eighteenth pass; docs/design.md section 10, "Tracking", step 5; :mod:`lfsam.video.neighbour`).
-Fresh seed 3603 without jitter, frame 5: a small disc (object 3, label 4) hidden in every
-view was "found" in corner view (4, 0) on pixels of object 4 (label 5) that object 4's
-center mask, carried there, left out; object 3 then took object 4's place (a swap)."""
+eighteenth pass; docs/design.md section 10, "Tracking", step 5;
+:mod:`lfsam.video.tracking.neighbour`). Fresh seed 3603 without jitter, frame 5: a small disc
+(object 3, label 4) hidden in every view was "found" in corner view (4, 0) on pixels of object 4
+(label 5) that object 4's center mask, carried there, left out; object 3 then took object 4's place
+(a swap)."""
 
 from __future__ import annotations
 
@@ -10,8 +11,8 @@ import itertools
 
 import numpy as np
 
-from lfsam.video import neighbour
-from lfsam.video.synth import generate_video
+from lfsam.video.io.synth import generate_video
+from lfsam.video.tracking import neighbour
 from search_oracle import least_ious
 
 

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from lfsam.video import search
-from lfsam.video.carry import Template
-from lfsam.video.search import Track
+from lfsam.video.tracking import rules
+from lfsam.video.tracking.carry import Template
+from lfsam.video.tracking.search import Track
 from search_oracle import CENTER, covered_object, label_answer, search_one_image
 
 OWN = (0, 0)
@@ -37,7 +37,7 @@ def test_a_covered_object_needs_a_share_of_what_the_placed_objects_leave(monkeyp
     found = _search(45, placed=True)
     assert found is not None and found[0] == CENTER and found[1].sum() == 45
     assert _search(45, placed=False) is None
-    monkeypatch.setattr(search, "PLACED_SUPPORT", False)
+    monkeypatch.setattr(rules, "PLACED_SUPPORT", False)
     assert _search(45, placed=True) is None
 
 

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from lfsam.video import search
-from lfsam.video.carry import Template
-from lfsam.video.search import Track
+from lfsam.video.tracking import rules
+from lfsam.video.tracking.carry import Template
+from lfsam.video.tracking.search import Track
 from search_oracle import CENTER, label_answer, search_one_image
 
 
@@ -49,7 +49,7 @@ def test_a_refused_answer_is_not_the_object_when_its_view_is_matched_again(monke
     _, labels, _ = _scene()
     assert view == CENTER and shift == (0, 0)
     assert mask.sum() == 36 and (labels[mask] == 2).all()  # its 3 visible rows
-    monkeypatch.setattr(search, "REFUSED_AGAIN", False)
+    monkeypatch.setattr(rules, "REFUSED_AGAIN", False)
     assert _search() is None  # the band's answer refused, the object hidden
 
 
@@ -60,7 +60,7 @@ def test_the_widening_reads_refused_answers_as_not_the_object(monkeypatch):
     than on the object's visible part), whose answer is refused. The widening reads those
     refused answers as not the object, as it reads placed objects, and finds it."""
     from lfsam.prompts import ObjectPrompts
-    from lfsam.video.search import search_object
+    from lfsam.video.tracking.search import search_object
 
     rng = np.random.default_rng(4)
     colour = np.array([120.0, 110.0, 90.0])
@@ -92,5 +92,5 @@ def test_the_widening_reads_refused_answers_as_not_the_object(monkeypatch):
     assert found is not None
     view, mask, _, _ = found
     assert view == CENTER and mask.sum() == 60 and (labels[CENTER][mask] == 2).all()
-    monkeypatch.setattr(search, "WIDE_REFUSED", False)
+    monkeypatch.setattr(rules, "WIDE_REFUSED", False)
     assert find() is None  # every match on the background, refused: hidden

@@ -1,5 +1,5 @@
 """An object whose prompts were never answered is asked them again (issue 47, seventeenth
-pass; docs/design.md section 10, "Tracking"; :data:`lfsam.video.frame_search.
+pass; docs/design.md section 10, "Tracking"; :data:`lfsam.video.tracking.frame_search.
 RETRY_UNANSWERED`). A user clicks, in frame 0, where an object is hidden behind another: the
 answer is the one in front, placed already, so the clicked object is hidden. Before, it then
 waited for good ("waiting" in every later frame, never searched: it had no template); now its
@@ -13,8 +13,8 @@ import numpy as np
 from lfsam.api import RunOptions, SegmentOptions
 from lfsam.lightfield import LightField
 from lfsam.prompts import ObjectPrompts, PointPrompt
-from lfsam.video import frame_search
-from lfsam.video.online import OnlineTracker
+from lfsam.video.tracking import frame_search
+from lfsam.video.tracking.online import OnlineTracker
 
 GRID, SIZE = (3, 3), (44, 60)
 #: The front object (label 2): rows 15-24, its first column per frame.

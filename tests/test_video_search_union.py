@@ -1,5 +1,5 @@
 """An answer to several clicks that took an unprompted neighbour (issue 47, eighteenth pass;
-docs/design.md section 10, "Tracking", step 5; :mod:`lfsam.video.union`). Fresh seed 3303
+docs/design.md section 10, "Tracking", step 5; :mod:`lfsam.video.tracking.union`). Fresh seed 3303
 without jitter, frame 2: object 3 (label 5), partly behind an object nobody clicked (label 4,
 alike in colour and within the depth gate), was answered with both (its clicks on each), and
 followed the neighbour from frame 3 on."""
@@ -10,8 +10,8 @@ import itertools
 
 import numpy as np
 
-from lfsam.video import union
-from lfsam.video.synth import generate_video
+from lfsam.video.io.synth import generate_video
+from lfsam.video.tracking import union
 from search_oracle import least_ious
 
 

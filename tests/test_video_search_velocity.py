@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lfsam.video.carry import Template
-from lfsam.video.motion import VELOCITY_SUPPORT, Track, update
+from lfsam.video.tracking.carry import Template
+from lfsam.video.tracking.motion import VELOCITY_SUPPORT, Track, update
 from search_oracle import CENTER, label_answer, search_one_image
 
 

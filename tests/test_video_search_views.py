@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from lfsam.prompts import ObjectPrompts
-from lfsam.video import carry, match, search
-from lfsam.video.carry import MAX_PIXEL_DIFFERENCE, Template
-from lfsam.video.search import Track, search_object
+from lfsam.video.tracking import carry, match, rules
+from lfsam.video.tracking.carry import MAX_PIXEL_DIFFERENCE, Template
+from lfsam.video.tracking.search import Track, search_object
 
 GRID, CENTER, SIZE = (5, 5), (2, 2), (40, 50)
 RING = [(0, 0), (0, 2), (0, 4), (2, 0), (2, 4), (4, 0), (4, 2), (4, 4)]
@@ -84,7 +84,7 @@ def test_the_disparity_tells_an_object_from_a_background_of_its_colours(monkeypa
     """A flat object in front of a background of the same colour: without the disparity every
     shift looks the same (the template stays at its predicted place, on the background);
     with it, the object is found where it moved. (Without it, the second look at its own
-    view with the refused background's pixels left out, ``search.REFUSED_AGAIN``, finds it
+    view with the refused background's pixels left out, ``rules.REFUSED_AGAIN``, finds it
     too: the match alone is compared here.)"""
     image = np.full((*SIZE, 3), 90.0, np.float32)
     disparity = np.full(SIZE, -1.8, np.float32)
@@ -97,7 +97,7 @@ def test_the_disparity_tells_an_object_from_a_background_of_its_colours(monkeypa
     found, _ = _search(images, labels, track, RING, disparities=lambda v: disparity)
     assert found is not None and found[2] == (4, 5)
     np.testing.assert_array_equal(found[1], disparity > 0)
-    monkeypatch.setattr(search, "REFUSED_AGAIN", False)
+    monkeypatch.setattr(rules, "REFUSED_AGAIN", False)
     without, _ = _search(images, labels, track, RING)
     assert without is None or without[2] != (4, 5)
 
@@ -148,7 +148,7 @@ def test_a_tracked_object_covered_in_the_center_and_corners_is_kept_from_a_ring_
     very frame, under its id (before, only the corners were searched: hidden)."""
     from lfsam.api import RunOptions, SegmentOptions
     from lfsam.prompts import PointPrompt
-    from lfsam.video.online import OnlineTracker
+    from lfsam.video.tracking.online import OnlineTracker
 
     every = {(s, t) for s in range(GRID[0]) for t in range(GRID[1])}
     frames = [_light_field(every), _light_field({(0, 2)})]

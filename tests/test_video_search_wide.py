@@ -2,7 +2,7 @@
 "Tracking", step 2): an object whose predicted place missed it (it turned while hidden, or
 was hidden before its velocity was known) and that shows only a band of itself beside a cover
 over its prediction is found within the search radius by the likely shifts of
-:func:`lfsam.video.match.likely_shifts`, its motion kept; the likely map leaves out objects
+:func:`lfsam.video.tracking.match.likely_shifts`, its motion kept; the likely map leaves out objects
 placed already and pixels at another depth."""
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lfsam.video.carry import Template
-from lfsam.video.match import likely_shifts, robust_costs, with_depth
-from lfsam.video.motion import Track, update
+from lfsam.video.tracking.carry import Template
+from lfsam.video.tracking.match import likely_shifts, robust_costs, with_depth
+from lfsam.video.tracking.motion import Track, update
 from search_oracle import label_answer, search_one_image
 
 SIZE, CENTER = (60, 80), (2, 2)
@@ -91,10 +91,10 @@ def test_likely_shifts_rank_the_true_shift_first_on_a_plain_view():
 
 
 def test_the_ring_views_masked_ssd_from_one_batch_gives_each_views_numbers():
-    """:func:`lfsam.video.match.cost_maps` (one object predicted in several views, the
+    """:func:`lfsam.video.tracking.match.cost_maps` (one object predicted in several views, the
     template's transform once, windows cut at the frame and given one shape) against
-    :func:`lfsam.video.match.cost_map` of each view alone, shift by shift."""
-    from lfsam.video.match import cost_map, cost_maps
+    :func:`lfsam.video.tracking.match.cost_map` of each view alone, shift by shift."""
+    from lfsam.video.tracking.match import cost_map, cost_maps
 
     rng = np.random.default_rng(7)
     look = rng.uniform(0, 255, (9, 11, 4)).astype(np.float32)
@@ -118,12 +118,12 @@ def test_the_ring_views_masked_ssd_from_one_batch_gives_each_views_numbers():
 
 
 def test_the_batched_ffts_give_the_same_numbers_on_any_thread_count():
-    """:func:`lfsam.video.match.fft_threads` hands scipy PyTorch's thread count: the masked
+    """:func:`lfsam.video.tracking.match.fft_threads` hands scipy PyTorch's thread count: the masked
     SSD of several views and the likely shifts are bit for bit those of one thread (the
     search's answers do not depend on the machine's cores)."""
     import torch
 
-    from lfsam.video.match import cost_maps, likely_shifts_many
+    from lfsam.video.tracking.match import cost_maps, likely_shifts_many
 
     rng = np.random.default_rng(11)
     look = rng.uniform(0, 255, (9, 11, 4)).astype(np.float32)

@@ -10,8 +10,8 @@ from PIL import Image, ImageSequence
 from lfsam.cli.main import main
 from lfsam.result import SegmentationResult
 from lfsam.video import read_video
-from lfsam.video.result import video_result_writer
-from lfsam.video.synth import generate_video, write_video_frames
+from lfsam.video.io.result import video_result_writer
+from lfsam.video.io.synth import generate_video, write_video_frames
 from lfsam.viz import time_strip
 from lfsam.viz.overlay import overlay_view
 

@@ -8,7 +8,7 @@ import pytest
 from lfsam.cli.main import main
 from lfsam.errors import LfsamError
 from lfsam.video import read_video
-from lfsam.video.synth import generate_video, video_specs
+from lfsam.video.io.synth import generate_video, video_specs
 
 SETTINGS = {"grid": (3, 3), "size": (48, 64), "frames": 6, "seed": 0, "num_objects": 3}
 

@@ -15,8 +15,8 @@ from lfsam.api import RunOptions, SegmentOptions
 from lfsam.cli.main import main
 from lfsam.prompts import ObjectPrompts, PointPrompt
 from lfsam.video import read_video
-from lfsam.video.result import hidden_spans
-from lfsam.video.synth import generate_video, write_video_frames
+from lfsam.video.io.result import hidden_spans
+from lfsam.video.io.synth import generate_video, write_video_frames
 
 QUIET = SegmentOptions(run=RunOptions(progress=False))
 
@@ -96,7 +96,7 @@ def test_result_folder_keeps_each_objects_prompts_with_their_frames(tmp_path):
     """Issue 38: clicks on frames 0 and 2 come back from the result folder as given (frames,
     views and polarity kept), in id order, so that the viewer reopens the track editable."""
     from lfsam.prompts import BoxPrompt
-    from lfsam.video.track import track_video
+    from lfsam.video.tracking.track import track_video
 
     write_video_frames(generate_video(grid=(3, 3), size=(32, 48), frames=3, seed=0,
                                       num_objects=2), tmp_path / "clip")

@@ -145,8 +145,8 @@ def test_lfsam_view_consensus(make_napari_viewer, qtbot, scene, tmp_path):
 def test_a_video_track_carries_the_consensus(make_napari_viewer, qtbot, monkeypatch, tmp_path):
     """Each frame's predictor and the track's pipeline (``track_video``'s options)."""
     from lfsam.video import read_video
-    from lfsam.video import track as track_module
-    from lfsam.video.synth import generate_video, write_video_frames
+    from lfsam.video.io.synth import generate_video, write_video_frames
+    from lfsam.video.tracking import track as track_module
 
     write_video_frames(generate_video(grid=(3, 3), size=(32, 40), frames=2, seed=0,
                                       num_objects=2), tmp_path / "clip")

@@ -17,7 +17,7 @@ from lfsam.cli.view import open_viewer
 from lfsam.io import write_lightfield
 from lfsam.synth import generate_scene
 from lfsam.video import read_video
-from lfsam.video.synth import generate_video, write_video_frames
+from lfsam.video.io.synth import generate_video, write_video_frames
 from lfsam.viewer import controls as C
 from lfsam.viewer.widget import LightFieldWidget
 from napari_events import register_plugin

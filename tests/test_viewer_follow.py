@@ -24,9 +24,9 @@ from hidden_status import check_hidden_lines
 from lfsam.cli.main import main
 from lfsam.errors import LfsamError
 from lfsam.video import read_video
-from lfsam.video.online import OnlineTracker
-from lfsam.video.result import RESULT_MARKER
-from lfsam.video.synth import generate_video, write_video_frames
+from lfsam.video.io.result import RESULT_MARKER
+from lfsam.video.io.synth import generate_video, write_video_frames
+from lfsam.video.tracking.online import OnlineTracker
 from lfsam.viewer import layers as L
 from lfsam.viewer.follow_dock import default_out
 from lfsam.viewer.widget import LightFieldWidget

@@ -17,8 +17,8 @@ from lfsam.metrics.pose import rotation_error_deg
 from lfsam.poses import poses_of_video
 from lfsam.result import SegmentationResult
 from lfsam.synth.rigid import generate_rigid_video
-from lfsam.video.result import load_video_result, video_result_writer
-from lfsam.video.synth import write_video_frames
+from lfsam.video.io.result import load_video_result, video_result_writer
+from lfsam.video.io.synth import write_video_frames
 from lfsam.viewer import layers as L
 from lfsam.viewer import pose_visuals as PV
 from lfsam.viewer.objects3d_dock import ObjectsDock

@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lfsam.prompts import BoxPrompt, ObjectPrompts, PointPrompt
-from lfsam.viewer.session import (
+from lfsam.viewer.prompt_layers import (
     PromptHistory,
     layers_from_prompts,
     prompts_from_layers,

@@ -18,7 +18,7 @@ from scipy import ndimage
 import lfsam
 from lfsam.errors import LfsamError
 from lfsam.video import read_video
-from lfsam.video.synth import generate_video, write_video_frames
+from lfsam.video.io.synth import generate_video, write_video_frames
 from lfsam.viewer import layers as L
 from lfsam.viewer.plugin_io import get_reader, read_path
 from lfsam.viewer.video import FrameStore, VideoFrames
@@ -117,7 +117,7 @@ def test_click_on_a_later_frame_is_tagged_and_segments_that_frame(
     # exactly what a predictor of its own gives that click on frame 2's light field
     from lfsam.predictor import LightFieldPredictor
     from lfsam.segmenters import load_segmenter
-    from lfsam.video.prompts import prompts_at
+    from lfsam.video.tracking.prompts import prompts_at
 
     frame = read_video(clip).frame(2)
     predictor = LightFieldPredictor(load_segmenter("oracle", lightfield=frame))
@@ -145,7 +145,7 @@ def test_click_on_a_later_frame_is_tagged_and_segments_that_frame(
 def test_track_shows_every_frame_as_track_video_gives_it(
         make_napari_viewer, qtbot, clip, tmp_path):
     from lfsam.api import RunOptions, SegmentOptions
-    from lfsam.video.track import track_video
+    from lfsam.video.tracking.track import track_video
 
     viewer, widget = _open(make_napari_viewer, qtbot, clip)
     video = read_video(clip)
@@ -235,7 +235,7 @@ def test_lfsam_view_video_tracks_with_sam2_in_a_fresh_process(clip, tmp_path):
 
 def test_frame_store_holds_written_frames_spills_and_reads_results(tmp_path):
     from lfsam.result import SegmentationResult
-    from lfsam.video.result import load_video_result, video_result_writer
+    from lfsam.video.io.result import load_video_result, video_result_writer
 
     store = FrameStore((5, 1, 2, 3, 4), budget_mb=0)  # keeps 2 frames, spills the others
     assert store[3].shape == (1, 2, 3, 4) and not store[3].any() and store.written() == []
@@ -265,7 +265,7 @@ def test_lfsam_view_video_with_its_result_folder(make_napari_viewer, qtbot, clip
     from lfsam.cli.main import build_parser
     from lfsam.cli.view import open_viewer
     from lfsam.result import SegmentationResult
-    from lfsam.video.result import video_result_writer
+    from lfsam.video.io.result import video_result_writer
 
     with video_result_writer(tmp_path / "r") as writer:
         for f in range(3):
@@ -335,7 +335,7 @@ def test_saved_track_reopens_editable_and_tracks_again(make_napari_viewer, qtbot
     from lfsam.api import RunOptions, SegmentOptions
     from lfsam.cli.main import build_parser
     from lfsam.cli.view import open_viewer
-    from lfsam.video.track import track_video
+    from lfsam.video.tracking.track import track_video
 
     viewer, widget = _open(make_napari_viewer, qtbot, clip)
     video = read_video(clip)

@@ -20,9 +20,10 @@ from lfsam.version import __version__
 def load_result(path):
     """Read a result: a ``.npz`` (:func:`lfsam.result.load_result`, a
     :class:`SegmentationResult`) or a light-field video's result folder
-    (:func:`lfsam.video.result.load_video_result`, a lazy :class:`~lfsam.video.result.VideoResult`
-    whose ``labels[f]`` reads frame ``f``; docs/design.md section 10)."""
-    from lfsam.video.result import is_video_result, load_video_result
+    (:func:`lfsam.video.io.result.load_video_result`, a lazy
+    :class:`~lfsam.video.io.result.VideoResult` whose ``labels[f]`` reads frame ``f``;
+    docs/design.md section 10)."""
+    from lfsam.video.io.result import is_video_result, load_video_result
 
     if is_video_result(path):
         return load_video_result(path)

@@ -23,7 +23,7 @@ A facade: objects and clicks live in :mod:`lfsam.pipeline.objects`, the streamin
 which views are refined and the run's metadata in :mod:`lfsam.pipeline.engine`, results in
 :mod:`lfsam.result_objects`; the automatic mode and text prompts wrap it from outside
 (:class:`lfsam.generator.LightFieldMaskGenerator`, :mod:`lfsam.text_search`), light-field video
-too (:mod:`lfsam.video.track`); batch: :func:`lfsam.segment`.
+too (:mod:`lfsam.video.tracking.track`); batch: :func:`lfsam.segment`.
 """
 
 from __future__ import annotations

@@ -138,7 +138,7 @@ def init_video_state(
         The video model (its device is the compute device).
     frames : (F, 3, S, S) float tensor
         From :func:`video_frames`; or anything with ``len``, ``device`` and frame indexing
-        (:mod:`lfsam.video.memory` holds one frame at a time).
+        (:mod:`lfsam.video.memory.sam2_memory` holds one frame at a time).
     video_size : (U, V)
         Pixel rows and columns of the original views.
     offload_state_to_cpu : bool

@@ -192,7 +192,8 @@ def add_consensus_argument(parser: argparse.ArgumentParser | argparse._ArgumentG
     )
 
 
-#: ``--tracking`` values and the ``memory`` argument of :func:`lfsam.video.track.track_video`.
+#: ``--tracking`` values and the ``memory`` argument of
+#: :func:`lfsam.video.tracking.track.track_video`.
 TRACKING_MODES = {"auto": None, "memory": True, "prompts": False}
 
 

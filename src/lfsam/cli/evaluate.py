@@ -26,8 +26,8 @@ if TYPE_CHECKING:
 
     from lfsam.api import SegmentOptions
     from lfsam.video.evaluate import VideoTracking
-    from lfsam.video.result import VideoResult
-    from lfsam.video.source import LightFieldVideo
+    from lfsam.video.io.result import VideoResult
+    from lfsam.video.io.source import LightFieldVideo
 
 DESCRIPTION = """\
 Segment every scene of a data set, score each with the paper's metrics, and tabulate them.
@@ -239,7 +239,7 @@ def _video_tracking(args: argparse.Namespace, options: SegmentOptions,
     if args.method != "lfsam":
         return None
     from lfsam.video.evaluate import VideoTracking
-    from lfsam.video.track import track_video
+    from lfsam.video.tracking.track import track_video
 
     def track(video: LightFieldVideo, folder: Path) -> VideoResult:
         if args.text:

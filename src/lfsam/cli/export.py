@@ -13,7 +13,7 @@ from lfsam.fileutil import check_writable
 from lfsam.io import read_lightfield
 from lfsam.lightfield import check_result_shape
 from lfsam.result import load_result
-from lfsam.video.result import is_video_result, load_video_result
+from lfsam.video.io.result import is_video_result, load_video_result
 
 DESCRIPTION = """\
 Export a segmentation result (.npz from `lfsam segment`) into a folder, for the next tool:

@@ -1,7 +1,7 @@
 """The kinds of input each command takes, checked before anything is read.
 
 Commands take four kinds of input: a light field, a light-field video, a segmentation result
-(``.npz``) and a video's result folder. :func:`lfsam.video.detect.input_kind` tells them apart
+(``.npz``) and a video's result folder. :func:`lfsam.video.io.detect.input_kind` tells them apart
 from names and headers. Given one in the wrong role (a video where a result belongs, a result
 where a light field belongs, ...), a command fails with one line that names what it was given
 and what it takes, instead of a reader's complaint about an array's shape
@@ -26,9 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from lfsam.errors import LfsamError
-from lfsam.video.detect import input_kind, video_kind
-from lfsam.video.frames_folder import VIDEO_MARKER
-from lfsam.video.result import RESULT_MARKER
+from lfsam.video.io.detect import input_kind, video_kind
+from lfsam.video.io.frames_folder import VIDEO_MARKER
+from lfsam.video.io.result import RESULT_MARKER
 
 __all__ = ["GIVEN", "TAKES", "expect_dataset", "expect_input", "expect_partner"]
 
@@ -98,7 +98,7 @@ def expect_input(
     command : str
         The subcommand, e.g. ``"metrics"``.
     accepted : collection of str
-        Kinds of :data:`lfsam.video.detect.INPUT_KINDS` the command takes here.
+        Kinds of :data:`lfsam.video.io.detect.INPUT_KINDS` the command takes here.
     option : str, optional
         The option that names the input (``"--gt"``); None for the positional input.
     hint : str, optional
@@ -165,7 +165,7 @@ def expect_dataset(path: str | os.PathLike | None) -> None:
     ``view_SS_TT.mp4`` files), a result or a video's result folder.
 
     A folder of sub-folders and light-field files is both a data set and a video's folder of
-    frames (:func:`lfsam.video.detect.video_kind`); without the video marker it is a data set.
+    frames (:func:`lfsam.video.io.detect.video_kind`); without the video marker it is a data set.
 
     Raises
     ------
@@ -197,7 +197,7 @@ def video_with_result(result_path: str | os.PathLike, video_path: str | os.PathL
         One line when the result's labels and the video differ in shape.
     """
     from lfsam.video import read_video
-    from lfsam.video.result import load_video_result
+    from lfsam.video.io.result import load_video_result
 
     result = load_video_result(result_path)
     with read_video(video_path) as video:

@@ -10,7 +10,7 @@ from lfsam.cli.common import HelpFormatter, add_device_argument, bounded_int
 from lfsam.cli.inputs import expect_input, expect_partner, video_with_result
 from lfsam.io import read_lightfield
 from lfsam.result import load_result
-from lfsam.video.result import is_video_result
+from lfsam.video.io.result import is_video_result
 
 DESCRIPTION = """\
 Score a segmentation result with the paper's metrics (section 4.1) and print them as JSON.

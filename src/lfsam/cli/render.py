@@ -21,7 +21,7 @@ from lfsam.io import read_lightfield, resolve_output
 from lfsam.lightfield import LightField, check_result_shape
 from lfsam.render import behind_focus, object_focus, refocus, remove_objects, see_through
 from lfsam.result import load_result
-from lfsam.video.result import is_video_result
+from lfsam.video.io.result import is_video_result
 
 __all__ = ["register", "run"]
 

@@ -108,14 +108,14 @@ def _pose_session(args: argparse.Namespace) -> _LivePoses | None:
 def run_follow(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
     """Follow ``args.path``; exit 0 when the stream ends by END or the timeout, 130 on
     Ctrl-C (the frames done are in ``--out`` either way); a configuration fault raises
-    :class:`LfsamError` at its first frame (exit 2, ``lfsam.video.live``)."""
+    :class:`LfsamError` at its first frame (exit 2, ``lfsam.video.stream.live``)."""
     from lfsam.api import RunOptions, SegmentOptions
-    from lfsam.video.follow import FrameFollower, check_follow_folder
-    from lfsam.video.frames_folder import frame_entries
-    from lfsam.video.hidden_lines import HiddenSince, hidden_frames_text, hidden_now
-    from lfsam.video.live import segment_stream
-    from lfsam.video.online import OnlineTracker
-    from lfsam.video.result import check_live_folder
+    from lfsam.video.io.frames_folder import frame_entries
+    from lfsam.video.io.live_result import check_live_folder
+    from lfsam.video.stream.follow import FrameFollower, check_follow_folder
+    from lfsam.video.stream.hidden_lines import HiddenSince, hidden_frames_text, hidden_now
+    from lfsam.video.stream.live import segment_stream
+    from lfsam.video.tracking.online import OnlineTracker
 
     if args.method != "lfsam":
         raise LfsamError("--follow tracks with --method lfsam only")

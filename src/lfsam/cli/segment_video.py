@@ -14,7 +14,7 @@ from lfsam.cli.prompts import objects_from_items
 from lfsam.fileutil import check_cache_dir, check_writable
 from lfsam.prompts import load_prompts
 from lfsam.video import read_video
-from lfsam.video.result import check_result_folder, hidden_spans
+from lfsam.video.io.result import check_result_folder, hidden_spans
 
 __all__ = ["run_video"]
 
@@ -23,7 +23,7 @@ def run_video(args: argparse.Namespace, config: Any, has_prompts: bool) -> int:
     """Track the prompted (or, with ``--auto``, frame 0's) objects; write the result folder.
     ``config`` is the command's :class:`lfsam.pipeline.PipelineConfig`, passed through."""
     from lfsam.api import RunOptions, SegmentOptions
-    from lfsam.video.track import track_video
+    from lfsam.video.tracking.track import track_video
 
     check_writable(args.out, folder=True, option="--out")  # before the video or a model is read
     check_result_folder(args.out)

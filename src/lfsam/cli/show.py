@@ -327,7 +327,7 @@ def _outputs(args: argparse.Namespace) -> tuple[list[tuple[str, Path]], Path | N
 def run(args: argparse.Namespace) -> int:
     """Run ``lfsam show``."""
     from lfsam import viz
-    from lfsam.video.result import is_video_result
+    from lfsam.video.io.result import is_video_result
 
     kind = expect_input(args.input, "show", ("result", "video-result", "lightfield"),
                         hint=f"segment it first (lfsam segment {args.input} --auto --out "

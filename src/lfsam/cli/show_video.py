@@ -10,7 +10,7 @@ import warnings
 from lfsam.errors import LfsamError
 from lfsam.fileutil import check_writable
 from lfsam.video import read_video
-from lfsam.video.result import load_video_result
+from lfsam.video.io.result import load_video_result
 
 __all__ = ["parse_view", "run_video"]
 

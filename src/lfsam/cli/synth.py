@@ -11,7 +11,7 @@ from lfsam.fileutil import check_writable
 from lfsam.io import WRITE_FORMATS, resolve_output, write_lightfield
 from lfsam.synth import generate_scene, generate_scene_without
 from lfsam.synth.rigid import generate_rigid_video
-from lfsam.video.synth import generate_video, write_video_frames
+from lfsam.video.io.synth import generate_video, write_video_frames
 
 __all__ = ["register", "run"]
 

@@ -135,8 +135,8 @@ def check_follow(args: argparse.Namespace) -> None:
         folder, a missing one, ``--result``, ``--text`` with ``--auto``, a disparity file, or
         an ``--out`` that is not a new or empty folder.
     """
-    from lfsam.video.follow import check_follow_folder
-    from lfsam.video.result import check_live_folder
+    from lfsam.video.io.live_result import check_live_folder
+    from lfsam.video.stream.follow import check_follow_folder
 
     if not getattr(args, "follow", False):
         if (getattr(args, "out", None) is not None or getattr(args, "follow_timeout", None)
@@ -195,7 +195,7 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
         raise LfsamError("--result needs its light field: give the light field's path too")
     if video is not None:
         from lfsam import load_result as load_any_result
-        from lfsam.video.result import is_video_result
+        from lfsam.video.io.result import is_video_result
 
         if args.result and not is_video_result(args.result):
             raise LfsamError("--result of a light-field video is its result folder (written "

@@ -2,8 +2,8 @@
 
 :class:`VideoTracking` is the :class:`lfsam.evaluate.VideoScenes` of :func:`lfsam.evaluate.
 evaluate_dataset`: it recognises the entries of a data set that are light-field videos
-(:func:`lfsam.video.is_video`), tracks each with :func:`lfsam.video.track.track_video` into its
-result folder, and scores it frame by frame against the video's ground truth
+(:func:`lfsam.video.is_video`), tracks each with :func:`lfsam.video.tracking.track.track_video` into
+its result folder, and scores it frame by frame against the video's ground truth
 (:func:`lfsam.metrics.temporal.evaluate_frames`, the same scores as ``lfsam metrics`` prints for
 that folder). The scene's row holds the means over the frames of the paper's metrics and of the
 per-view IoU, the worst view of any frame, the number of frames and the identity switches.
@@ -30,9 +30,9 @@ from lfsam.evaluate import SceneRow, describe_failure
 from lfsam.fileutil import atomic_folder_output
 from lfsam.metrics import check_ground_truth
 from lfsam.metrics.temporal import evaluate_frames
-from lfsam.video.detect import is_video, read_video
-from lfsam.video.result import VideoResult, check_result_folder
-from lfsam.video.source import LightFieldVideo
+from lfsam.video.io.detect import is_video, read_video
+from lfsam.video.io.result import VideoResult, check_result_folder
+from lfsam.video.io.source import LightFieldVideo
 
 __all__ = ["VideoTracking", "video_row_metrics"]
 
@@ -143,7 +143,7 @@ class VideoTracking:
 
     def check_target(self, result_folder: Path) -> None:
         """Refuse a ``result_folder`` that may not be replaced (neither new, an earlier video
-        result nor empty: :func:`lfsam.video.result.check_result_folder`), before any work;
+        result nor empty: :func:`lfsam.video.io.result.check_result_folder`), before any work;
         a Ray run asks before it sends the video's task (issue 46)."""
         check_result_folder(result_folder)
 
@@ -151,7 +151,7 @@ class VideoTracking:
         """Write the files of :meth:`run_detached` as the result folder ``result_folder``.
 
         As the sequential run writes it: refused where ``result_folder`` is neither new, an
-        earlier video result nor an empty folder (:func:`lfsam.video.result.
+        earlier video result nor an empty folder (:func:`lfsam.video.io.result.
         check_result_folder`), and atomic (:func:`lfsam.fileutil.atomic_folder_output`: a
         failure leaves what was there).
 

@@ -1,16 +1,16 @@
 """The dock's "Follow": a light-field camera's growing frames folder segmented live in napari
 (docs/design.md section 10, issue 35; ``lfsam view FOLDER --follow``).
 
-:class:`FollowController` (the widget's ``follow``) runs :func:`lfsam.video.live.segment_stream`
-with the dock's model, disparity and refine views in a thread of its own, never in the GUI
-thread; its events reach the GUI thread through a queued Qt signal. The latest frame is an RGB
-image layer ``(S, T, U, V, 3)`` (``s``, ``t`` on sliders), its masks a labels layer; the status
-line says ``frame N (name): X.XX s from arrival``, the objects shown and those searched for
-(``searching for 2 (hidden since frame 5)``: not found, kept under their ids, issue 47), or why
-a frame was skipped. A click on the ``live clicks`` layer (polarity as elsewhere in the viewer,
-tagged with its view) is a new object posted with
-:meth:`~lfsam.video.online.OnlineTracker.post_prompts`, segmented from the next frame on with
-a stable id (a negative click corrects the object it lands on). Stop calls
+:class:`FollowController` (the widget's ``follow``) runs
+:func:`lfsam.video.stream.live.segment_stream` with the dock's model, disparity and refine views in
+a thread of its own, never in the GUI thread; its events reach the GUI thread through a queued Qt
+signal. The latest frame is an RGB image layer ``(S, T, U, V, 3)`` (``s``, ``t`` on sliders), its
+masks a labels layer; the status line says ``frame N (name): X.XX s from arrival``, the objects
+shown and those searched for (``searching for 2 (hidden since frame 5)``: not found, kept under
+their ids, issue 47), or why a frame was skipped. A click on the ``live clicks`` layer (polarity as
+elsewhere in the viewer, tagged with its view) is a new object posted with
+:meth:`~lfsam.video.tracking.online.OnlineTracker.post_prompts`, segmented from the next frame on
+with a stable id (a negative click corrects the object it lands on). Stop calls
 ``follower.stop()`` (the frame being segmented is kept); a file named ``END`` ends the stream
 too. The result folder is valid throughout; at the end the status says how and after how many
 frames, which objects were hidden in which frames (and how many clicks came after the last
@@ -43,17 +43,19 @@ from lfsam.pipeline.config import PipelineConfig
 from lfsam.prompts import ObjectPrompts, TextPrompt
 from lfsam.result import SegmentationResult
 from lfsam.segmenters.registry import ORACLE
-from lfsam.video.follow import FrameFollower, check_follow_folder
-from lfsam.video.hidden_lines import HiddenSince, hidden_frames_text, hidden_now
-from lfsam.video.result import check_live_folder, load_video_result
-from lfsam.video.source import LightFieldVideo, check_frame
+from lfsam.video.io.live_result import check_live_folder
+from lfsam.video.io.result import load_video_result
+from lfsam.video.io.source import LightFieldVideo, check_frame
+from lfsam.video.stream.follow import FrameFollower, check_follow_folder
+from lfsam.video.stream.hidden_lines import HiddenSince, hidden_frames_text, hidden_now
 from lfsam.viewer import controls as C
 from lfsam.viewer import layers as L
-from lfsam.viewer.session import SAM2_ONLY_OPTIONS, prompts_from_layers
+from lfsam.viewer.prompt_layers import prompts_from_layers
+from lfsam.viewer.session import SAM2_ONLY_OPTIONS
 
 if TYPE_CHECKING:  # lfsam.api loads torchvision: only after the native libraries (widget.py)
-    from lfsam.video.live import FrameTiming, StreamReport
-    from lfsam.video.online import OnlineTracker
+    from lfsam.video.stream.live import FrameTiming, StreamReport
+    from lfsam.video.tracking.online import OnlineTracker
 
 __all__ = ["FollowController", "FrameShown", "StatusLine", "StreamEnded", "default_out"]
 
@@ -96,7 +98,7 @@ class StreamEnded:
 def _showing_tracker() -> type:
     """An :class:`OnlineTracker` that keeps the last light field it was given (its views are
     shown, not read twice); made when first needed (module imports above)."""
-    from lfsam.video.online import OnlineTracker
+    from lfsam.video.tracking.online import OnlineTracker
 
     class ShowingTracker(OnlineTracker):
         last: LightField | None = None
@@ -110,7 +112,7 @@ def _showing_tracker() -> type:
 
 class _SegmentedFrames:
     """The frames a stream segmented (skipped ones left out), in order: a video's frame source
-    (:class:`lfsam.video.source.FrameSource`) whose frame f is the result's frame f."""
+    (:class:`lfsam.video.io.source.FrameSource`) whose frame f is the result's frame f."""
 
     def __init__(self, folder: Path, names: list[str]) -> None:
         self.folder, self.paths = folder, [folder / name for name in names]
@@ -272,7 +274,7 @@ class FollowController(QObject):
     # --- the stream's thread ---------------------------------------------------------------------
     def _run(self, follower: FrameFollower, tracker: Any, out: Path, latest: bool) -> None:
         """Load the model (the oracle is built per frame), then :func:`segment_stream`."""
-        from lfsam.video.live import segment_stream
+        from lfsam.video.stream.live import segment_stream
 
         def emit(event: Any) -> None:
             with contextlib.suppress(RuntimeError):  # the dock is gone (the viewer closed)

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from lfsam.viewer.session import layers_from_prompts, prompts_from_layers, select_labels
+from lfsam.viewer.prompt_layers import layers_from_prompts, prompts_from_layers, select_labels
 
 __all__ = [
     "AUTO",

@@ -115,7 +115,7 @@ def read_path(path: str | os.PathLike) -> list[LayerData]:
     from lfsam.io import read_lightfield
     from lfsam.result import load_result
     from lfsam.video import is_video, read_video
-    from lfsam.video.result import is_video_result, load_video_result
+    from lfsam.video.io.result import is_video_result, load_video_result
     from lfsam.viewer.video import video_layers
 
     path = Path(path)
@@ -136,7 +136,7 @@ def get_reader(path: str | list[str]) -> Callable[[Any], list[LayerData]] | None
     """
     from lfsam.io import detect_format
     from lfsam.video import is_video
-    from lfsam.video.result import is_video_result
+    from lfsam.video.io.result import is_video_result
 
     if isinstance(path, (list, tuple)):
         if len(path) != 1:

@@ -9,7 +9,7 @@ few in a small cache: a 300-frame 9x9x480x640 video never sits in memory.
 The mask layers of a video are :class:`FrameStore` objects ``(F, S, T, U, V)``: frames the
 viewer has written (an interactive segmentation of the frame shown, or a tracked frame as it
 finishes) are held in memory up to a budget and spilled to compressed files beyond it; frames of
-a finished track are read from the result folder (:class:`lfsam.video.result.VideoResult`);
+a finished track are read from the result folder (:class:`lfsam.video.io.result.VideoResult`);
 every other frame reads as zeros, without being stored.
 """
 
@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from lfsam.video.source import LightFieldVideo
+from lfsam.video.io.source import LightFieldVideo
 
 __all__ = ["VIDEO_KEY", "FrameStore", "VideoFrames", "frames_of", "video_layers"]
 

@@ -4,17 +4,17 @@ docs/design.md sections 8 and 10. A :class:`VideoSession` is a
 :class:`lfsam.viewer.session.ViewerSession` whose light field is the video's *current frame*:
 
 - every object keeps its prompts over all frames, each point and box tagged with its frame
-  (:attr:`VideoSession.video_objects`, :mod:`lfsam.video.prompts`);
+  (:attr:`VideoSession.video_objects`, :mod:`lfsam.video.tracking.prompts`);
 - the predictor works on the current frame only, with each object's prompts at that frame
-  (:func:`lfsam.video.prompts.prompts_at`), so a click on frame f segments frame f's light field
-  at once, exactly as a single light field; :meth:`VideoSession.goto_frame` switches frames (the
-  oracle is rebuilt from the new frame's labels, a SAM 2 model is kept);
-- :meth:`VideoSession.track` runs :func:`lfsam.video.track.track_video` over the whole video with
-  every object's frame-tagged prompts, into a result folder (temporary unless given), calling
-  back after each frame; :meth:`VideoSession.save` copies that folder;
+  (:func:`lfsam.video.tracking.prompts.prompts_at`), so a click on frame f segments frame f's light
+  field at once, exactly as a single light field; :meth:`VideoSession.goto_frame` switches frames
+  (the oracle is rebuilt from the new frame's labels, a SAM 2 model is kept);
+- :meth:`VideoSession.track` runs :func:`lfsam.video.tracking.track.track_video` over the whole
+  video with every object's frame-tagged prompts, into a result folder (temporary unless given),
+  calling back after each frame; :meth:`VideoSession.save` copies that folder;
 - :meth:`VideoSession.open_result` reopens a saved track (a video result folder): its objects
   come back editable with their frame-tagged prompts
-  (:meth:`lfsam.video.result.VideoResult.stored_prompts`), its labels are the last track.
+  (:meth:`lfsam.video.io.result.VideoResult.stored_prompts`), its labels are the last track.
 
 What a single light field offers but a video does not (segment everything, text prompts,
 reopening a single light field's result or labels) raises a one-line :class:`LfsamError` saying
@@ -34,8 +34,8 @@ from typing import Any
 from lfsam.errors import LfsamError
 from lfsam.prompts import ObjectPrompts, validate_objects
 from lfsam.segmenters.registry import ORACLE
-from lfsam.video.prompts import prompts_at
-from lfsam.video.source import LightFieldVideo
+from lfsam.video.io.source import LightFieldVideo
+from lfsam.video.tracking.prompts import prompts_at
 from lfsam.viewer.session import ViewerSession
 
 __all__ = ["VideoSession"]
@@ -246,9 +246,9 @@ class VideoSession(ViewerSession):
         return objects
 
     def open_result(self, result: Any) -> list[int]:
-        """Reopen a saved track (a :class:`lfsam.video.result.VideoResult`; docs/design.md
+        """Reopen a saved track (a :class:`lfsam.video.io.result.VideoResult`; docs/design.md
         section 10): its objects come back editable, committed, with their frame-tagged prompts
-        (:meth:`~lfsam.video.result.VideoResult.stored_prompts`), and ``result`` becomes
+        (:meth:`~lfsam.video.io.result.VideoResult.stored_prompts`), and ``result`` becomes
         :attr:`tracked` (what Save writes until the next Track).
 
         Returns
@@ -301,7 +301,7 @@ class VideoSession(ViewerSession):
             No object, a disparity file, or ``track_video``'s errors.
         """
         from lfsam.api import ModelOptions, RunOptions, SegmentOptions
-        from lfsam.video.track import track_video
+        from lfsam.video.tracking.track import track_video
 
         self._check_disparity()
         objects = [self.video_objects[i] for i in sorted(self.video_objects)]
@@ -339,7 +339,7 @@ class VideoSession(ViewerSession):
         """Check that Save can write the folder ``path`` (new, empty or an earlier video
         result, in a folder that takes files), before any work."""
         from lfsam.fileutil import check_writable
-        from lfsam.video.result import check_result_folder
+        from lfsam.video.io.result import check_result_folder
 
         return check_writable(check_result_folder(path), folder=True, option="the folder to "
                               "save")

@@ -4,7 +4,9 @@ A thin Qt layer over :class:`lfsam.viewer.session.ViewerSession` (which drives
 :class:`lfsam.predictor.LightFieldPredictor`; docs/design.md section 8), in the shape of napari
 plugins such as micro-sam's. It connects three parts and shows what they produce:
 
-- the dock's controls and layout (:mod:`lfsam.viewer.controls`);
+- the dock's controls and layout (:mod:`lfsam.viewer.controls`), its model settings
+  (:mod:`lfsam.viewer.model_dock`) and its object list and result files
+  (:mod:`lfsam.viewer.results_dock`);
 - the light field's layer and the fixed prompt and mask layers (:mod:`lfsam.viewer.adoption`,
   :mod:`lfsam.viewer.layers`);
 - the worker (:mod:`lfsam.viewer.worker`): everything slow (loading the model, encoding,
@@ -20,7 +22,8 @@ object, ``Ctrl-Z`` / ``Ctrl-Shift-Z`` undo / redo prompt edits, ``Ctrl-T`` track
 A light-field video (docs/design.md section 10) gets a ``frame`` slider before ``s`` and ``t``
 (its layers are read lazily, :mod:`lfsam.viewer.video`); a click is tagged with the frame shown
 and segments that frame at once (:class:`lfsam.viewer.video_session.VideoSession`); "Track"
-runs :func:`lfsam.video.track.track_video` in the worker and shows each frame as it finishes.
+runs :func:`lfsam.video.tracking.track.track_video` in the worker and shows each frame as it
+finishes.
 """
 
 from __future__ import annotations
@@ -29,25 +32,24 @@ import os
 import threading
 from collections.abc import Callable
 from functools import partial
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 from qtpy.QtCore import Signal
-from qtpy.QtWidgets import QListWidgetItem, QWidget
+from qtpy.QtWidgets import QWidget
 
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.pipeline.references import REFERENCE_MODES
-from lfsam.result import SegmentationResult
-from lfsam.segmenters.registry import ORACLE
 from lfsam.viewer import controls as C
 from lfsam.viewer import layers as L
 from lfsam.viewer import worker as W
-from lfsam.viewer.adoption import LayerKeeper, lightfield_of, result_to_reopen, video_of
+from lfsam.viewer.adoption import LayerKeeper, lightfield_of, video_of
 from lfsam.viewer.follow_dock import FollowController
+from lfsam.viewer.model_dock import ModelDock
 from lfsam.viewer.native_libraries import preload_native_libraries
 from lfsam.viewer.plugin_io import SESSION_KEY
+from lfsam.viewer.results_dock import ResultsDock, _export_module
 from lfsam.viewer.session import DISPARITY_SOURCES, ViewerSession
 from lfsam.viewer.video_dock import VideoDock
 
@@ -66,7 +68,7 @@ def _notify_error(message: str) -> None:
     show_error(message)
 
 
-class LightFieldWidget(VideoDock, QWidget):
+class LightFieldWidget(ModelDock, ResultsDock, VideoDock, QWidget):
     """Segment the light field shown in a napari viewer.
 
     Parameters
@@ -339,78 +341,6 @@ class LightFieldWidget(VideoDock, QWidget):
         if not self.keeper.closing:  # the light field's layer is gone, or the dock
             self.work.drain()
 
-    # --- model --------------------------------------------------------------------------------
-    def _on_model_changed(self, name: str) -> None:
-        self.weights_box.setEnabled(name != ORACLE)  # the oracle has no weights
-        if self.session is not None and self.session.model != name:
-            self.session.model = name
-            self._reload()
-
-    def _on_weights_activated(self, _index: int) -> None:
-        in_use = (self._options.get("checkpoint"), bool(self._options.get("random_weights")))
-        chosen = self.controls.pick_weights(self, in_use)
-        if chosen is not None:
-            self.set_weights(*chosen)
-
-    def set_weights(self, checkpoint: str | None = None, random_weights: bool = False) -> None:
-        """Use a checkpoint file, untrained weights or (neither) the hub's; reloads a loaded
-        model (the CLI's ``--checkpoint`` and ``--random-weights``)."""
-        self.controls.show_weights(checkpoint, random_weights)
-        weights = {"checkpoint": checkpoint or None, "random_weights": bool(random_weights)}
-        changed = any(self._options.get(key) != value for key, value in weights.items())
-        self._options.update(weights)
-        if self.session is not None and changed:
-            self.session.segmenter_options = dict(self._options)
-            if self.session.model != ORACLE:  # the oracle has no weights
-                self._reload()
-
-    def _on_disparity_activated(self, _index: int) -> None:
-        in_use = None if self.session is None else str(self.session.disparity)
-        source = self.controls.pick_disparity(self, in_use)
-        if source is not None and self.session is not None and source != in_use:
-            self.session.disparity = source
-            self._reload()
-
-    def set_refine_views(self, setting: str | int) -> None:
-        """Refine ``"all"`` views, ``"sparse"`` or N (docs/design.md section 3.7). The objects
-        are refined again in a worker: ``"all"`` after a sparse pass encodes and refines only
-        the remaining views (their masks replace the filled ones as it finishes)."""
-        from lfsam.pipeline.sparse import check_refine_views
-
-        setting = check_refine_views(setting)
-        self._refine_views = setting
-        self.controls.show_refine_views(setting)
-        session = self.session
-        if session is None or session.refine_views == setting:
-            return
-        session.set_refine_views(setting)
-        if session.loaded and session.object_ids:
-            self.work.when_idle(lambda: self._predict_all(f"refining {setting} views"))
-
-    def set_consensus(self, on: bool) -> None:
-        """Turn the multi-view consensus on or off (docs/design.md section 3.9) once the worker
-        is idle; the objects are then refined again in it (``ViewerSession.set_consensus``)."""
-        self.controls.show_consensus(on)
-
-        def run() -> None:
-            if self.session is not None and self.session.set_consensus(on):
-                self._predict_all(f"refining {'with' if on else 'without'} consensus")
-
-        self.work.when_idle(run)
-
-    def _reload(self) -> None:
-        """Load the model again if it is loaded (its name, weights or disparity changed)."""
-        if self.session.loaded:
-            self.load_model()
-
-    def load_model(self) -> None:
-        """Load the chosen model and disparity source (worker); objects are recomputed."""
-        if self.session is None:
-            self._error("no light field: open one first (File > Open, or `lfsam view LF`)")
-            return
-        job = partial(W.load_job, self.session)
-        self.work.when_idle(lambda: self.work.start(job, 2, f"loading {self.session.model}"))
-
     # --- prompts ------------------------------------------------------------------------------
     @property
     def negative(self) -> bool:
@@ -550,49 +480,6 @@ class LightFieldWidget(VideoDock, QWidget):
         if self.session is not None:
             self.work.when_idle(lambda: self._when_loaded(run))
 
-    def edit_object(self, obj_id: int) -> None:
-        """Make object ``obj_id`` the one being edited: its prompts go to the prompt layers."""
-
-        def run() -> None:
-            previous = self.session.current_id
-            self._set_layer_prompts(self.session.edit(obj_id))
-            mask = self.masks.mask_of(obj_id)
-            mask = self.masks.shown(obj_id) if mask is None else mask
-            self.masks.erase(obj_id, (L.COMMITTED, L.AUTO))
-            if previous in self.session.committed:  # the object left was committed
-                self.masks.recommit(previous)
-            self._show_current(obj_id, masks=mask)
-            self._refresh_objects()
-
-        self.work.when_idle(run)
-
-    def remove_object(self, obj_id: int) -> None:
-        """Delete object ``obj_id`` (prompts and masks)."""
-
-        def run() -> None:
-            self.session.remove(obj_id)
-            self.masks.erase(obj_id)
-            if obj_id == self.session.current_id:
-                self._set_layer_prompts(None)
-            self._refresh_objects()
-
-        self.work.when_idle(run)
-
-    def open_result(self, result: Any) -> None:
-        """Reopen a result's objects to correct them (a video's result: :meth:`show_tracked`)."""
-
-        def run() -> None:
-            self.session.open_result(result)
-            self.masks.show_labels(L.COMMITTED, np.asarray(result.labels))
-            self._predict_all("reopening")
-
-        then = partial(self.show_tracked, result) if self.is_video else run
-        self.work.when_idle(lambda: self._when_loaded(then))
-
-    def open_labels(self, labels: np.ndarray) -> None:
-        """Reopen a labels array ``(S, T, U, V)`` (label = object id) for correction."""
-        self.open_result(SegmentationResult(labels=np.asarray(labels, dtype=np.int32)))
-
     def show_display(self, name: str) -> None:
         """Show the views (``"views"``) or an EPI (``"epi-row"``, ``"epi-column"``)."""
         order = L.ORDERS[name]
@@ -600,25 +487,6 @@ class LightFieldWidget(VideoDock, QWidget):
             order = (0, *(axis + 1 for axis in order))
         self.viewer.dims.order = order
         self.viewer.reset_view()
-
-    def save(self, path: str | os.PathLike) -> Path:
-        """Write the session as an lfsam result (prompts included); a video's tracked result
-        folder is copied to the folder ``path``."""
-        out = self.session.save(path)
-        self._set_status(f"saved {out}")
-        return out
-
-    def export(self, out: str | os.PathLike, to: str = "png") -> Any:
-        """Export the result into the folder ``out`` through the CLI's code (``lfsam.export``)."""
-        module = _export_module()
-        if module is None:
-            raise LfsamError("export is not available in this version; save the result instead")
-        if self.is_video:
-            path = module.export_video(iter(self.session.to_result()), out, to=to)
-        else:
-            path = module.export_result(self.session.to_result(), out, to=to)
-        self._set_status(f"exported {path} ({to})")
-        return path
 
     # --- display ------------------------------------------------------------------------------
     @property
@@ -651,45 +519,8 @@ class LightFieldWidget(VideoDock, QWidget):
             session = self.session
             self.controls.show_objects(session.object_ids, session.current_id, session.auto)
 
-    # --- object list and dialogs --------------------------------------------------------------
-    def _on_object_double_clicked(self, item: QListWidgetItem) -> None:
-        self.edit_object(C.item_id(item))
-
-    def _on_selected(self, action: Callable[[int], None]) -> None:
-        obj_id = self.controls.selected_id()
-        if obj_id is not None:
-            action(obj_id)
-
-    def _open_selected_labels(self) -> None:
-        active = self.viewer.layers.selection.active
-        self.work.attempt(lambda: self.open_result(result_to_reopen(active, self.layers.values())))
-
-    def _save_dialog(self) -> None:
-        if self.is_video:  # a folder, one file per frame (docs/design.md section 10)
-            path = C.ask_save_file(self, "Save the video result (a new folder)", "result")
-        else:
-            path = C.ask_save_file(self, "Save lfsam result", "result.npz", "*.npz")
-        if path:  # the place is checked at once, written once the work running is done
-            self.work.attempt(lambda: self.session.check_save(path) and self.work.when_idle(
-                lambda: self.save(path)))
-
-    def _export_dialog(self) -> None:
-        module = _export_module()
-        answer = None if module is None else C.ask_export(self, module.EXPORT_FORMATS)
-        if answer is not None:
-            self.work.when_idle(lambda: self.export(*answer))
-
     def closeEvent(self, event: Any) -> None:
         """Stop reacting to the viewer when the dock widget closes."""
         self.keeper.closing = True
         self.follow.stop()
         super().closeEvent(event)
-
-
-def _export_module() -> Any:
-    """The CLI's export module (``lfsam export``), or None where this version has none."""
-    try:
-        import lfsam.export as module
-    except ImportError:
-        return None
-    return module if hasattr(module, "export_result") else None

@@ -15,17 +15,14 @@ facts").
 from __future__ import annotations
 
 import hashlib
-import inspect
 import json
 import os
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 
 from lfsam.devices import (
     CUDA_CROSS_VIEW_ROWS,
@@ -33,18 +30,14 @@ from lfsam.devices import (
     default_prompt_batch_size,
 )
 from lfsam.errors import LfsamError
-from lfsam.segmenters.base import AutoMasks, MaskPrediction, Prompts, Segmenter, ViewEmbedding
-from lfsam.segmenters.feature_grid import (
-    grid_cosine_similarity,
-    grid_feature_sums,
-    pixel_feature_norms,
-)
+from lfsam.segmenters.base import MaskPrediction, Prompts, Segmenter, ViewEmbedding
 from lfsam.segmenters.registry import DEFAULT_MODEL
 from lfsam.segmenters.sam2.adapter import (
     CachedFeaturePredictor,
     backbone_features,
     image_transforms,
 )
+from lfsam.segmenters.sam2.automatic import PAPER_AMG_OPTIONS, AutomaticMaskGeneration
 from lfsam.segmenters.sam2.build import (
     build_sam2,
     inference_context,
@@ -52,6 +45,7 @@ from lfsam.segmenters.sam2.build import (
     precision_dtype,
 )
 from lfsam.segmenters.sam2.decoder import default_chunk_size, prepare_image
+from lfsam.segmenters.sam2.features import FeatureSampling
 from lfsam.segmenters.sam2.multiview import (
     compile_pass,
     decode_prompt_batches,
@@ -60,16 +54,6 @@ from lfsam.segmenters.sam2.multiview import (
 )
 
 __all__ = ["PAPER_AMG_OPTIONS", "CachedFeaturePredictor", "Sam2Features", "Sam2Segmenter"]
-
-PAPER_AMG_OPTIONS: dict[str, Any] = {
-    "points_per_side": 64,
-    "pred_iou_thresh": 0.88,
-    "stability_score_thresh": 0.95,
-    "stability_score_offset": 1.0,
-    "box_nms_thresh": 0.7,
-    "min_mask_region_area": 0,
-}
-"""Automatic mask generation settings of the paper (section 4; docs/design.md section 3.1)."""
 
 
 @dataclass
@@ -104,7 +88,7 @@ class Sam2Features:
         return {"image_embed": self.image_embed, "high_res_feats": list(self.high_res_feats)}
 
 
-class Sam2Segmenter(Segmenter):
+class Sam2Segmenter(AutomaticMaskGeneration, FeatureSampling, Segmenter):
     """Meta's SAM 2 image model as an lfsam :class:`Segmenter`.
 
     ``keep_decoder_state`` (default on) keeps the decoder's prompt-independent image side with
@@ -239,20 +223,6 @@ class Sam2Segmenter(Segmenter):
             name, checkpoint=checkpoint, random_weights=random_weights, device=device, seed=seed
         )
         return cls(model, **kwargs)
-
-    @staticmethod
-    def _check_amg_options(options: dict[str, Any]) -> dict[str, Any]:
-        from sam2.automatic_mask_generator import SAM2AutomaticMaskGenerator
-
-        allowed = set(inspect.signature(SAM2AutomaticMaskGenerator.__init__).parameters)
-        allowed -= {"self", "model", "kwargs", "output_mode"}
-        unknown = sorted(set(options) - allowed)
-        if unknown:
-            raise LfsamError(
-                f"unknown automatic-mask-generation option(s) {', '.join(unknown)}; "
-                f"valid: {', '.join(sorted(allowed))}"
-            )
-        return {**PAPER_AMG_OPTIONS, **options}
 
     @property
     def random_weights(self) -> bool:
@@ -395,12 +365,6 @@ class Sam2Segmenter(Segmenter):
         feats = Sam2Features(image_embed=levels[0], high_res_feats=levels[1:])
         return ViewEmbedding(image_size=tuple(image_size), key=tuple(key), data=feats)
 
-    def _feature_grid(self, embedding: ViewEmbedding) -> torch.Tensor:
-        """The ``(1, C, h, w)`` embedding cells that span the view, which semantic occluding
-        samples (:mod:`lfsam.segmenters.feature_grid`): the whole embedding, as the view is
-        resized to the square input (a padded input keeps only the cells over the view)."""
-        return self._view_features(embedding).image_embed
-
     @staticmethod
     def _view_features(embedding: ViewEmbedding) -> Sam2Features:
         if not isinstance(embedding.data, Sam2Features):
@@ -409,7 +373,6 @@ class Sam2Segmenter(Segmenter):
                 "same segmenter that decodes it"
             )
         return embedding.data
-
 
     # --- prompting ----------------------------------------------------------------------------
     def predict(
@@ -538,147 +501,6 @@ class Sam2Segmenter(Segmenter):
             box = torch.as_tensor(prompts.boxes, dtype=torch.float32, device=self.device)
             boxes = transforms.transform_boxes(box, normalize=True, orig_hw=hw)
         return coords, labels, boxes
-
-    # --- automatic generation -----------------------------------------------------------------
-    def _mask_generator(self) -> Any:
-        if self._generator is None:
-            from sam2.automatic_mask_generator import SAM2AutomaticMaskGenerator
-
-            with warnings.catch_warnings():  # its own predictor uses torch.jit.script
-                warnings.filterwarnings("ignore", ".*torch.jit.script.*", FutureWarning)
-                generator = SAM2AutomaticMaskGenerator(self.model, **self.amg_options)
-            area = self.amg_options.get("min_mask_region_area", 0)
-            predictor = make_image_predictor(
-                self.model,
-                CachedFeaturePredictor,
-                mask_threshold=generator.mask_threshold,
-                max_hole_area=area,
-                max_sprinkle_area=area,
-            )
-            predictor.decode_chunk_size = default_chunk_size(self.device)
-            generator.predictor = predictor
-            self._generator = generator
-        return self._generator
-
-    def generate(
-        self, embedding: ViewEmbedding, image: np.ndarray, points: np.ndarray | None = None
-    ) -> AutoMasks:
-        """SAM 2 automatic mask generation on an encoded view, reusing its embedding (with
-        ``points``, those pixels replace the generator's point grid).
-
-        Runs ``SAM2AutomaticMaskGenerator`` with :attr:`amg_options` (the paper's settings by
-        default); the whole-view crop takes the cached embedding, so with the default
-        ``crop_n_layers=0`` the image encoder does not run again.
-
-        Returns
-        -------
-        AutoMasks
-            ``masks`` (M, U, V) bool in the generator's order, ``scores`` = predicted IoU.
-        """
-        image = np.asarray(image)
-        if image.shape != (*embedding.image_size, 3) or image.dtype != np.uint8:
-            raise LfsamError(
-                f"generate() needs the encoded view as a (U, V, 3) uint8 image of size "
-                f"{tuple(embedding.image_size)}, got {image.shape} {image.dtype}"
-            )
-        generator = self._mask_generator()
-        predictor = generator.predictor
-        predictor.cached = (self._view_features(embedding), tuple(embedding.image_size))
-        before = predictor.encoder_passes
-        grids = generator.point_grids
-        u_size, v_size = embedding.image_size
-        if points is not None:
-            points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-            if len(points) == 0:
-                return AutoMasks(
-                    masks=np.zeros((0, u_size, v_size), dtype=bool),
-                    scores=np.zeros(0, np.float32),
-                )
-            # the generator scales its [0, 1] grids by the crop's (width, height)
-            generator.point_grids = [points / np.array([v_size, u_size])] * len(grids)
-        try:
-            with inference_context(self.device, inference_mode=False, precision=self.precision):
-                records = generator.generate(image)
-        finally:
-            generator.point_grids = grids
-            predictor.cached = None
-            self.crop_encode_calls += predictor.encoder_passes - before
-        if not records:
-            return AutoMasks(
-                masks=np.zeros((0, u_size, v_size), dtype=bool), scores=np.zeros(0, np.float32)
-            )
-        masks = np.stack([np.asarray(r["segmentation"], dtype=bool) for r in records])
-        scores = np.array([r["predicted_iou"] for r in records], dtype=np.float32)
-        return AutoMasks(masks=masks, scores=scores)
-
-    # --- features -----------------------------------------------------------------------------
-    def sample_features(self, embedding: ViewEmbedding, rows_cols: torch.Tensor) -> torch.Tensor:
-        """Bilinearly sample the image embedding at pixel positions (paper section 3.3).
-
-        The view is resized to the model's square input without padding (a padded input
-        samples only the cells over the view, :meth:`_feature_grid`), so each axis maps
-        separately: pixel row ``r`` of a ``U``-row view lies at normalised coordinate
-        ``2 (r + 0.5) / U - 1`` of the embedding grid (half-pixel centres, as
-        ``F.interpolate(..., mode="bilinear", align_corners=False)``). Positions beyond the
-        outermost feature centres take the border value.
-
-        Returns
-        -------
-        features : (P, C) float32 tensor on :attr:`device` (C = 256 for the real models)
-        """
-        u_size, v_size = embedding.image_size
-        rc = torch.as_tensor(rows_cols, dtype=torch.float32, device=self.device).reshape(-1, 2)
-        with torch.no_grad():
-            emb = self._feature_grid(embedding).float()
-            grid = torch.stack(
-                [(rc[:, 1] + 0.5) * (2.0 / v_size) - 1.0, (rc[:, 0] + 0.5) * (2.0 / u_size) - 1.0],
-                dim=-1,
-            )
-            sampled = F.grid_sample(
-                emb,
-                grid.view(1, 1, -1, 2),
-                mode="bilinear",
-                padding_mode="border",
-                align_corners=False,
-            )
-        return sampled[0, :, 0, :].transpose(0, 1).contiguous()
-
-    def feature_sums(
-        self,
-        embedding: ViewEmbedding,
-        mask_index: torch.Tensor,
-        pixel_index: torch.Tensor,
-        num_masks: int,
-    ) -> torch.Tensor:
-        """Sum of the bilinearly upsampled embedding over each mask, computed on the embedding
-        grid (exact; :func:`lfsam.segmenters.feature_grid.grid_feature_sums`)."""
-        with torch.no_grad():
-            grid = self._feature_grid(embedding)[0].float()
-            return grid_feature_sums(
-                grid, mask_index.to(self.device), pixel_index.to(self.device), num_masks,
-                tuple(embedding.image_size),
-            )
-
-    def feature_similarity(
-        self,
-        embedding: ViewEmbedding,
-        mask_index: torch.Tensor,
-        pixel_index: torch.Tensor,
-        sources: torch.Tensor,
-    ) -> torch.Tensor:
-        """Cosine similarity of the upsampled embedding at each pair's pixel to its mask's
-        source, without sampling 256 channels per pixel (exact;
-        :func:`lfsam.segmenters.feature_grid.grid_cosine_similarity`)."""
-        with torch.no_grad():
-            feats = self._view_features(embedding)
-            grid = self._feature_grid(embedding)[0].float()
-            if feats.pixel_norms is None:  # prompt-independent: once per view
-                feats.pixel_norms = pixel_feature_norms(grid, tuple(embedding.image_size))
-            sims = grid_cosine_similarity(
-                grid, mask_index, pixel_index, sources.to(self.device),
-                tuple(embedding.image_size), norms=feats.pixel_norms,
-            )
-        return sims.to(sources.device)
 
 
 def _check_images(images: np.ndarray) -> np.ndarray:

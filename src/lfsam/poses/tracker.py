@@ -1,0 +1,405 @@
+"""One object's 6D pose tracked frame by frame (:mod:`lfsam.poses`, docs/design.md section 12):
+the options (:class:`PoseOptions`), what the tracker reads of a view (:class:`ViewData`), the
+poses it gives (:class:`FramePose`, :class:`ObjectPoses`, :func:`first_pose`) and
+:class:`PoseTracker`, the registration (the steps of the package docstring).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from lfsam.camera import Camera
+from lfsam.errors import LfsamError
+from lfsam.metrics.pose import rotation_error_deg
+from lfsam.spatial import MIN_CONFIDENCE, object_points
+from lfsam.spatial.features import ViewFeatures, match_features, view_features
+from lfsam.spatial.registration import (
+    estimate_normals,
+    icp,
+    ransac_rigid,
+    transform,
+    voxel_downsample,
+)
+
+__all__ = [
+    "POSE_VIEWS",
+    "STATUSES",
+    "FramePose",
+    "ObjectPoses",
+    "PoseOptions",
+    "PoseTracker",
+    "ViewData",
+    "default_pose_views",
+    "first_pose",
+]
+
+#: Which views' pixels become points: every present view, the center and the four corner views
+#: (the longest baselines: 5 disparity estimates per frame instead of 49), or the center alone.
+POSE_VIEWS = ("all", "corners", "center")
+
+
+def default_pose_views(disparity: object) -> str:
+    """The views whose pixels become points when none are named (issue 65): every view with a
+    ground-truth or file disparity; the center and the corners with an estimate (5 estimates per
+    frame instead of one per view, and the estimate targets are met with them: docs/design.md
+    section 12)."""
+    return "corners" if isinstance(disparity, str) and disparity == "estimate" else "all"
+
+#: The statuses of an object in a frame.
+STATUSES = ("tracked", "lost", "found again")
+
+
+@dataclass(frozen=True)
+class PoseOptions:
+    """Settings of :class:`PoseTracker` (module docstring).
+
+    Attributes
+    ----------
+    voxel_m : float
+        Points are averaged per voxel of this edge (metres) before registration.
+    min_points : int
+        Fewer voxels than this in a frame: the object is ``lost`` there.
+    min_inliers : float
+        A registration explaining less than this share of the points is refused (``lost``).
+    keyframe_deg, keyframe_inliers : float
+        When to add the frame's points to the object's model (module docstring).
+    ransac_m : float
+        Inlier distance of feature pairs in RANSAC (metres).
+    min_matches : int
+        RANSAC inliers needed to use the feature motion (else the constant-velocity guess).
+    gates_m : tuple of float
+        ICP's correspondence gates, coarse to fine (metres); the last one also defines
+        ``inliers``.
+    pair_weight, weak_pair_weight : float
+        Weight of the feature pairs in ICP, relative to all the points' residuals together;
+        the second where the planes leave a direction nearly free
+        (:func:`lfsam.spatial.registration.icp`).
+    normal_neighbours : int
+        Neighbours of a model point that give its normal.
+    max_dense, max_points, max_model : int
+        Caps (evenly strided subsets, deterministic) on an object's raw points per frame, on
+        the voxels it registers and on its model's points: a wall of a million pixels costs
+        what a box does.
+    """
+
+    voxel_m: float = 0.003
+    min_points: int = 40
+    min_inliers: float = 0.3
+    keyframe_deg: float = 8.0
+    keyframe_inliers: float = 0.8
+    ransac_m: float = 0.006
+    min_matches: int = 8
+    gates_m: tuple[float, ...] = (0.015, 0.008, 0.004, 0.003)
+    pair_weight: float = 0.01
+    weak_pair_weight: float = 0.3
+    normal_neighbours: int = 12
+    max_dense: int = 300_000
+    max_points: int = 5000
+    max_model: int = 30_000
+
+
+@dataclass
+class ViewData:
+    """One view of one frame, as plain arrays: ``offset`` ``(s - s_c, t - t_c)``, ``image``
+    (U, V, 3) uint8, ``labels`` (U, V) int, ``disparity`` (U, V) float and optionally its
+    ``confidence`` (U, V) in [0, 1] (None: confident everywhere)."""
+
+    offset: tuple[int, int]
+    image: np.ndarray
+    labels: np.ndarray
+    disparity: np.ndarray
+    confidence: np.ndarray | None = None
+
+
+@dataclass
+class FramePose:
+    """One object in one frame. ``motion`` and ``pose`` are None where it is ``lost``."""
+
+    frame: int
+    status: str
+    motion: np.ndarray | None
+    pose: np.ndarray | None
+    inliers: float | None
+    rmse_m: float | None
+    points: int
+    matches: int
+    seconds: float
+
+    def to_json(self) -> dict[str, Any]:
+        def matrix(m):
+            return None if m is None else np.round(m, 9).tolist()
+
+        def number(x, digits):
+            return None if x is None or not np.isfinite(x) else round(float(x), digits)
+
+        return {"frame": self.frame, "status": self.status, "motion": matrix(self.motion),
+                "pose": matrix(self.pose), "inliers": number(self.inliers, 4),
+                "rmse_m": number(self.rmse_m, 7), "points": self.points,
+                "feature_matches": self.matches, "seconds": round(self.seconds, 4)}
+
+
+@dataclass
+class ObjectPoses:
+    """One object over the video: its ``first_pose`` (4x4, object frame to camera at its first
+    frame) and one :class:`FramePose` per frame from its first."""
+
+    object_id: int
+    category: str | None
+    first_pose: np.ndarray
+    frames: list[FramePose] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"id": self.object_id, "category": self.category,
+                "first_pose": np.round(self.first_pose, 9).tolist(),
+                "frames": [f.to_json() for f in self.frames]}
+
+
+def first_pose(xyz: np.ndarray) -> np.ndarray:
+    """The object frame of points ``xyz`` (N, 3): origin at their centroid, axes their
+    principal axes (largest variance first, each axis' largest component positive,
+    right-handed), as a 4x4 object-to-camera transform.
+
+    Examples
+    --------
+    >>> pts = np.random.default_rng(0).normal(size=(500, 3)) * [0.01, 0.05, 0.02] + [0, 0, 1]
+    >>> pose = first_pose(pts)
+    >>> np.round(np.abs(pose[:3, 0]), 1).tolist(), round(float(np.linalg.det(pose[:3, :3])), 6)
+    ([0.0, 1.0, 0.0], 1.0)
+    """
+    xyz = np.asarray(xyz, dtype=np.float64)
+    centre = xyz.mean(axis=0)
+    _, vectors = np.linalg.eigh(np.cov((xyz - centre).T))
+    axes = vectors[:, ::-1].copy()  # columns, largest variance first
+    for k in range(2):
+        if axes[np.argmax(np.abs(axes[:, k])), k] < 0:
+            axes[:, k] *= -1
+    axes[:, 2] = np.cross(axes[:, 0], axes[:, 1])
+    pose = np.eye(4)
+    pose[:3, :3], pose[:3, 3] = axes, centre
+    return pose
+
+
+@dataclass
+class _Track:
+    """A tracked object's state."""
+
+    result: ObjectPoses
+    model: np.ndarray
+    normals: np.ndarray
+    tree: cKDTree
+    key_motion: np.ndarray
+    key_features: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]]
+    prev_features: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]]
+    motions: list[np.ndarray]
+    lost: bool = False
+
+
+def _features_in_model(features: dict[tuple[int, int], ViewFeatures], object_id: int,
+                       to_model: np.ndarray) -> dict[tuple[int, int], tuple]:
+    out = {}
+    for view, found in features.items():
+        xyz, descriptors = found.of(object_id)
+        if len(xyz):
+            out[view] = (transform(to_model, xyz), descriptors)
+    return out
+
+
+def _thin(xyz: np.ndarray, cap: int) -> np.ndarray:
+    """At most ``cap`` of the points, evenly strided (deterministic)."""
+    if len(xyz) <= cap:
+        return xyz
+    return xyz[np.linspace(0, len(xyz) - 1, cap).astype(np.int64)]
+
+
+class PoseTracker:
+    """Every object's motion and pose, frame by frame (module docstring).
+
+    Parameters
+    ----------
+    camera : Camera
+    view_size : (U, V)
+    options : PoseOptions, optional
+    categories : dict of id to str, optional
+
+    Examples
+    --------
+    See ``tests/test_poses.py``; :func:`poses_of_video` drives it over a video.
+    """
+
+    def __init__(self, camera: Camera, view_size: tuple[int, int],
+                 options: PoseOptions | None = None,
+                 categories: dict[int, str] | None = None) -> None:
+        self.camera = camera
+        self.view_size = tuple(int(x) for x in view_size)
+        self.options = options or PoseOptions()
+        self.categories = dict(categories or {})
+        self.tracks: dict[int, _Track] = {}
+        self.frame = -1
+
+    @property
+    def objects(self) -> list[ObjectPoses]:
+        """Every object seen so far, by id."""
+        return [self.tracks[i].result for i in sorted(self.tracks)]
+
+    def model_points(self, object_id: int) -> np.ndarray:
+        """Object ``object_id``'s keyframe model ``(N, 3)``: its points in its first frame's
+        camera coordinates (module docstring, step 3; the viewer sizes its axes by them).
+
+        Raises
+        ------
+        KeyError
+            For an object not tracked (never seen well enough to start).
+        """
+        return self.tracks[int(object_id)].model.copy()
+
+    def _points(self, views: Sequence[ViewData], object_ids: list[int]):
+        parts: dict[int, list[np.ndarray]] = {i: [] for i in object_ids}
+        for view in views:
+            clouds = object_points(view.labels, view.disparity, view.image, self.camera,
+                                   confidence=view.confidence, view_offset=view.offset,
+                                   object_ids=object_ids)
+            for obj_id, cloud in clouds.items():
+                if len(cloud.xyz):
+                    parts[obj_id].append(cloud.xyz)
+        cap = self.options.max_dense
+        return {i: _thin(np.concatenate(p), cap) if p else np.zeros((0, 3))
+                for i, p in parts.items()}
+
+    def _view_features(self, views: Sequence[ViewData],
+                  gray: np.ndarray | None) -> dict[tuple[int, int], ViewFeatures]:
+        offsets = [v.offset for v in views]
+        reach_s = max(abs(o[0]) for o in offsets)
+        reach_t = max(abs(o[1]) for o in offsets)
+        wanted = {(0, 0), (-reach_s, -reach_t), (-reach_s, reach_t), (reach_s, -reach_t),
+                  (reach_s, reach_t)}
+        out = {}
+        for view in views:
+            if tuple(view.offset) not in wanted:
+                continue
+            confident = (None if view.confidence is None
+                         else np.asarray(view.confidence) >= MIN_CONFIDENCE)
+            out[tuple(view.offset)] = view_features(view.image, view.labels, view.disparity,
+                                                    self.camera, view.offset, confident,
+                                                    gray=gray)
+        return out
+
+    def _model(self, xyz: np.ndarray):
+        xyz = _thin(xyz, self.options.max_model)
+        normals = estimate_normals(xyz, self.options.normal_neighbours)
+        return xyz, normals, cKDTree(xyz)
+
+    def _start(self, obj_id: int, xyz: np.ndarray, dense: np.ndarray, features) -> FramePose:
+        pose0 = first_pose(dense)
+        model, normals, tree = self._model(xyz)
+        result = ObjectPoses(obj_id, self.categories.get(obj_id), pose0)
+        found = _features_in_model(features, obj_id, np.eye(4))
+        self.tracks[obj_id] = _Track(result, model, normals, tree, np.eye(4), found, found,
+                                     [np.eye(4)])
+        return FramePose(self.frame, "tracked", np.eye(4), pose0.copy(), 1.0, 0.0, len(xyz),
+                         0, 0.0)
+
+    def _pairs(self, track: _Track, obj_id: int, features) -> tuple[np.ndarray, np.ndarray]:
+        """(model points, current points) of feature matches against the keyframe and the
+        previous frame, view by view."""
+        model_pts, cur_pts = [], []
+        for view, found in features.items():
+            xyz, descriptors = found.of(obj_id)
+            if len(xyz) < 2:
+                continue
+            for reference in (track.key_features, track.prev_features):
+                if view not in reference:
+                    continue
+                ref_xyz, ref_desc = reference[view]
+                pairs = match_features(descriptors, ref_desc)
+                model_pts.append(ref_xyz[pairs[:, 1]])
+                cur_pts.append(xyz[pairs[:, 0]])
+                if reference is track.key_features and track.key_features is track.prev_features:
+                    break
+        if not model_pts:
+            return np.zeros((0, 3)), np.zeros((0, 3))
+        return np.concatenate(model_pts), np.concatenate(cur_pts)
+
+    def _follow(self, track: _Track, obj_id: int, xyz: np.ndarray, features) -> FramePose:
+        opts = self.options
+        motions = track.motions
+        guess = motions[-1]
+        if len(motions) > 1 and not track.lost:
+            guess = motions[-1] @ np.linalg.inv(motions[-2]) @ motions[-1]
+        model_pts, cur_pts = self._pairs(track, obj_id, features)
+        fitted, inliers = ransac_rigid(model_pts, cur_pts, opts.ransac_m,
+                                       seed=self.frame * 1009 + obj_id)
+        matches = int(inliers.sum())
+        init = fitted if fitted is not None and matches >= opts.min_matches else guess
+        pairs = ((cur_pts[inliers], model_pts[inliers]) if matches >= opts.min_matches
+                 else None)
+        found = icp(_thin(xyz, opts.max_points), track.model, track.normals,
+                    np.linalg.inv(init), tree=track.tree, gates=opts.gates_m, pairs=pairs,
+                    pair_weight=opts.pair_weight, weak_pair_weight=opts.weak_pair_weight)
+        if found.inliers < opts.min_inliers:
+            track.lost = True
+            return FramePose(self.frame, "lost", None, None, found.inliers, None, len(xyz),
+                             matches, 0.0)
+        to_model = found.transform
+        motion = np.linalg.inv(to_model)
+        status = "found again" if track.lost else "tracked"
+        track.lost = False
+        motions.append(motion)
+        current = _features_in_model(features, obj_id, to_model)
+        track.prev_features = current
+        turned = rotation_error_deg(motion, track.key_motion)
+        if turned > opts.keyframe_deg or found.inliers < opts.keyframe_inliers:
+            joined = np.concatenate([track.model, transform(to_model, xyz)])
+            (joined,) = voxel_downsample(joined, opts.voxel_m)
+            track.model, track.normals, track.tree = self._model(joined)
+            track.key_motion = motion
+            track.key_features = current
+        pose = motion @ track.result.first_pose
+        return FramePose(self.frame, status, motion, pose, found.inliers, found.rmse, len(xyz),
+                         matches, 0.0)
+
+    def add_frame(self, views: Sequence[ViewData], frame: int | None = None,
+                  grid: np.ndarray | None = None) -> list[FramePose]:
+        """Register every labelled object of one frame; returns its :class:`FramePose` per
+        object seen so far (objects absent from this frame are ``lost``).
+
+        ``grid`` (S, T, U, V, 3), every view of the frame, is given with estimated
+        disparities: the features' disparities are then refined by photo-consistency across
+        the outermost views (:func:`lfsam.spatial.features.refine_disparity`)."""
+        self.frame = self.frame + 1 if frame is None else int(frame)
+        if not views:
+            raise LfsamError("a frame needs at least one view")
+        start = time.perf_counter()
+        seen: set[int] = set()
+        for view in views:
+            counts = np.bincount(np.asarray(view.labels).ravel().clip(0))
+            seen |= {int(i) for i in np.flatnonzero(counts) if i != 0}
+        ids = sorted(seen | set(self.tracks))
+        clouds = self._points(views, ids)
+        gray = None if grid is None else np.asarray(grid, dtype=np.float32).mean(axis=-1)
+        features = self._view_features(views, gray)
+        shared = (time.perf_counter() - start) / max(len(ids), 1)
+        out = []
+        for obj_id in ids:
+            began = time.perf_counter()
+            dense = clouds[obj_id]
+            (xyz,) = voxel_downsample(dense, self.options.voxel_m)
+            track = self.tracks.get(obj_id)
+            if len(xyz) < self.options.min_points:
+                if track is None:
+                    continue  # not yet seen well enough to start
+                track.lost = True
+                entry = FramePose(self.frame, "lost", None, None, None, None, len(xyz), 0, 0.0)
+            elif track is None:
+                entry = self._start(obj_id, xyz, dense, features)
+            else:
+                entry = self._follow(track, obj_id, xyz, features)
+            entry.seconds = shared + time.perf_counter() - began
+            self.tracks[obj_id].result.frames.append(entry)
+            out.append(entry)
+        return out

@@ -1,0 +1,157 @@
+"""Poses over a whole light-field video (:mod:`lfsam.poses`): :func:`poses_of_video` runs a
+:class:`~lfsam.poses.tracker.PoseTracker` over ``(result, light field)`` frames with a disparity
+source (``"estimate"``, ``"gt"``, a map) and a camera, as :mod:`lfsam.objects3d` does;
+:class:`VideoPoses` does the same one frame at a time (a followed stream, the viewer's Poses).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable
+
+import numpy as np
+
+from lfsam.camera import Camera
+from lfsam.disparity.carried import ESTIMATE_MODES, estimate_views
+from lfsam.disparity.source import load_disparity_spec, resolve_view_disparity
+from lfsam.errors import LfsamError
+from lfsam.lightfield import LightField, check_result_shape
+from lfsam.objects3d import resolve_camera
+from lfsam.poses.tracker import (
+    POSE_VIEWS,
+    FramePose,
+    ObjectPoses,
+    PoseOptions,
+    PoseTracker,
+    ViewData,
+    default_pose_views,
+)
+from lfsam.result import SegmentationResult
+
+__all__ = ["VideoPoses", "poses_of_video"]
+
+
+def _view_arrays(lightfield: LightField, result: SegmentationResult, spec, name: str,
+                 views: str, estimate: str, device: str | None) -> list[ViewData]:
+    present = lightfield.present & result.present_mask
+    center = lightfield.center
+    chosen = [tuple(int(x) for x in v) for v in np.argwhere(present)]
+    if views == "center":
+        chosen = [center]
+    elif views == "corners":
+        last_s, last_t = present.shape[0] - 1, present.shape[1] - 1
+        chosen = [center] + [v for v in ((0, 0), (0, last_t), (last_s, 0), (last_s, last_t))
+                             if present[v] and v != center]
+    estimated = (estimate_views(lightfield, chosen, mode=estimate, device=device)
+                 if isinstance(spec, str) and spec == "estimate" else {})
+    out = []
+    for view in chosen:
+        if view in estimated:
+            disparity, confidence = estimated[view]
+        else:
+            disparity, _, _ = resolve_view_disparity(spec, lightfield, view=view,
+                                                     device=device, name=name)
+            disparity, confidence = np.asarray(disparity), None
+        out.append(ViewData((view[0] - center[0], view[1] - center[1]), lightfield.views[view],
+                            result.labels[view], disparity, confidence))
+    return out
+
+
+def poses_of_video(
+    frames: Iterable[tuple[SegmentationResult, LightField]],
+    *,
+    disparity: str | os.PathLike | np.ndarray = "estimate",
+    camera: Camera | str | os.PathLike | None = None,
+    views: str | None = None,
+    estimate: str = "own",
+    options: PoseOptions | None = None,
+    device: str | None = None,
+    on_frame: Callable[[int, list[FramePose]], None] | None = None,
+) -> tuple[Camera, list[ObjectPoses]]:
+    """Every object's motion and pose over ``(result, light field)`` frames (module docstring).
+
+    Parameters
+    ----------
+    frames : iterable of (SegmentationResult, LightField)
+        One pair per frame (a single pair: each object's pose, motion identity).
+    disparity : {"estimate", "gt"}, .npy path or ndarray
+        As :func:`lfsam.objects3d.objects_in_3d`; a map or file holds for every frame.
+    camera : Camera, ``--camera`` JSON path, or None (the first frame's own)
+    views : {"all", "corners", "center"}, optional
+        The views whose pixels become points (:data:`POSE_VIEWS`; features use the center and
+        the corners of these); default :func:`default_pose_views` (``"corners"`` with an
+        estimate, else ``"all"``).
+    estimate : {"own", "carried"}
+        With ``disparity="estimate"``: every used view's own estimate (one cost volume per view
+        and frame: 5 with ``views="corners"``, 49 on a 7 x 7 grid with ``views="all"``), or the
+        center view's estimate carried to the other views (one per frame, less accurate;
+        :func:`lfsam.disparity.carried.estimate_views`).
+    options : PoseOptions, optional
+    on_frame : callable, optional
+        Called with ``(frame, [FramePose, ...])`` after each frame (live output).
+
+    Returns
+    -------
+    camera, list of ObjectPoses
+
+    Raises
+    ------
+    LfsamError
+        A result that does not match its light field, no camera, a bad disparity source.
+    """
+    session = VideoPoses(disparity=disparity, camera=camera, views=views, estimate=estimate,
+                         options=options, device=device)
+    for result, lightfield in frames:
+        entries = session.add(result, lightfield)
+        if on_frame is not None:
+            on_frame(session.frames - 1, entries)
+    if session.camera is None:
+        raise LfsamError("no frames to register")
+    return session.camera, session.objects
+
+
+class VideoPoses:
+    """:func:`poses_of_video` one frame at a time (a live stream: ``lfsam segment --follow
+    --poses``): :meth:`add` each ``(result, light field)`` as it comes.
+
+    Parameters are :func:`poses_of_video`'s. ``camera`` is resolved at the first frame when it
+    is not a :class:`~lfsam.camera.Camera` (:meth:`check_camera` does it earlier).
+    """
+
+    def __init__(self, *, disparity: str | os.PathLike | np.ndarray = "estimate",
+                 camera: Camera | str | os.PathLike | None = None, views: str | None = None,
+                 estimate: str = "own", options: PoseOptions | None = None,
+                 device: str | None = None) -> None:
+        views = default_pose_views(disparity) if views is None else views
+        if views not in POSE_VIEWS:
+            raise LfsamError(f"views must be one of {POSE_VIEWS}, got {views!r}")
+        if estimate not in ESTIMATE_MODES:
+            raise LfsamError(f"estimate must be one of {ESTIMATE_MODES}, got {estimate!r}")
+        self.estimate = estimate
+        self.disparity, self.views, self.options, self.device = disparity, views, options, device
+        self._camera_spec = camera
+        self.camera: Camera | None = camera if isinstance(camera, Camera) else None
+        self.tracker: PoseTracker | None = None
+        self.frames = 0
+
+    @property
+    def objects(self) -> list[ObjectPoses]:
+        """Every object seen so far."""
+        return [] if self.tracker is None else self.tracker.objects
+
+    def add(self, result: SegmentationResult, lightfield: LightField) -> list[FramePose]:
+        """Register the objects of the next frame (module docstring)."""
+        check_result_shape(result.labels.shape, lightfield, f"the result of frame {self.frames}")
+        if self.camera is None:
+            self.camera = resolve_camera(lightfield, self._camera_spec)
+        if self.tracker is None:
+            categories = {int(k): str(v) for k, v in
+                          (result.meta.get("categories") or {}).items() if v}
+            self.tracker = PoseTracker(self.camera, lightfield.view_shape, self.options,
+                                       categories)
+        spec, name = load_disparity_spec(self.disparity, lightfield)
+        data = _view_arrays(lightfield, result, spec, name, self.views, self.estimate,
+                            self.device)
+        entries = self.tracker.add_frame(data, frame=self.frames)
+        self.frames += 1
+        return entries
