@@ -9,6 +9,18 @@ interactive use: :class:`lfsam.LightFieldPredictor`, wrapped by
 :class:`lfsam.LightFieldMaskGenerator` for the automatic mode.
 """
 
+import os as _os
+
+# OpenMP threads that wait by sleeping, not spinning, unless the user chose otherwise: spinning
+# threads of two processes on the same cores (lfsam beside another PyTorch process, a test
+# runner, a browser) starve each other's work. Measured on a 2-core CPU (docs/performance.md,
+# "Depth in 8 seconds"): `lfsam disparity` on HCI antinous beside one busy single-thread process
+# took 585 s with the default policy, its estimator 16.4 s with this one; alone, the command
+# took 18.2-19.1 s with spinning threads and 19.7-20.2 s with sleeping ones. Read when
+# PyTorch's OpenMP runtime loads, so it acts only if lfsam is imported
+# first (the CLI, the viewer plugin and the tests do). docs/design.md section 6.
+_os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField, snake_order
 from lfsam.prompts import TextPrompt

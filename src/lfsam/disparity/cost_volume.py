@@ -56,7 +56,7 @@ import torch.nn.functional as F
 
 from lfsam.devices import resolve_device
 from lfsam.disparity.epi import checked_reference
-from lfsam.disparity.filters import box_blur
+from lfsam.disparity.filters import box_blur, slice_chunks
 from lfsam.lightfield import LightField
 
 __all__ = ["HALVES", "ViewSet", "build_cost_volume", "halves_of", "matching_features", "view_set"]
@@ -85,9 +85,16 @@ def matching_features(gray: torch.Tensor, radius: int = 1, eps: float = 0.002) -
     -------
     torch.Tensor, shape of ``gray``
     """
-    mean = box_blur(gray, radius)
-    var = (box_blur(gray * gray, radius) - mean * mean).clamp(min=0.0)
-    return (gray - mean) / (var.sqrt() + eps)
+    flat = gray.reshape(-1, *gray.shape[-2:])
+    out = torch.empty_like(flat)
+    # a few views at a time, in a CPU's cache (lfsam.disparity.filters.slice_chunks)
+    for chunk in slice_chunks(flat.shape[0], flat[0].numel()):
+        part = flat[chunk]
+        mean = box_blur(part, radius)
+        deviation = box_blur(part * part, radius).addcmul_(mean, mean, value=-1.0)
+        deviation = deviation.clamp_(min=0.0).sqrt_().add_(eps)
+        out[chunk] = (part - mean).div_(deviation)
+    return out.reshape(gray.shape)
 
 
 class ViewSet:
