@@ -18,6 +18,21 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "repeatable"))
 
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
+# OpenMP threads that sleep while they wait (as `import lfsam` sets it; set here too in case a
+# test module imports torch first): spinning threads of two processes starve each other.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+# `make test` runs the suite in two worker processes (pytest-xdist, `-n 2 --dist worksteal`), one
+# per core of the 2-core machines it runs on: each worker, and every process a test starts,
+# computes with one thread, so the two workers never compete for a core (docs/performance.md,
+# "`make test` in two processes").
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    for variable in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ[variable] = "1"
+    import torch
+
+    torch.set_num_threads(1)
+
 
 @pytest.fixture
 def shared_data() -> Path:
