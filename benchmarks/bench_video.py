@@ -408,6 +408,7 @@ def write_stream(result, lf, work: Path, frames: int, rate: float, mode: str) ->
     level 1, the writer thread)."""
     import os
 
+    import lfsam.video.io.live_result as live_result
     import lfsam.video.io.result as video_result
     from lfsam.io.arrays import write_npz
     from lfsam.lightfield import LightField
@@ -428,14 +429,14 @@ def write_stream(result, lf, work: Path, frames: int, rate: float, mode: str) ->
             hidden.rename(folder / f"frame_{index:04d}.npz")
         (folder / "END").write_bytes(b"")
 
-    save, write = video_result.save_result, video_result._LiveWriter.write
+    save, write = video_result.save_result, live_result._LiveWriter.write
     if mode == "before":
         video_result.save_result = lambda r, path, **k: format1_save(r, path)
     if mode != "behind":
         def inline(self, r, arrived=None):  # the write waited for, as before issue 44
             write(self, r, arrived)
             self.flush()
-        video_result._LiveWriter.write = inline
+        live_result._LiveWriter.write = inline
     done: list[float] = []
     try:
         camera = threading.Thread(target=land)
@@ -446,7 +447,7 @@ def write_stream(result, lf, work: Path, frames: int, rate: float, mode: str) ->
                                 latest=True)
         camera.join()
     finally:
-        video_result.save_result, video_result._LiveWriter.write = save, write
+        video_result.save_result, live_result._LiveWriter.write = save, write
     return {"processed": report.frames, "per_s": report.frames / (done[-1] - began),
             "p50": statistics.median(report.latencies),
             "p95": percentile(report.latencies, 95),

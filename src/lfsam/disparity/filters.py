@@ -181,11 +181,6 @@ class BoxFilter:
     normalisation (per position with ``border="shrink"``) is one precomputed factor. Applied to
     a few slices of a volume at a time (:class:`ColourGuidedFilter`), its intermediates stay in
     a CPU's cache.
-
-    Raises
-    ------
-    ValueError
-        If ``border`` is neither ``"replicate"`` nor ``"shrink"`` (the caller's code is at fault).
     """
 
     def __init__(
@@ -196,6 +191,14 @@ class BoxFilter:
         border: str = "replicate",
         device: torch.device | None = None,
     ) -> None:
+        """A filter for images of ``shape`` (rows, cols) on ``device``.
+
+        Raises
+        ------
+        ValueError
+            If ``border`` is neither ``"replicate"`` nor ``"shrink"`` (the caller's code is at
+            fault).
+        """
         if border not in ("replicate", "shrink"):
             raise ValueError(f"unknown border {border!r}: use 'replicate' or 'shrink'")
         rows, cols = shape

@@ -332,6 +332,11 @@ def _window_minimum(
     per axis. The position of the minimum travels along as a flat index held in float32 (exact
     below 2^24 elements), updated arithmetically (``i + lower (j - i)``, faster on a CPU than
     ``torch.where``); the carried tensors are gathered there at the end.
+
+    Raises
+    ------
+    ValueError
+        If ``values`` has 2^24 elements or more (the caller's code is at fault: split the call).
     """
     count, rows, cols = values.shape
     if count * rows * cols >= 1 << 24:
