@@ -285,6 +285,7 @@ def build_cost_volume(
     # axis, 3 x 3 classes), and each half-grid sums its classes: one addition per view, not one
     # per half it belongs to
     side_class = ((np.sign(offsets[:, 0]) + 1) * 3 + np.sign(offsets[:, 1]) + 1).tolist()
+    member = torch.as_tensor(_membership(groups, side_class), device=device)
     volume = torch.empty((len(hypotheses), rows, cols), device=device, dtype=torch.float32)
     for index, d in enumerate(np.asarray(hypotheses, dtype=np.float64)):
         class_sums = torch.zeros((9, rows, cols), device=device)
@@ -304,7 +305,6 @@ def build_cost_volume(
         sums = torch.stack([_summed(class_sums, group) for group in groups])
         # how many views of each group see each pixel: a sum of the views' visible rectangles,
         # each the outer product of its visible rows and columns
-        member = torch.as_tensor(_membership(groups, side_class), device=device)
         seen = torch.einsum("gk,ku,kv->guv", member, seen_rows, seen_cols)
         means = torch.where(seen > 0.5, sums / seen.clamp(min=1.0), truncation)
         if len(groups) == 1:

@@ -13,6 +13,7 @@ import torch
 import torch.nn.functional as F
 
 __all__ = [
+    "BAND_ELEMENTS",
     "BoxFilter",
     "ColourGuidedFilter",
     "box_blur",
@@ -274,6 +275,14 @@ def _inverse_3x3(m: torch.Tensor) -> torch.Tensor:
 #: 2-core CPU on a (32, 512, 512) cost volume: 0.4 s per window in slices of one, 4.1 s over
 #: the whole volume at once (docs/performance.md, "Depth in 8 seconds").
 CHUNK_ELEMENTS = 1 << 18
+
+
+#: Pixels of one band of rows in the loops that visit a window's offsets one by one (the joint
+#: bilateral refinement, :mod:`lfsam.disparity.refine`, and the surface fit,
+#: :mod:`lfsam.disparity.surface_fit`): their per-band maps then fit a CPU's cache (the two
+#: bilateral passes on HCI antinous' 512 x 512 center view, one thread: 1.3 s in bands of 64
+#: rows, 1.65 s over the whole image at once).
+BAND_ELEMENTS = 1 << 15
 
 
 def slice_chunks(count: int, slice_elements: int) -> list[slice]:

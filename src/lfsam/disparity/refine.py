@@ -31,6 +31,8 @@ import math
 import torch
 import torch.nn.functional as F
 
+from lfsam.disparity.filters import BAND_ELEMENTS
+
 __all__ = ["joint_bilateral_filter", "refine_disparity"]
 
 # Added to the squared confidence so that a window of zero-confidence pixels still has a mean.
@@ -88,7 +90,7 @@ def joint_bilateral_filter(
     reference = disparity if reference is None else reference
     out = torch.empty_like(disparity)
     # a band of rows at a time: its intermediates stay in a CPU's cache
-    band = max(1, _BAND_ELEMENTS // max(cols, 1))
+    band = max(1, BAND_ELEMENTS // max(cols, 1))
     for first in range(0, rows, band):
         last = min(first + band, rows)
         out[first:last] = _filter_band(
@@ -97,11 +99,6 @@ def joint_bilateral_filter(
         )
     return out
 
-
-#: Pixels of one band of rows of :func:`joint_bilateral_filter`: its maps then fit a CPU's
-#: cache (the two passes of :func:`refine_disparity` on HCI antinous' 512 x 512 center view, one
-#: thread: 1.3 s in bands of 64 rows, 1.65 s over the whole image at once).
-_BAND_ELEMENTS = 1 << 15
 
 
 def _filter_band(

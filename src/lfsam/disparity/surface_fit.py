@@ -37,6 +37,8 @@ from __future__ import annotations
 import torch
 import torch.nn.functional as F
 
+from lfsam.disparity.filters import BAND_ELEMENTS
+
 __all__ = ["fit_surface"]
 
 # The monomials x^i y^j (i + j <= 4) that the normal equations of a quadratic need, and where
@@ -123,7 +125,7 @@ def fit_surface(
     moments = torch.empty(len(_MOMENTS), rows, cols, device=d.device)
     rhs = torch.empty(len(_BASIS), rows, cols, device=d.device)
     # a band of rows at a time: its maps then stay in a CPU's cache
-    band = max(1, _BAND_ELEMENTS // max(cols, 1))
+    band = max(1, BAND_ELEMENTS // max(cols, 1))
     for first in range(0, rows, band):
         last = min(first + band, rows)
         moments[:, first:last], rhs[:, first:last] = _window_moments(
@@ -144,10 +146,6 @@ def fit_surface(
     supported = total.float() > min_support * (2 * r + 1) ** 2
     return torch.where(mask & supported, centre, d).to(disparity.dtype)
 
-
-#: Pixels of one band of rows of :func:`fit_surface`'s window sums (their maps then fit a
-#: CPU's cache).
-_BAND_ELEMENTS = 1 << 15
 
 
 def _window_moments(
