@@ -181,7 +181,7 @@ class BoxFilter:
     The window sums are separable, each axis summed by doubling (:func:`_window_sums`); the
     normalisation (per position with ``border="shrink"``) is one precomputed factor. Applied to
     a few slices of a volume at a time (:class:`ColourGuidedFilter`), its intermediates stay in
-    a CPU's cache.
+    a CPU's cache (docs/design.md section 3.2, "Speed: cache-sized pieces").
     """
 
     def __init__(
@@ -287,7 +287,8 @@ BAND_ELEMENTS = 1 << 15
 
 def slice_chunks(count: int, slice_elements: int) -> list[slice]:
     """Consecutive chunks of ``count`` slices of ``slice_elements`` elements each, of about
-    :data:`CHUNK_ELEMENTS` elements (at least one slice) per chunk."""
+    :data:`CHUNK_ELEMENTS` elements (at least one slice) per chunk (docs/design.md section 3.2,
+    "Speed: cache-sized pieces")."""
     size = max(1, CHUNK_ELEMENTS // max(slice_elements, 1))
     return [slice(start, min(start + size, count)) for start in range(0, count, size)]
 
@@ -305,7 +306,8 @@ class ColourGuidedFilter:
 
     Everything that depends on the guide only (its window means, ``(Sigma + eps U)^-1`` and
     ``(Sigma + eps U)^-1 mean(I)``) is computed when the filter is made; a volume is then
-    filtered a few slices at a time (:func:`slice_chunks`), with
+    filtered a few slices at a time (:func:`slice_chunks`; docs/design.md section 3.2, step 4 and
+    "Speed: cache-sized pieces"), with
     ``a = (Sigma + eps U)^-1 mean(p I) - (Sigma + eps U)^-1 mean(I) mean(p)``.
 
     Parameters
