@@ -43,8 +43,8 @@ def prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, int
     needing :data:`WIDE_SUPPORT` and the answer at the object's depth, its shift None where
     the answer is a part of the object). The support needed near the prediction is a
     share of the template's part inside the frame (an object leaving the frame shows only
-    that part; in the ring's views its interior, :data:`CORE_SUPPORT`, less what objects
-    placed in this frame cover there, :data:`PLACED_SUPPORT`), elsewhere of the whole
+    that part; in the ring's views less what objects placed in this frame cover there,
+    :data:`PLACED_SUPPORT`), elsewhere of the whole
     template. ``refused``: where given, the answers refused in the stage's view are
     added to it (``{view: mask}``, :data:`REFUSED_AGAIN`)."""
     view, radius, image, template, found, support = stage
@@ -54,10 +54,8 @@ def prompt_stage(obj_id: int, track: Track, stage: tuple, center: tuple[int, int
     # near the prediction a share of the template's part inside the frame (an object leaving
     # the frame shows only that part); away from it a share of the whole template: a sliver
     # at the frame's border far from where the object should be is not enough to give its
-    # id back (a look-alike entering there took a hidden object's id); in the ring's views
-    # the template's interior (a border one pixel too wide was never the object)
-    core = (carried if widened or not rules.CORE_SUPPORT or view == track.view
-            else ndimage.binary_erosion(carried))
+    # id back (a look-alike entering there took a hidden object's id)
+    core = carried
     known = placed(view)
     if rules.PLACED_SUPPORT and known is not None and view != track.view:
         core = core & ~known  # covered by an object placed in this frame: cannot show it

@@ -38,14 +38,11 @@ from lfsam.video.tracking.motion import Track, predicted, predicted_disparity, s
 
 __all__ = ["CHECK", "GROWN", "MAX_PAIRS", "RIVAL_MARGIN", "explained", "rival"]
 
-#: Whether an answer found again is checked against the other hidden objects (:func:`rival`).
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.claims_check`.
 CHECK = True
-#: A rival takes the answer where it explains this much more of it (a share of the answer's
-#: pixels, :func:`explained`) than the object that found it: a clearly better explanation.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.rival_margin`.
 RIVAL_MARGIN = 0.1
-#: An answer larger than this many times the object's largest area is checked against every
-#: object still to be searched, tracked ones too (``rival(hidden_only=False)``): an answer
-#: that also covers a neighbour (the oracle's jitter, seed 1801) would take its pixels.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.claims_grown`.
 GROWN = 1.5
 #: At most this many (answer pixel, template pixel) pairs are compared (:func:`explained`;
 #: beyond it every k-th answer pixel, the share unchanged in expectation).

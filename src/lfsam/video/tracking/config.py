@@ -4,8 +4,11 @@ checks with its meaning, its default and the case that motivated it.
 
 Each field is a module constant of :mod:`lfsam.video.tracking` (:data:`SOURCES`: the field
 ``depth_gate`` is ``rules.DEPTH_GATE``, ``contest_check`` is ``contest.CHECK``, ...), which the
-tracker reads when it runs. ``TrackerConfig()`` holds today's values (the tests check that each
-default is its constant's), so tracking with it is tracking as before, byte for byte.
+tracker reads when it runs. The field's docstring is the rule's one description: the constant
+points to it, and docs/design.md section 10's table repeats it (a test keeps that table's
+fields and defaults those of the dataclass). ``TrackerConfig()`` holds today's values (the
+tests check that each default is its constant's), so tracking with it is tracking as before,
+byte for byte.
 :meth:`TrackerConfig.applied` sets a configuration for the tracking inside a ``with`` block and
 restores the constants after it; :meth:`TrackerConfig.without` turns rules off by name (every
 boolean field is a rule's off switch, :func:`switches`)::
@@ -15,7 +18,10 @@ boolean field is a rule's off switch, :func:`switches`)::
     with TrackerConfig().without("depth_gate", "contest_check").applied():
         track_video(video, prompts, segmenter)
 
-The constants are the process's: one configuration applies at a time (not per thread).
+The constants are the process's: one configuration applies at a time. ``applied`` holds a
+process-wide lock for its block, so two threads that each track inside ``applied()`` take turns
+instead of mixing their rules; a thread tracking outside any ``applied()`` block meanwhile sees
+the configuration applied.
 """
 
 from __future__ import annotations
@@ -23,11 +29,15 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import importlib
+import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
 from types import ModuleType
 
 __all__ = ["SOURCES", "TrackerConfig", "switches"]
+
+#: Held while a configuration is applied (:meth:`TrackerConfig.applied`).
+_APPLIED = threading.RLock()
 
 #: Each field's module (in :mod:`lfsam.video.tracking`) and constant.
 SOURCES: dict[str, tuple[str, str]] = {
@@ -48,7 +58,6 @@ SOURCES: dict[str, tuple[str, str]] = {
     "wide_candidates": ("rules", "WIDE_CANDIDATES"),
     "wide_views": ("rules", "WIDE_VIEWS"),
     "wide_support": ("rules", "WIDE_SUPPORT"),
-    "core_support": ("rules", "CORE_SUPPORT"),
     "placed_support": ("rules", "PLACED_SUPPORT"),
     "refused_again": ("rules", "REFUSED_AGAIN"),
     "small_answer": ("rules", "SMALL_ANSWER"),
@@ -159,22 +168,13 @@ class TrackerConfig:
     wide_support: float = 0.15
     """Set with the rule above (:attr:`wide_candidates`), whose description covers both. Default
     ``0.15`` (``rules.WIDE_SUPPORT``)."""
-    core_support: bool = True
-    """In the views of the ring, the support needed near the prediction is a share of the
-    template's interior (its part inside the frame less its border pixels): a template cut from
-    an answer one pixel too wide (the oracle's jitter, a trained SAM's boundary) holds a ring
-    of pixels that were never the object (seed 901: an object mostly covered, 100 of its
-    1032-pixel template supported in an outer view, 103 needed, was hidden for a frame). In its
-    own view the whole template counts: there a barely supported match is better prompted in a
-    view that sees more of it (seed 1203: two triples lost otherwise). Default ``True``
-    (``rules.CORE_SUPPORT``)."""
     placed_support: bool = True
     """In the views of the ring, the support needed near the prediction leaves out the template's
     pixels that an object placed earlier in the frame covers: they cannot show the object
     (sixteenth pass; fresh seed 2701: an object of 1451 pixels, 91 % behind a tracked one,
     showed 115-141 pixels a view and was supported on 76-119 of them, 145 needed; hidden for a
-    frame, 25 lost triples). In its own view the whole template counts, as for
-    :data:`CORE_SUPPORT` (seed 903 at jitter 1 lost 27 triples more with it there). Default
+    frame, 25 lost triples). In its own view the whole template counts (seed 903 at jitter 1
+    lost 27 triples more with it there). Default
     ``True`` (``rules.PLACED_SUPPORT``)."""
     refused_again: bool = True
     """Where the answers at the predicted place in the object's own view are refused and the ring
@@ -350,15 +350,17 @@ class TrackerConfig:
     @contextlib.contextmanager
     def applied(self) -> Iterator[TrackerConfig]:
         """Track with this configuration inside the ``with`` block: each field's constant set to
-        its value, and every constant restored afterwards (also on an error)."""
-        saved = {name: getattr(_module(mod), const) for name, (mod, const) in SOURCES.items()}
-        try:
-            for name, (mod, const) in SOURCES.items():
-                setattr(_module(mod), const, getattr(self, name))
-            yield self
-        finally:
-            for name, (mod, const) in SOURCES.items():
-                setattr(_module(mod), const, saved[name])
+        its value, and every constant restored afterwards (also on an error). One block at a
+        time in the process: another thread's ``applied()`` waits for this one to end."""
+        with _APPLIED:
+            saved = {name: getattr(_module(mod), const) for name, (mod, const) in SOURCES.items()}
+            try:
+                for name, (mod, const) in SOURCES.items():
+                    setattr(_module(mod), const, getattr(self, name))
+                yield self
+            finally:
+                for name, (mod, const) in SOURCES.items():
+                    setattr(_module(mod), const, saved[name])
 
 
 def switches() -> tuple[str, ...]:

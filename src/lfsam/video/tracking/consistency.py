@@ -57,28 +57,15 @@ from lfsam.video.tracking.motion import (
 __all__ = ["CHECK", "DEPTH_JUMP", "DOUBT_FRAMES", "JUMP_SHARE", "POORLY_SUPPORTED", "doubt",
            "jumped", "look_again"]
 
-#: Whether the tracker raises doubts and searches for shadows (:func:`look_again`).
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.consistency_check`.
 CHECK = True
-#: An accepted answer farther than this share of :func:`lfsam.video.tracking.search.search_radius`
-#: from the predicted place is a jump in position (with :data:`DEPTH_JUMP`, a doubt).
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.jump_share`.
 JUMP_SHARE = 0.6
-#: An accepted answer whose median disparity is farther than this (pixels) from the track's
-#: last disparity is a jump in depth (with :data:`JUMP_SHARE`, a doubt).
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.depth_jump`.
 DEPTH_JUMP = 0.6
-#: An accepted answer farther than :data:`JUMP_SHARE` of the search radius from the
-#: prediction on a match supporting under :data:`lfsam.video.tracking.motion.VELOCITY_SUPPORT` of
-#: the template is a jump whatever its depth (fourteenth pass): seed 401, an object behind an
-#: occluder showing 97 pixels in a corner view, matched there on 81 of its 485 carried
-#: pixels 16 px from the prediction at the object's depth; its velocity jumped from (0.4,
-#: -4.8) to (9.6, -14.3) px a frame and it was lost the next frame, where the shadow (the
-#: track before the jump) is found.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.poorly_supported`.
 POORLY_SUPPORTED = True
-#: A shadow not found for this many frames is forgotten: searched in the ``DOUBT_FRAMES + 1``
-#: frames after the jump, so an object hidden for up to 5 frames (issue 47's target) is
-#: still looked for in the first frame it shows again. Was 6 (a frame more than the target
-#: needs); 5 gave the same lost triples, switches and returns on the 16 sets and three fresh
-#: ones at jitter 0 and 1, and cut the search's cost by a sixth (thirteenth pass); 3 lost
-#: seed 1303's object for good (40 triples).
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.doubt_frames`.
 DOUBT_FRAMES = 5
 #: The shadow is prompted under this id plus the object's (never a user's id), so that the
 #: object's own answer stays in the frame until the shadow is accepted.

@@ -43,15 +43,11 @@ from lfsam.prompts import ObjectPrompts
 
 __all__ = ["CHECK", "HELD", "KEPT", "blocker", "gives_up", "without_points"]
 
-#: Whether an object refused for an answer placed earlier contests it.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.contest_check`.
 CHECK = True
-#: An answer is held by a placed object where that object's mask covers more than this share
-#: of it (the share at which :func:`lfsam.video.tracking.answer.accept_answer` refuses it as
-#: placed).
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.contest_held`.
 HELD = 0.5
-#: A placed object gives the contested part up where its new answer lies at least this much
-#: inside its old one (and keeps more than :data:`HELD` of the old one outside the contested
-#: part: the contested answer, carried from another view, covers that part only roughly).
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.contest_kept`.
 KEPT = 0.9
 
 

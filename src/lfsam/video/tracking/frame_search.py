@@ -41,8 +41,7 @@ from lfsam.video.tracking.search import Track, first_look, search_object
 __all__ = ["RETRY_UNANSWERED", "carried_to", "median_disparity", "object_disparity",
            "search_frame"]
 
-#: An object whose prompts were never answered with an accepted mask is asked its latest
-#: prompts again every frame (:func:`search_frame`), after every other object is placed.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.retry_unanswered`.
 RETRY_UNANSWERED = True
 
 

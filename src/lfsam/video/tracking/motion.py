@@ -42,21 +42,19 @@ __all__ = [
 #: An object's state in a frame: prompted there by the user, carried from the frame before,
 #: found again after frames hidden, not found (kept, searched again), or not started yet.
 STATES = ("prompted", "tracked", "found", "hidden", "waiting")
-#: Search radius (pixels): base, plus the speed, plus this much per frame unseen.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.base_radius`.
 BASE_RADIUS = 8
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.radius_growth`.
 GROWTH = 8
-#: Every shift this close to the prediction (plus 2 pixels per frame unseen) is scored.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.near_reach`.
 NEAR_REACH = 4
-#: Disparity difference (pixels) from the object's last disparity, per frame since it was
-#: seen, beyond which a pixel is not the object whatever its colour: the light field tells an
-#: object from a background of the same colours by its depth (objects change depth by up to
-#: about a pixel of disparity per frame).
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.disparity_tolerance`.
 DISPARITY_TOLERANCE = 1.2
-#: The disparity tolerance grows with the frames unseen up to this many frames' worth.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.disparity_frames`.
 DISPARITY_FRAMES = 2
-#: A template is replaced by an answer at least this fraction of the object's largest area.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.keep_template`.
 KEEP_TEMPLATE = 0.6
-#: A match supporting less of its template moves the velocity only by its share of this.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.velocity_support`.
 VELOCITY_SUPPORT = 0.3
 
 

@@ -31,12 +31,11 @@ from lfsam.video.tracking.carry import deepest
 
 __all__ = ["AGREE", "ASK", "NEIGHBOUR_ID", "asked_mask"]
 
-#: Whether a placed object is asked in the view of a found-again answer that meets it.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.neighbour_ask`.
 ASK = True
 #: The temporary id a placed object is asked under (plus its placement's index).
 NEIGHBOUR_ID = 2_000_000
-#: A carried pixel shows the placed object in the view where the view's disparity there lies
-#: within this many pixels of the object's (its median disparity where it was placed).
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.neighbour_agree`.
 AGREE = 0.3
 
 

@@ -39,17 +39,15 @@ from lfsam.video.tracking.match import support_in_answer
 
 __all__ = ["CHECK", "answer_place", "placed_by_answer"]
 
-#: Place partly seen objects by their answers (off: by their template's match alone).
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.placement_check`.
 CHECK = True
-#: A view pixel at least this much farther (disparity pixels) than the object, outside the
-#: answer, contradicts the template lying on it.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.placement_farther`.
 FARTHER = 0.5
-#: The template's share inside the frame below which its place stands (as
-#: :data:`lfsam.video.tracking.rules.SURE`'s cut objects).
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.placement_inside`.
 INSIDE = 0.6
-#: Shifts ranked by where the template lies that are also scored by its look.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.placement_candidates`.
 CANDIDATES = 12
-#: The answer's share the chosen place must explain (its look the same there).
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.placement_explained`.
 EXPLAINED = 0.5
 
 

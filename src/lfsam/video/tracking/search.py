@@ -36,8 +36,8 @@ later frame and comes back under its own id (*found*). The search of one object 
    object whatever its colour (a background of the object's colours is told apart by its
    depth; :data:`DEPTH_GATE`, the object's disparity the median over its answers). It
    needs at least :data:`NEAR_SUPPORT` of its template supported near the prediction (in
-   the ring's views of the template's interior, :data:`CORE_SUPPORT`), :data:`FAR_SUPPORT`
-   elsewhere.
+   the ring's views less what objects placed earlier in the frame cover,
+   :data:`PLACED_SUPPORT`), :data:`FAR_SUPPORT` elsewhere.
 4. **Prompts**: up to three positive points at the deepest supported pixels (where their
    answer is refused, each alone), negative points on neighbouring objects placed earlier in
    the frame (center view), the user's negative clicks of that view, and for SAM 2 a box

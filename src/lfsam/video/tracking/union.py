@@ -31,11 +31,11 @@ import numpy as np
 
 __all__ = ["CHECK", "GROWTH", "SUPPORTED", "checked", "supported_clicks", "suspect"]
 
-#: Whether an answer to several clicks larger than the object ever was is split by click.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.union_check`.
 CHECK = True
-#: An answer more than this many times the object's largest area is suspect.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.union_growth`.
 GROWTH = 1.2
-#: A click is the object's where at least this share of its answer lies on the support.
+#: What it decides and why: :attr:`~lfsam.video.tracking.config.TrackerConfig.union_supported`.
 SUPPORTED = 0.5
 
 Click = tuple[float, float]
