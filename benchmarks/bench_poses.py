@@ -7,8 +7,9 @@ feature weight):
 1. ``lfsam synth VIDEO --rigid --seed N``: three boxes of 10-17 cm at about 1 m, each turning
    2-4 degrees and moving 4-12 mm per frame about its own axis, 10 frames of 7x7 views of
    240x320, f = 400 px, b = 1 cm, z0 = 1 m (cached in ``--work``);
-2. ``lfsam segment VIDEO --auto --model oracle --disparity gt``: the masks (the oracle tracks
-   every ground-truth object, the wall included; cached);
+2. ``lfsam segment VIDEO --auto --model oracle --disparity gt [--oracle-jitter R]``: the masks
+   (the oracle tracks every ground-truth object, the wall included; cached), each answer off by
+   up to R pixels with ``--oracle-jitter`` (issue 64: a real segmenter's boundary);
 3. ``lfsam poses RESULT --lightfield VIDEO --disparity gt --json`` as a user runs it (a fresh
    process, timed whole), ``lfsam poses RESULT --lightfield VIDEO --json`` with its defaults
    (estimated disparity, the center and the corner views; timed whole: issue 65's 60-s
@@ -29,8 +30,9 @@ disparity). Boxes are matched to the oracle's objects by their first frame's lab
 
 Run::
 
-    python benchmarks/bench_poses.py [--seeds 4,5,6] [--work /tmp/bench_poses]
-        [--estimate-views carried|corners|center|all] [--skip-estimate] [--skip-default]
+    python benchmarks/bench_poses.py [--seeds 4,5,6] [--oracle-jitter 0,1,2]
+        [--work /tmp/bench_poses] [--estimate-views carried|corners|center|all]
+        [--skip-estimate] [--skip-default]
 """
 
 from __future__ import annotations
@@ -69,13 +71,16 @@ def _run(args: list[str]) -> float:
     return time.perf_counter() - start
 
 
-def prepare(seed: int, work: Path) -> tuple[Path, Path]:
-    video, result = work / f"rigid_{seed}", work / f"rigid_{seed}_result"
+def prepare(seed: int, work: Path, jitter: int = 0) -> tuple[Path, Path]:
+    """The video of ``seed`` and its oracle segmentation, answers off by up to ``jitter``
+    pixels (``--oracle-jitter``: what a real segmenter's boundary gives), both cached."""
+    video = work / f"rigid_{seed}"
+    result = work / (f"rigid_{seed}_result" if jitter == 0 else f"rigid_{seed}_result_j{jitter}")
     if not video.exists():
         _run([*LFSAM, "synth", str(video), "--rigid", "--seed", str(seed)])
     if not result.exists():
         _run([*LFSAM, "segment", str(video), "--auto", "--model", "oracle", "--disparity", "gt",
-              "--out", str(result)])
+              "--oracle-jitter", str(jitter), "--out", str(result)])
     return video, result
 
 
@@ -190,9 +195,95 @@ def estimate_views(frames, views: str, cache: Path | None = None) -> list[dict]:
     return out
 
 
+def _motions(document: dict, mapping: dict[int, int]) -> dict:
+    return {mapping[o["id"]]: {f["frame"]: None if f["motion"] is None
+                               else np.asarray(f["motion"]) for f in o["frames"]}
+            for o in document["objects"] if o["id"] in mapping}
+
+
+def _statuses(document: dict, mapping: dict[int, int]) -> str:
+    counts: dict[str, int] = {}
+    for o in document["objects"]:
+        if o["id"] in mapping:
+            for f in o["frames"]:
+                counts[f["status"]] = counts.get(f["status"], 0) + 1
+    return ", ".join(f"{n} {status}" for status, n in sorted(counts.items()))
+
+
+def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict) -> None:
+    """Every run of one seed's video segmented with the oracle's ``jitter``."""
+    work = Path(args.work)
+    video_path, result_path = prepare(seed, work, jitter)
+    tag = "" if jitter == 0 else f" j{jitter}"
+    out = work / f"poses_{seed}{tag.strip()}.json"
+    command = _run([*LFSAM, "poses", str(result_path), "--lightfield", str(video_path),
+                    "--disparity", "gt", "--json", str(out)])
+    video = read_video(video_path)
+    result = load_video_result(result_path)
+    truth, frames = truth_of(video)
+    mapping = match_ids(result.frame(0).labels[frames[0].center],
+                        frames[0].labels[frames[0].center], truth[0])
+    document = json.loads(out.read_text())
+    scored = score(_motions(document, mapping), truth)
+    runs.setdefault(f"gt{tag}", []).append(scored)
+    per_object = [f["seconds"] for o in document["objects"] if o["id"] in mapping
+                  for f in o["frames"]]
+    seconds.setdefault(f"gt{tag}", []).extend(per_object)
+    print(f"seed {seed}, oracle jitter {jitter}: {len(document['objects'])} objects tracked "
+          f"({len(mapping)} boxes; {_statuses(document, mapping)}); `lfsam poses --disparity "
+          f"gt` command {command:.1f} s, tracker {np.mean(per_object):.3f} s per box per frame")
+    table(f"gt disparity, views all, jitter {jitter}", scored)
+    if not args.skip_default:
+        default_out = work / f"poses_{seed}{tag.strip()}_default.json"
+        default_command = _run([*LFSAM, "poses", str(result_path), "--lightfield",
+                                str(video_path), "--json", str(default_out)])
+        document = json.loads(default_out.read_text())
+        runs.setdefault(f"default{tag}", []).append(score(_motions(document, mapping), truth))
+        print(f"  `lfsam poses` with its defaults (estimated disparity, corners): command "
+              f"{default_command:.1f} s (target <= 60 s); {_statuses(document, mapping)}")
+        table("defaults: estimated disparity, views corners", runs[f"default{tag}"][-1])
+    runs.setdefault(f"baseline gt{tag}", []).append(
+        score(baseline(frames, result, mapping, "gt"), truth))
+    if args.skip_estimate:
+        return
+    start = time.perf_counter()
+    estimates = estimate_views(frames, args.estimate_views,
+                               work / f"rigid_{seed}_estimates_{args.estimate_views}.npz")
+    estimate_seconds = time.perf_counter() - start
+    tracker = PoseTracker(camera_of(frames[0].meta), frames[0].view_shape)
+    cpu_seconds: list[float] = []
+    for k, lf in enumerate(frames):
+        labels = result.frame(k).labels
+        data = [ViewData((s - lf.center[0], t - lf.center[1]), lf.views[s, t],
+                         labels[s, t], d, c) for (s, t), (d, c) in estimates[k].items()]
+        cpu = time.process_time()
+        entries = tracker.add_frame(data, frame=k)
+        cpu_seconds.append((time.process_time() - cpu) / max(len(entries), 1))
+    objects = tracker.objects
+    motions = {mapping[o.object_id]: {f.frame: f.motion for f in o.frames}
+               for o in objects if o.object_id in mapping}
+    scored = score(motions, truth)
+    runs.setdefault(f"estimate{tag}", []).append(scored)
+    per_object = [f.seconds for o in objects if o.object_id in mapping for f in o.frames]
+    seconds.setdefault(f"estimate{tag}", []).extend(per_object)
+    statuses = [f.status for o in objects if o.object_id in mapping for f in o.frames]
+    print(f"  estimated disparity (views {args.estimate_views}): estimates "
+          f"{estimate_seconds:.1f} s (0 when cached), tracker {np.mean(per_object):.3f} s "
+          f"per box per frame (CPU time per object per frame {np.mean(cpu_seconds):.3f} s, "
+          f"max {np.max(cpu_seconds):.3f}); "
+          + ", ".join(f"{statuses.count(s)} {s}" for s in sorted(set(statuses))))
+    table(f"estimated disparity, views {args.estimate_views}", scored)
+    center = [estimates[k][lf.center] for k, lf in enumerate(frames)]
+    runs.setdefault(f"baseline estimate{tag}", []).append(
+        score(baseline(frames, result, mapping, "estimate", center), truth))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", default="4,5,6")
+    parser.add_argument("--oracle-jitter", default="0", metavar="R[,R...]",
+                        help="segment each video with the oracle's answers off by up to R "
+                             "pixels, for each R (issue 64: 0,1,2)")
     parser.add_argument("--work", default="/tmp/bench_poses")
     parser.add_argument("--estimate-views", choices=("carried", "center", "corners", "all"),
                         default="corners")
@@ -200,82 +291,16 @@ def main() -> None:
     parser.add_argument("--skip-default", action="store_true",
                         help="do not time `lfsam poses` with its defaults (estimated disparity)")
     args = parser.parse_args()
-    work = Path(args.work)
-    work.mkdir(parents=True, exist_ok=True)
-    runs: dict[str, list] = {"gt": [], "default": [], "estimate": [], "baseline gt": [],
-                             "baseline estimate": []}
-    seconds: dict[str, list[float]] = {"gt": [], "estimate": []}
-    for seed in (int(s) for s in args.seeds.split(",")):
-        video_path, result_path = prepare(seed, work)
-        out = work / f"poses_{seed}.json"
-        command = _run([*LFSAM, "poses", str(result_path), "--lightfield", str(video_path),
-                        "--disparity", "gt", "--json", str(out)])
-        video = read_video(video_path)
-        result = load_video_result(result_path)
-        truth, frames = truth_of(video)
-        mapping = match_ids(result.frame(0).labels[frames[0].center],
-                            frames[0].labels[frames[0].center], truth[0])
-        document = json.loads(out.read_text())
-        motions = {mapping[o["id"]]: {f["frame"]: None if f["motion"] is None
-                                      else np.asarray(f["motion"]) for f in o["frames"]}
-                   for o in document["objects"] if o["id"] in mapping}
-        scored = score(motions, truth)
-        runs["gt"].append(scored)
-        per_object = [f["seconds"] for o in document["objects"] if o["id"] in mapping
-                      for f in o["frames"]]
-        seconds["gt"] += per_object
-        print(f"seed {seed}: {len(document['objects'])} objects tracked ({len(mapping)} boxes); "
-              f"`lfsam poses --disparity gt` command {command:.1f} s (target <= 60 s), tracker "
-              f"{np.mean(per_object):.3f} s per box per frame")
-        table("gt disparity, views all", scored)
-        if not args.skip_default:
-            default_out = work / f"poses_{seed}_default.json"
-            default_command = _run([*LFSAM, "poses", str(result_path), "--lightfield",
-                                    str(video_path), "--json", str(default_out)])
-            document = json.loads(default_out.read_text())
-            motions = {mapping[o["id"]]: {f["frame"]: None if f["motion"] is None
-                                          else np.asarray(f["motion"]) for f in o["frames"]}
-                       for o in document["objects"] if o["id"] in mapping}
-            runs["default"].append(score(motions, truth))
-            print(f"  `lfsam poses` with its defaults (estimated disparity, corners): command "
-                  f"{default_command:.1f} s (target <= 60 s)")
-            table("defaults: estimated disparity, views corners", runs["default"][-1])
-        runs["baseline gt"].append(score(baseline(frames, result, mapping, "gt"), truth))
-        if args.skip_estimate:
-            continue
-        start = time.perf_counter()
-        estimates = estimate_views(frames, args.estimate_views,
-                                   work / f"rigid_{seed}_estimates_{args.estimate_views}.npz")
-        estimate_seconds = time.perf_counter() - start
-        tracker = PoseTracker(camera_of(frames[0].meta), frames[0].view_shape)
-        cpu_seconds: list[float] = []
-        for k, lf in enumerate(frames):
-            labels = result.frame(k).labels
-            data = [ViewData((s - lf.center[0], t - lf.center[1]), lf.views[s, t],
-                             labels[s, t], d, c) for (s, t), (d, c) in estimates[k].items()]
-            cpu = time.process_time()
-            entries = tracker.add_frame(data, frame=k)
-            cpu_seconds.append((time.process_time() - cpu) / max(len(entries), 1))
-        objects = tracker.objects
-        motions = {mapping[o.object_id]: {f.frame: f.motion for f in o.frames}
-                   for o in objects if o.object_id in mapping}
-        scored = score(motions, truth)
-        runs["estimate"].append(scored)
-        per_object = [f.seconds for o in objects if o.object_id in mapping for f in o.frames]
-        seconds["estimate"] += per_object
-        print(f"  estimated disparity (views {args.estimate_views}): estimates "
-              f"{estimate_seconds:.1f} s (0 when cached), tracker {np.mean(per_object):.3f} s "
-              f"per box per frame (CPU time per object per frame {np.mean(cpu_seconds):.3f} s, "
-              f"max {np.max(cpu_seconds):.3f})")
-        table(f"estimated disparity, views {args.estimate_views}", scored)
-        center = [estimates[k][lf.center] for k, lf in enumerate(frames)]
-        runs["baseline estimate"].append(
-            score(baseline(frames, result, mapping, "estimate", center), truth))
+    Path(args.work).mkdir(parents=True, exist_ok=True)
+    runs: dict[str, list] = {}
+    seconds: dict[str, list[float]] = {}
+    for jitter in (int(j) for j in args.oracle_jitter.split(",")):
+        for seed in (int(s) for s in args.seeds.split(",")):
+            run_seed(seed, jitter, args, runs, seconds)
     held_out = all(int(s) not in DEVELOPMENT_SEEDS for s in args.seeds.split(","))
     print(f"summary ({'held-out ' if held_out else ''}seeds {args.seeds}):")
     for name, scored in runs.items():
-        if scored:
-            summary(name, scored, seconds.get(name))
+        summary(name, scored, seconds.get(name))
 
 
 if __name__ == "__main__":

@@ -40,13 +40,17 @@ Per object and frame:
            principal axes): pose = motion . first pose;
   inliers  the share of the frame's points within 3 mm of the registered model, and rmse_m
            their RMS point-to-plane distance;
-  status   tracked, lost (too few points or no fit: no pose is given) or found again.
+  status   tracked, uncertain (a pose given, but its fit is several times worse than the
+           object's own: check it before you act on it), lost (too few points or no fit: no
+           pose is given) or found again.
 
 How: the object's points from every view that sees it (--views all, the default; the light
 field sees around occluders), a coarse motion from SIFT matches inside its masks in the center
 and corner views lifted to 3D (RANSAC + Kabsch), refined by point-to-plane ICP of all its
-points onto a keyframe model of the object (no drift from chaining frame to frame). A single
-light field (a result .npz) gives each object's pose with identity motion.
+points onto a keyframe model of the object (no drift from chaining frame to frame). A mask's
+rim is not trusted: pixels next to a depth jump or within 2 pixels of another label are left
+out, so a mask a pixel or two off (as every real segmenter's is) adds no point of the wall or
+of an occluder. A single light field (a result .npz) gives each object's pose with identity motion.
 
 The camera is --camera CAMERA.json ({CAMERA_EXAMPLE}), else the light field's own (an HCI 4D
 parameters.cfg, or an lfsam scene folder's: `lfsam synth` writes one). With --disparity
@@ -118,6 +122,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _line(obj: ObjectPoses) -> str:
     tracked = [f for f in obj.frames if f.pose is not None]
     lost = sum(f.status == "lost" for f in obj.frames)
+    uncertain = sum(f.status == "uncertain" for f in obj.frames)
     if not tracked:
         return f"{obj.object_id:>5} {(obj.category or '-')[:14]:<14} lost in every frame"
     last = tracked[-1]
@@ -128,7 +133,8 @@ def _line(obj: ObjectPoses) -> str:
     seconds = np.mean([f.seconds for f in obj.frames])
     centre = last.pose[:3, 3]
     return (f"{obj.object_id:>5} {(obj.category or '-')[:14]:<14} frames {obj.frames[0].frame}-"
-            f"{obj.frames[-1].frame} ({lost} lost)  at frame {last.frame}: turned "
+            f"{obj.frames[-1].frame} ({lost} lost, {uncertain} uncertain)  at frame "
+            f"{last.frame}: turned "
             f"{angle:6.2f} deg, moved {1000 * shift:6.1f} mm, centre "
             f"[{centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f}] m;  inliers {inliers:.2f}, "
             f"rmse {1000 * rmse:.2f} mm, {seconds:.2f} s/frame")

@@ -5,13 +5,16 @@ y down, z forward) that carries the object's points at its first frame to its po
 frame, and its **pose** (object frame: origin at the first frame's centroid, axes its principal
 axes, largest variance first, right-handed; ``pose = motion @ first_pose``), with a quality
 (``inliers``: the share of the frame's points within 3 mm of the registered model; ``rmse_m``:
-their RMS point-to-plane distance) and a status (``tracked``, ``lost``, ``found again``). A lost
+their RMS point-to-plane distance) and a status (``tracked``, ``uncertain``: a pose whose fit is
+several times worse than the object's own, ``lost``, ``found again``). A lost
 object gets no pose.
 
 The light-field way to register (:class:`PoseTracker`, plain arrays in and out):
 
 1. the object's points come from every chosen view that sees it (the light field sees around
-   occluders), voxel-averaged to :attr:`PoseOptions.voxel_m`;
+   occluders), its masks' rims left out (:mod:`lfsam.poses.rim`: pixels near a depth jump or
+   another label, where an imperfect mask carries the background or an occluder),
+   voxel-averaged to :attr:`PoseOptions.voxel_m`;
 2. coarse: SIFT features inside the object's masks in a few views (the center and the four
    corners), matched view by view against the last keyframe and the previous frame, lifted to
    3D with the disparity, RANSAC + Kabsch (:mod:`lfsam.spatial.features`,
@@ -27,13 +30,15 @@ The light-field way to register (:class:`PoseTracker`, plain arrays in and out):
 with a disparity source (``"estimate"``, ``"gt"``, a map) and a camera, as :mod:`lfsam.objects3d`
 does.
 
-The package: :mod:`~lfsam.poses.tracker` (the registration), :mod:`~lfsam.poses.video` (a whole
+The package: :mod:`~lfsam.poses.tracker` (the registration), :mod:`~lfsam.poses.rim` (which
+pixels of a mask to trust), :mod:`~lfsam.poses.video` (a whole
 video), :mod:`~lfsam.poses.files` (JSON, CSV and BOP files); every name below is importable from
 :mod:`lfsam.poses`.
 """
 
 from lfsam.metrics.pose import rotation_error_deg
 from lfsam.poses.files import bop_csv, poses_csv, poses_json
+from lfsam.poses.rim import RimOptions, trusted_labels
 from lfsam.poses.tracker import (
     POSE_VIEWS,
     STATUSES,
@@ -54,6 +59,7 @@ __all__ = [
     "ObjectPoses",
     "PoseOptions",
     "PoseTracker",
+    "RimOptions",
     "VideoPoses",
     "ViewData",
     "bop_csv",
@@ -63,4 +69,5 @@ __all__ = [
     "poses_json",
     "poses_of_video",
     "rotation_error_deg",
+    "trusted_labels",
 ]

@@ -6,6 +6,7 @@ poses it gives (:class:`FramePose`, :class:`ObjectPoses`, :func:`first_pose`) an
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -17,6 +18,7 @@ from scipy.spatial import cKDTree
 from lfsam.camera import Camera
 from lfsam.errors import LfsamError
 from lfsam.metrics.pose import rotation_error_deg
+from lfsam.poses.rim import RimOptions, trusted_labels
 from lfsam.spatial import MIN_CONFIDENCE, object_points
 from lfsam.spatial.features import ViewFeatures, match_features, view_features
 from lfsam.spatial.registration import (
@@ -51,8 +53,9 @@ def default_pose_views(disparity: object) -> str:
     section 12)."""
     return "corners" if isinstance(disparity, str) and disparity == "estimate" else "all"
 
-#: The statuses of an object in a frame.
-STATUSES = ("tracked", "lost", "found again")
+#: The statuses of an object in a frame: ``uncertain`` is a pose given whose fit is poor
+#: (:attr:`PoseOptions.uncertain_rmse`), never silently ``tracked`` (issue 64).
+STATUSES = ("tracked", "uncertain", "lost", "found again")
 
 
 @dataclass(frozen=True)
@@ -86,6 +89,17 @@ class PoseOptions:
         Caps (evenly strided subsets, deterministic) on an object's raw points per frame, on
         the voxels it registers and on its model's points: a wall of a million pixels costs
         what a box does.
+    uncertain_rmse, uncertain_floor_m, uncertain_inliers : float
+        A fit is ``uncertain`` (its pose given, its points kept out of the model) where its
+        RMS point-to-plane distance exceeds ``uncertain_rmse`` times the median of the object's
+        earlier certain fits and ``uncertain_floor_m``, or where it explains less than
+        ``uncertain_inliers`` of the points: a registration pulled off by what is not the
+        object fits its points several times worse than the object's own noise (design.md
+        section 12, "Imperfect masks").
+    rim : RimOptions or None
+        Which pixels of each mask are lifted and matched (:mod:`lfsam.poses.rim`: not those
+        near a depth jump or another label, where an imperfect mask carries the background or
+        an occluder); None trusts every labelled pixel.
     """
 
     voxel_m: float = 0.003
@@ -102,6 +116,10 @@ class PoseOptions:
     max_dense: int = 300_000
     max_points: int = 5000
     max_model: int = 30_000
+    uncertain_rmse: float = 3.0
+    uncertain_floor_m: float = 0.0005
+    uncertain_inliers: float = 0.5
+    rim: RimOptions | None = field(default_factory=RimOptions)
 
 
 @dataclass
@@ -198,6 +216,7 @@ class _Track:
     prev_features: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]]
     motions: list[np.ndarray]
     lost: bool = False
+    rmses: list[float] = field(default_factory=list)
 
 
 def _features_in_model(features: dict[tuple[int, int], ViewFeatures], object_id: int,
@@ -347,13 +366,19 @@ class PoseTracker:
                              matches, 0.0)
         to_model = found.transform
         motion = np.linalg.inv(to_model)
-        status = "found again" if track.lost else "tracked"
+        poor = found.inliers < opts.uncertain_inliers or (
+            len(track.rmses) >= 2
+            and found.rmse > max(opts.uncertain_rmse * float(np.median(track.rmses)),
+                                 opts.uncertain_floor_m))
+        status = "found again" if track.lost else "uncertain" if poor else "tracked"
         track.lost = False
         motions.append(motion)
         current = _features_in_model(features, obj_id, to_model)
         track.prev_features = current
+        if not poor:
+            track.rmses.append(found.rmse)
         turned = rotation_error_deg(motion, track.key_motion)
-        if turned > opts.keyframe_deg or found.inliers < opts.keyframe_inliers:
+        if not poor and (turned > opts.keyframe_deg or found.inliers < opts.keyframe_inliers):
             joined = np.concatenate([track.model, transform(to_model, xyz)])
             (joined,) = voxel_downsample(joined, opts.voxel_m)
             track.model, track.normals, track.tree = self._model(joined)
@@ -380,6 +405,12 @@ class PoseTracker:
             counts = np.bincount(np.asarray(view.labels).ravel().clip(0))
             seen |= {int(i) for i in np.flatnonzero(counts) if i != 0}
         ids = sorted(seen | set(self.tracks))
+        if self.options.rim is not None:
+            views = [dataclasses.replace(
+                view, labels=trusted_labels(
+                    view.labels, view.disparity, self.options.rim,
+                    zero_disparity_offset=self.camera.zero_disparity_offset))
+                for view in views]
         clouds = self._points(views, ids)
         gray = None if grid is None else np.asarray(grid, dtype=np.float32).mean(axis=-1)
         features = self._view_features(views, gray)

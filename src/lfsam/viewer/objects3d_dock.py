@@ -370,9 +370,11 @@ class ObjectsDock(QWidget):
         self.poses, self.pose_lengths, camera, count = answer
         self._draw_poses(camera if self.found is None else None)
         lost = sum(f.status == "lost" for obj in self.poses for f in obj.frames)
+        uncertain = sum(f.status == "uncertain" for obj in self.poses for f in obj.frames)
         self._set_status(
             f"poses of {len(self.poses)} object(s) over {count} frame(s)"
             + (f" ({lost} lost object-frame(s))" if lost else "")
+            + (f" ({uncertain} uncertain object-frame(s))" if uncertain else "")
             + f"; axes at frame {self.pose_frame} (x red, y green, z blue) and paths: move the "
             "frame slider to move them")
 
