@@ -68,6 +68,7 @@ examples:
   lfsam synth hard --frames 12 --grid 5x5 --size 96x128 --objects 5 --hard
   lfsam synth boxes --rigid --seed 7                   # 3 boxes, 10 frames of 7x7 x 240x320
   lfsam synth small --rigid --frames 3 --grid 5x5 --size 120x160 --objects 1
+  lfsam synth crossing --rigid --crossing --seed 7     # a fourth box crosses in front
 """
 
 
@@ -134,15 +135,16 @@ def _run_rigid(args: argparse.Namespace) -> int:
     check_writable(args.out, folder=True, option="OUT")
     frames = generate_rigid_video(
         boxes=args.objects, frames=args.frames, grid=args.grid, size=args.size, seed=args.seed,
-        supersample=args.supersample,
+        supersample=args.supersample, crossing=args.crossing,
     )
     settings = {"seed": args.seed, "objects": args.objects, "frames": args.frames,
-                "rigid": True}
+                "rigid": True, "crossing": bool(args.crossing)}
     out = write_video_frames(frames, args.out, meta=settings)
     print(
         f"wrote {out}: {args.frames} frames of {args.grid[0]} x {args.grid[1]} views of "
-        f"{args.size[0]} x {args.size[1]}, seed {args.seed}, {args.objects} rigid boxes "
-        "(poses in each frame's lfsam_scene.json, meta.rigid)"
+        f"{args.size[0]} x {args.size[1]}, seed {args.seed}, {args.objects} rigid boxes"
+        + (" and one crossing in front of them" if args.crossing else "")
+        + " (poses in each frame's lfsam_scene.json, meta.rigid)"
     )
     return 0
 
@@ -164,6 +166,8 @@ def run(args: argparse.Namespace) -> int:
     """Generate the scene (or with ``--frames``, the video; ``--rigid``, the boxes) and write
     it."""
     _defaults(args)
+    if args.crossing and not args.rigid:
+        raise LfsamError("--crossing adds a box to a --rigid video; add --rigid")
     if args.without and (args.rigid or args.frames is not None):
         raise LfsamError("--without renders one scene without objects; not with --frames, --rigid")
     if args.rigid:
@@ -295,6 +299,12 @@ def register(subparsers) -> None:
         action="store_true",
         help="a video of rigid textured boxes under known 3D motion, every frame's 4x4 pose "
         "per box in its scene file (the ground truth of `lfsam poses`)",
+    )
+    parser.add_argument(
+        "--crossing",
+        action="store_true",
+        help="with --rigid: one more box (the last label) crosses the view 35 cm nearer, "
+        "turning, in front of the others, which it covers in turn (poses through occlusions)",
     )
     parser.add_argument(
         "--hard",

@@ -18,6 +18,7 @@ from scipy.spatial import cKDTree
 from lfsam.camera import Camera
 from lfsam.errors import LfsamError
 from lfsam.metrics.pose import rotation_error_deg
+from lfsam.poses.prediction import predict_motion
 from lfsam.poses.rim import RimOptions, trusted_labels
 from lfsam.spatial import MIN_CONFIDENCE, object_points
 from lfsam.spatial.features import ViewFeatures, match_features, view_features
@@ -215,6 +216,7 @@ class _Track:
     key_features: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]]
     prev_features: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]]
     motions: list[np.ndarray]
+    frames: list[int]
     lost: bool = False
     rmses: list[float] = field(default_factory=list)
 
@@ -319,7 +321,7 @@ class PoseTracker:
         result = ObjectPoses(obj_id, self.categories.get(obj_id), pose0)
         found = _features_in_model(features, obj_id, np.eye(4))
         self.tracks[obj_id] = _Track(result, model, normals, tree, np.eye(4), found, found,
-                                     [np.eye(4)])
+                                     [np.eye(4)], [self.frame])
         return FramePose(self.frame, "tracked", np.eye(4), pose0.copy(), 1.0, 0.0, len(xyz),
                          0, 0.0)
 
@@ -347,9 +349,7 @@ class PoseTracker:
     def _follow(self, track: _Track, obj_id: int, xyz: np.ndarray, features) -> FramePose:
         opts = self.options
         motions = track.motions
-        guess = motions[-1]
-        if len(motions) > 1 and not track.lost:
-            guess = motions[-1] @ np.linalg.inv(motions[-2]) @ motions[-1]
+        guess = predict_motion(motions, track.frames, self.frame)
         model_pts, cur_pts = self._pairs(track, obj_id, features)
         fitted, inliers = ransac_rigid(model_pts, cur_pts, opts.ransac_m,
                                        seed=self.frame * 1009 + obj_id)
@@ -373,6 +373,7 @@ class PoseTracker:
         status = "found again" if track.lost else "uncertain" if poor else "tracked"
         track.lost = False
         motions.append(motion)
+        track.frames.append(self.frame)
         current = _features_in_model(features, obj_id, to_model)
         track.prev_features = current
         if not poor:

@@ -191,6 +191,36 @@ def _fits(boxes: list[RigidBox], camera: Camera, size: tuple[int, int], margin_p
     return True
 
 
+#: How much nearer than the other boxes (metres) the crossing box of ``rigid_scenes(crossing=
+#: True)`` moves.
+CROSSING_DEPTH = 0.35
+
+
+def _crossing_box(rng: np.random.Generator, label: int, frames: int, z: float, camera: Camera,
+                  size: tuple[int, int], box_size_m: tuple[float, float],
+                  turn_deg: tuple[float, float]) -> RigidBox:
+    """A box at depth ``z`` that crosses the view from one side to the other over ``frames``
+    (left to right or right to left, at a random height), turning about an axis of its own."""
+    edges = rng.uniform(*box_size_m, size=3)
+    half_width = (size[1] / 2) / camera.focal_px * z
+    reach = max(half_width - 0.6 * float(np.linalg.norm(edges)), 0.0)
+    side = 1.0 if rng.uniform() < 0.5 else -1.0
+    xs = np.linspace(-side * reach, side * reach, frames)
+    y = rng.uniform(-0.03, 0.03)
+    axis = rng.normal(size=3)
+    poses = []
+    rotation = _random_rotation(rng)
+    for frame in range(frames):
+        if frame:
+            turn = rotation_about(axis, math.radians(rng.uniform(*turn_deg)))
+            rotation = rotation @ turn
+        pose = np.eye(4)
+        pose[:3, :3] = rotation
+        pose[:3, 3] = (xs[frame], y, z)
+        poses.append(pose)
+    return RigidBox(label, edges, np.stack(poses), [])
+
+
 def rigid_scenes(
     *,
     boxes: int = 3,
@@ -205,8 +235,14 @@ def rigid_scenes(
     move_mm: tuple[float, float] = (4.0, 12.0),
     background_z_m: float = 1.6,
     texels: int = FACE_TEXELS,
+    crossing: bool = False,
 ) -> RigidScene:
     """A random video of rigid boxes (module docstring).
+
+    With ``crossing`` (issue 64: poses through 3D occlusions) one more box, the last label,
+    turns as the others do while it crosses the view from one side to the other at
+    :data:`CROSSING_DEPTH` nearer than ``distance_m``, in front of the others: each of them is
+    partly or wholly covered for some frames, in some views more than in others.
 
     Each box: edges uniform in ``box_size_m``, a random orientation, its centre about
     ``distance_m`` away, side by side across the view; every frame it turns by an angle uniform
@@ -248,6 +284,9 @@ def rigid_scenes(
                 pose[:3, 3] = previous[:3, 3] + direction * rng.uniform(*move_mm) / 1000
                 poses.append(pose)
             found.append(RigidBox(index + 2, edges, np.stack(poses), []))
+        if crossing:
+            found.append(_crossing_box(rng, boxes + 2, frames, z - CROSSING_DEPTH, camera,
+                                       size, box_size_m, turn_deg))
         if _fits(found, camera, size, parallax, 0.005):
             break
     else:
