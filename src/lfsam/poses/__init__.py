@@ -12,8 +12,9 @@ object gets no pose.
 The light-field way to register (:class:`PoseTracker`, plain arrays in and out):
 
 1. the object's points come from every chosen view that sees it (the light field sees around
-   occluders), its masks' rims left out (:mod:`lfsam.poses.rim`: pixels near a depth jump or
-   another label, where an imperfect mask carries the background or an occluder),
+   occluders), its masks' doubtful rims left out (:mod:`lfsam.poses.rim`: pixels just behind a
+   depth jump, or near another label and not the object's silhouette: where an imperfect mask
+   carries the background),
    voxel-averaged to :attr:`PoseOptions.voxel_m`;
 2. coarse: SIFT features inside the object's masks in a few views (the center and the four
    corners), matched view by view against the last keyframe and the previous frame, lifted to

@@ -99,8 +99,9 @@ class PoseOptions:
         section 12, "Imperfect masks").
     rim : RimOptions or None
         Which pixels of each mask are lifted and matched (:mod:`lfsam.poses.rim`: not those
-        near a depth jump or another label, where an imperfect mask carries the background or
-        an occluder); None trusts every labelled pixel.
+        just behind a depth jump, nor those near another label that are not the object's
+        silhouette: where an imperfect mask carries the background); None trusts every
+        labelled pixel.
     """
 
     voxel_m: float = 0.003
