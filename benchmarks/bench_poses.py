@@ -259,7 +259,7 @@ def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict) -> None:
               f"{default_command:.1f} s (target <= 60 s); {_statuses(document, mapping)}")
         table("defaults: estimated disparity, views corners", runs[f"default{tag}"][-1])
     runs.setdefault(f"baseline gt{tag}", []).append(
-        score(baseline(frames, result, mapping, "gt"), truth))
+        score(baseline(frames, result, mapping, "gt"), truth, hidden))
     if args.skip_estimate:
         return
     start = time.perf_counter()
@@ -291,7 +291,7 @@ def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict) -> None:
     table(f"estimated disparity, views {args.estimate_views}", scored)
     center = [estimates[k][lf.center] for k, lf in enumerate(frames)]
     runs.setdefault(f"baseline estimate{tag}", []).append(
-        score(baseline(frames, result, mapping, "estimate", center), truth))
+        score(baseline(frames, result, mapping, "estimate", center), truth, hidden))
 
 
 def main() -> None:

@@ -41,14 +41,18 @@ class RimOptions:
     Attributes
     ----------
     inside_px : int
-        A pixel is trusted only this far (Chebyshev distance, pixels) from any other label:
-        a mask off by up to this many pixels adds no foreign pixel. 0 turns the test off.
+        A pixel this close (Chebyshev distance, pixels) to another label is not trusted unless
+        it is the near side of a depth jump within that distance (the object's silhouette): a
+        mask off by up to this many pixels adds no foreign pixel where no jump marks the rim.
+        0 turns the test off.
     jump_px : int
-        A pixel within this distance of a depth jump is not trusted. 0 turns the test off.
+        A pixel with a pixel this close that is nearer by a depth jump (it lies behind an
+        edge) is not trusted. 0 turns the test off.
     jump : float
-        A depth jump: the disparity range over the pixel's ``(2 jump_px + 1)`` window above
-        this share of its disparity (0.05: 5 cm at 1 m; a box face seen at 70 degrees changes
-        by under 2 % across a window of 5 pixels at 1 m and f = 400 px).
+        A depth jump: a difference in absolute disparity (disparity plus the zero-disparity
+        offset, proportional to inverse depth) above this share of the pixel's own (0.05: 5 cm
+        at 1 m; a box face seen at 70 degrees changes by under 2 % across 5 pixels at 1 m and
+        f = 400 px).
     min_left : float
         Where the tests would leave an object fewer than this share of its pixels in a view (a
         thin or far object), its mask there is kept whole: few points are worse than a rim.
