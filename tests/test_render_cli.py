@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from lfsam.cli.main import main
-from lfsam.cli.render_output import read_flags
 from lfsam.io import read_lightfield
+from lfsam.render.output import read_flags
 
 
 @pytest.fixture(scope="module")

@@ -107,3 +107,93 @@ def _inner(mask):
     from lfsam.render.background_disparity import dilate
 
     return ~dilate(torch.from_numpy(~mask), 3).numpy()
+
+
+def test_removal_fills_what_other_views_see_and_flags_the_rest(scene):
+    """Judged by the scene's truth (lfsam.synth.seen_behind), not by the removal's own flags:
+    few pixels that no view sees are claimed as filled, most that another view sees are filled,
+    and on a scene whose object stands clear of the others every view's seen pixels are close
+    to the twin."""
+    from lfsam.synth import seen_behind
+
+    lf, obj, twin = scene
+    sc, tc = lf.center
+    masks = lf.labels == obj
+    views, unseen = remove_objects(lf.views, masks, lf.disparity[sc, tc])
+    seen = seen_behind(lf, twin, [obj])
+    assert seen.sum() > 500 and (masks & ~seen).sum() > 500  # both kinds of pixel are there
+    claimed = masks & ~unseen
+    assert (claimed & ~seen).sum() <= 0.05 * claimed.sum()
+    assert (claimed & seen).sum() >= 0.5 * seen.sum()
+    settings = {**SETTINGS, "seed": 11}
+    lf = generate_scene(**settings)
+    twin = generate_scene_without([3], **settings)
+    masks = lf.labels == 3
+    views, unseen = remove_objects(lf.views, masks, lf.disparity[sc, tc])
+    seen = seen_behind(lf, twin, [3])
+    for s in range(lf.grid_shape[0]):
+        for t in range(lf.grid_shape[1]):
+            if seen[s, t].sum() > 20:
+                assert _psnr(views[s, t][seen[s, t]], twin.views[s, t][seen[s, t]]) >= 30.0
+
+
+def test_the_rim_splits_into_the_surfaces_behind_an_object():
+    """A wall and, on one side, a box nearer than the wall but behind the object: both planes,
+    exactly, and where each may continue."""
+    from lfsam.render.background_disparity import REACH, rim_surfaces
+
+    rows, cols = np.mgrid[0:60, 0:80].astype(np.float64)
+    disparity = -1.5 + 0.004 * rows - 0.002 * cols  # the wall, slanted
+    box = cols >= 40
+    disparity[box] = -0.7  # a box, fronto-parallel
+    mask = (rows >= 20) & (rows < 40) & (cols >= 25) & (cols < 55)
+    disparity[mask] = 1.2  # the object in front
+    planes, near = rim_surfaces(disparity.astype(np.float32), mask)
+    assert len(planes) == 2
+    wall, boxed = sorted(planes, key=lambda p: p[0])
+    assert np.allclose(wall, [-1.5, 0.004, -0.002], atol=1e-5)
+    assert np.allclose(boxed, [-0.7, 0.0, 0.0], atol=1e-5)
+    order = [int(np.argmin([abs(p[0] - q[0]) for p in planes])) for q in (wall, boxed)]
+    assert near[order[1]][30, 50] and not near[order[1]][30, 26 - REACH]
+
+
+def test_objects_in_front_of_the_focal_plane_are_the_nearer_other_objects():
+    from lfsam.render import objects_in_front
+
+    labels = np.zeros((3, 3, 10, 12), dtype=np.int32)
+    labels[:, :, 1:4, 1:4] = 2  # near
+    labels[:, :, 5:8, 1:4] = 3  # behind the focal plane
+    labels[:, :, 1:4, 6:9] = 4  # the chosen object, near too
+    labels[0, 0, 8:, 8:] = 5  # not in the center view: unknown depth, left alone
+    disparity = np.full((10, 12), -1.0, dtype=np.float32)
+    disparity[1:4, 1:4] = 1.5
+    disparity[5:8, 1:4] = -1.5
+    disparity[1:4, 6:9] = 1.0
+    front = objects_in_front(labels, [4], disparity, focus=-1.0)
+    assert np.array_equal(front, labels == 2)
+    assert not objects_in_front(labels, [4], disparity, focus=1.4).any()  # within the margin
+
+
+def test_see_through_leaves_out_the_other_objects_in_front_when_asked():
+    """A nearer object beside the chosen one veils what lies behind it in the views that see
+    across; leaving its rays out brings the see-through closer to the twin (on this scene,
+    measured: 34.3 dB with them, 62.1 dB without)."""
+    from lfsam.render import objects_in_front
+
+    settings = {**SETTINGS, "seed": 1}
+    lf, obj = generate_scene(**settings), 3
+    twin = generate_scene_without([obj], **settings)
+    sc, tc = lf.center
+    masks = lf.labels == obj
+    disparity = lf.disparity[sc, tc]
+    focus = rim_disparity(masks[sc, tc], disparity)
+    front = objects_in_front(lf.labels, [obj], disparity, focus)
+    assert front.any()  # the scene holds a nearer object
+    veiled, _ = see_through(lf.views, masks, focus=focus)
+    clear, coverage = see_through(lf.views, masks, focus=focus, occluders=front)
+    hidden = masks[sc, tc] & (coverage >= 0.25) & (np.abs(twin.disparity[sc, tc] - focus) < 0.25)
+    truth = twin.views[sc, tc][hidden]
+    assert hidden.sum() > 20
+    assert _psnr(clear[hidden], truth) >= _psnr(veiled[hidden], truth) + 10.0
+    kept = see_through(lf.views, masks, focus=focus, occluders=np.zeros_like(masks))
+    assert np.array_equal(kept[0], veiled)  # no occluders: as without them

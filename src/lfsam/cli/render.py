@@ -2,7 +2,7 @@
 
 A thin layer over :mod:`lfsam.render` (docs/design.md section 13): it reads the light field and
 the result, picks the objects' masks, resolves the disparity where one is needed, and writes
-the output atomically (:mod:`lfsam.cli.render_output`).
+the output atomically (:mod:`lfsam.render.output`).
 """
 
 from __future__ import annotations
@@ -12,14 +12,21 @@ import argparse
 import numpy as np
 
 from lfsam.cli.common import HelpFormatter, add_device_argument, add_disparity_argument
-from lfsam.cli.render_output import write_coverage, write_image, write_removed
 from lfsam.cli.render_video import run_video
 from lfsam.disparity import estimate_disparity_range, resolve_disparity
 from lfsam.errors import LfsamError
 from lfsam.fileutil import check_writable
 from lfsam.io import read_lightfield, resolve_output
 from lfsam.lightfield import LightField, check_result_shape
-from lfsam.render import behind_focus, object_focus, refocus, remove_objects, see_through
+from lfsam.render import (
+    behind_focus,
+    object_focus,
+    objects_in_front,
+    refocus,
+    remove_objects,
+    see_through,
+)
+from lfsam.render.output import write_coverage, write_image, write_removed
 from lfsam.result import load_result
 from lfsam.video.io.result import is_video_result
 
@@ -33,13 +40,15 @@ Render a light field around its segmented objects, with the same mask in every v
                 object's median disparity: on that plane sharp, the rest blurred as by a lens
                 as wide as the aperture. Pixels near the border average the rays that land.
   see through   (--see-through ID[,ID...]; --out IMAGE.png) a synthetic-aperture image that
-                leaves out every ray hitting the objects in any view (their mask there),
-                normalised by the rays kept, focused on what lies behind them (the surface
-                their rim shows) unless --focus is given. --coverage writes the share of views
-                that saw each pixel (black: none did).
+                leaves out every ray hitting the objects in any view (their mask there), and
+                every ray hitting RESULT's other objects in front of the focus, normalised by
+                the rays kept, focused on what lies behind them (the surface their rim shows)
+                unless --focus is given. --coverage writes the share of views that saw each
+                pixel (black: none did).
   remove        (--remove ID[,ID...]; --out LF.npz or FOLDER) the whole light field without the
                 objects: each view's object pixels filled from the other views that see the
-                surface behind, at its disparity; what no view sees is inpainted by OpenCV
+                surface behind (of the surfaces the objects' rim shows, the nearest that other
+                views see there), at its disparity; what no view sees is inpainted by OpenCV
                 (pip install 'lfsam[render]') and flagged in inpainted.npy, stored with it.
                 lfsam's native format: `lfsam info`, `segment`, `disparity`, `view` read it.
 
@@ -171,9 +180,12 @@ def render_frame(args: argparse.Namespace, mode: str, lf: LightField,
     if mode == "see-through":
         masks = _masks(labels, args.see_through, args.result)
         focus = args.focus if args.focus is not None else behind_focus(masks, disparity)
+        # The result's other objects in front of the focal plane veil what lies behind.
+        front = objects_in_front(labels, args.see_through, disparity,
+                                 _clip(focus, scene_range))
         image, coverage = see_through(
             lf.views, masks, focus=focus, present=lf.present, aperture=args.aperture,
-            disparity_range=scene_range, device=device,
+            disparity_range=scene_range, occluders=front, device=device,
         )
         write_image(out, image)
         if coverage_out:

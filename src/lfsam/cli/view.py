@@ -208,6 +208,7 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
 
     from lfsam.viewer.layout import lay_out
     from lfsam.viewer.objects3d_dock import ObjectsDock
+    from lfsam.viewer.render_dock import RenderDock
     from lfsam.viewer.widget import LightFieldWidget
 
     model = model_options_from_args(args)
@@ -231,6 +232,8 @@ def open_viewer(args: argparse.Namespace, show: bool = True) -> tuple[Any, Any]:
     dock = viewer.window.add_dock_widget(widget, name="lfsam", area="right")
     viewer.window.add_dock_widget(ObjectsDock(viewer, widget), name="lfsam 3D", area="right",
                                   tabify=True)  # a tab beside the lfsam dock (section 11)
+    viewer.window.add_dock_widget(RenderDock(viewer, widget), name="lfsam render",
+                                  area="right", tabify=True)  # refocus, see through (section 13)
     lay_out(viewer, dock)  # the canvas the largest part, the lfsam dock in front (issue 46)
     if result is not None and video is not None:
         widget.show_tracked(result)

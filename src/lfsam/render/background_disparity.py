@@ -15,11 +15,12 @@ from __future__ import annotations
 import numpy as np
 import torch
 import torch.nn.functional as F
+from scipy.ndimage import distance_transform_edt
 
 from lfsam.disparity import warp_center_disparity
 from lfsam.render.inpaint import inpaint
 
-__all__ = ["background_center", "dilate", "rim_disparity", "view_backgrounds"]
+__all__ = ["background_center", "dilate", "rim_disparity", "rim_surfaces", "view_backgrounds"]
 
 #: Pixels by which the object masks grow before their disparity is replaced.
 GAP = 2
@@ -27,6 +28,18 @@ GAP = 2
 NEARER = 0.1
 #: Width of the ring around an object from which the surface behind it is fitted, pixels.
 RING = 6
+#: Most surfaces (planes) the rim behind an object is split into.
+SURFACES = 3
+#: Fewest rim pixels of a further surface, as a share of the rim behind the object.
+SURFACE_SHARE = 0.1
+#: Largest departure of a rim pixel from its surface's plane, pixels per view step.
+ON_PLANE = 0.1
+#: Bin width of the rim's disparity histogram whose mode seeds each surface, and the reach
+#: around it of the pixels the surface's plane is first fitted to (pixels per view step).
+SEED_BIN = 0.1
+SEED_REACH = 0.3
+#: Distance from its rim within which a surface may continue behind the object, pixels.
+REACH = 12
 
 
 def dilate(masks: torch.Tensor, radius: int) -> torch.Tensor:
@@ -112,9 +125,18 @@ def _rim_plane(disparity: np.ndarray, mask: np.ndarray, hole: np.ndarray) -> np.
     if rows.size < 3:
         value = float(np.median(disparity[ring])) if rows.size else 0.0
         return np.full((height, width), value, dtype=np.float32)
+    coef, _ = _robust_plane(rows, cols, disparity[rows, cols])
+    uu, vv = np.mgrid[0:height, 0:width]
+    return (coef[0] + coef[1] * uu + coef[2] * vv).astype(np.float32)
+
+
+def _robust_plane(rows: np.ndarray, cols: np.ndarray, values: np.ndarray):
+    """``(a, b, c)`` of ``a + b u + c v`` by least squares, 4 rounds dropping the points above
+    3 median errors (0.02 at least); and the points kept."""
     design = np.stack([np.ones(rows.size), rows, cols], axis=1).astype(np.float64)
-    values = disparity[rows, cols].astype(np.float64)
+    values = values.astype(np.float64)
     use = np.ones(rows.size, dtype=bool)
+    coef = np.array([float(np.median(values)), 0.0, 0.0])
     for _ in range(4):  # least squares, dropping the rim of other surfaces
         coef = np.linalg.lstsq(design[use], values[use], rcond=None)[0]
         error = np.abs(design @ coef - values)
@@ -122,14 +144,81 @@ def _rim_plane(disparity: np.ndarray, mask: np.ndarray, hole: np.ndarray) -> np.
         use = error <= spread
         if use.sum() < 3:
             break
-    uu, vv = np.mgrid[0:height, 0:width]
-    return (coef[0] + coef[1] * uu + coef[2] * vv).astype(np.float32)
+    return coef, use
+
+
+def rim_surfaces(disparity: np.ndarray, mask: np.ndarray, grown: int = GAP,
+                 surfaces: int = SURFACES) -> tuple[np.ndarray, np.ndarray]:
+    """The surfaces that the rim behind an object shows, as planes ``(K, 3)``: ``a + b u + c v``.
+
+    The ring of :data:`RING` pixels around the object's mask (grown by ``grown``) behind the
+    object (disparity below its median) is split into planes one by one: a plane is fitted
+    robustly, the rim pixels within :data:`ON_PLANE` of it are taken out, and the rest is
+    fitted again while at least :data:`SURFACE_SHARE` of the rim is left (at most
+    ``surfaces`` planes); each fit starts from the rim pixels near the most common
+    disparity left. What lies behind an object is one of these surfaces (continued), e.g.
+    the wall and the edge of a box partly behind it; estimates that bleed across an edge fit
+    none of them.
+
+    Parameters
+    ----------
+    disparity : (U, V) float array
+    mask : (U, V) bool array
+        The object.
+
+    Returns
+    -------
+    planes : (K, 3) float64 array
+        K <= ``surfaces`` (0 when the rim has under 3 pixels).
+    near : (K, U, V) bool array
+        The pixels within :data:`REACH` of each surface's rim pixels: where it may continue
+        behind the object.
+    """
+    disparity = np.asarray(disparity, dtype=np.float32)
+    mask = np.asarray(mask, dtype=bool)
+    hole = dilate(torch.from_numpy(mask), grown).numpy()
+    ring = (dilate(torch.from_numpy(hole), RING).numpy() & ~hole) & np.isfinite(disparity)
+    inside = disparity[mask & np.isfinite(disparity)]
+    if inside.size:
+        ring &= disparity < np.median(inside)
+    rows, cols = np.nonzero(ring)
+    values = disparity[rows, cols]
+    planes = []
+    owner = np.full(disparity.shape, -1, dtype=np.int64)
+    least = max(3, int(np.ceil(SURFACE_SHARE * rows.size)))
+    while rows.size >= least and len(planes) < surfaces:
+        # Seeded at the most common disparity (bins of SEED_BIN), so that a fit never settles
+        # between two surfaces of about the same size.
+        bins = np.floor(values / SEED_BIN).astype(np.int64)
+        labels, counts = np.unique(bins, return_counts=True)
+        mode = (labels[np.argmax(counts)] + 0.5) * SEED_BIN
+        seed = np.abs(values - mode) <= SEED_REACH
+        if seed.sum() < 3:
+            break
+        coef, _ = _robust_plane(rows[seed], cols[seed], values[seed])
+        on = np.abs(coef[0] + coef[1] * rows + coef[2] * cols - values) <= ON_PLANE
+        if on.sum() < least:
+            break
+        owner[rows[on], cols[on]] = len(planes)
+        planes.append(coef)
+        rows, cols, values = rows[~on], cols[~on], values[~on]
+    near = np.zeros((len(planes), *disparity.shape), dtype=bool)
+    if planes:  # within REACH of each surface's rim pixels, over the rim's box
+        ring_rows, ring_cols = np.nonzero(ring)
+        height, width = disparity.shape
+        top, left = max(0, ring_rows.min() - REACH), max(0, ring_cols.min() - REACH)
+        bottom = min(height, ring_rows.max() + REACH + 1)
+        right = min(width, ring_cols.max() + REACH + 1)
+        box = owner[top:bottom, left:right]
+        for k in range(len(planes)):
+            near[k, top:bottom, left:right] = distance_transform_edt(box != k) <= REACH
+    return np.array(planes, dtype=np.float64).reshape(-1, 3), near
 
 
 def view_backgrounds(
     center: np.ndarray, masks: np.ndarray, offsets: torch.Tensor,
-    device: str | torch.device | None = None,
-) -> torch.Tensor:
+    device: str | torch.device | None = None, *, with_surfaces: bool = False,
+) -> torch.Tensor | tuple[torch.Tensor, list[tuple[np.ndarray, np.ndarray]]]:
     """The background disparity of every view: the center's disparity carried into the view
     (:func:`lfsam.disparity.warp_center_disparity`: z-buffer, disocclusions filled from the
     farther side), the view's own object pixels then filled from its own rim
@@ -146,16 +235,45 @@ def view_backgrounds(
         ``(ds, dt)`` of each view from the center view.
     device : str or torch.device, optional
         Where the warps run.
+    with_surfaces : bool
+        Also return each view's rim surfaces (:func:`rim_surfaces`).
 
     Returns
     -------
     (N, U, V) float32 tensor
+        And, with ``with_surfaces``, a list of ``(planes, near)`` pairs, one per view.
     """
     center = np.asarray(center, dtype=np.float32)
     finite = np.where(np.isfinite(center), center, np.nanmin(center[np.isfinite(center)]))
-    out = []
+    out, surfaces = [], []
     for k, (ds, dt) in enumerate(torch.as_tensor(offsets).tolist()):
         view = finite if ds == 0 and dt == 0 else warp_center_disparity(
             finite, (ds, dt), device=device)[0]
-        out.append(background_center(view, masks[k]))
-    return torch.from_numpy(np.stack(out))
+        filled = view.copy()
+        planes = np.zeros((0, 3))
+        near = np.zeros((0, *view.shape), dtype=bool)
+        box = _box(masks[k], GAP + RING + REACH + 2)
+        if box is not None:  # the work is done on a box around the object, not the view
+            rows, cols = box
+            filled[rows, cols] = background_center(view[rows, cols], masks[k][rows, cols])
+            if with_surfaces:
+                planes, inside = rim_surfaces(view[rows, cols], masks[k][rows, cols])
+                # the box's plane coefficients in the view's coordinates
+                planes[:, 0] -= planes[:, 1] * rows.start + planes[:, 2] * cols.start
+                near = np.zeros((len(planes), *view.shape), dtype=bool)
+                near[:, rows, cols] = inside
+        out.append(filled)
+        surfaces.append((planes, near))
+    depth = torch.from_numpy(np.stack(out))
+    return (depth, surfaces) if with_surfaces else depth
+
+
+def _box(mask: np.ndarray, margin: int) -> tuple[slice, slice] | None:
+    """The rows and columns of ``mask``'s bounding box grown by ``margin`` (None: empty)."""
+    rows = np.nonzero(np.asarray(mask).any(1))[0]
+    if rows.size == 0:
+        return None
+    cols = np.nonzero(np.asarray(mask).any(0))[0]
+    height, width = np.asarray(mask).shape
+    return (slice(max(0, rows[0] - margin), min(height, rows[-1] + margin + 1)),
+            slice(max(0, cols[0] - margin), min(width, cols[-1] + margin + 1)))

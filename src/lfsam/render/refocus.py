@@ -3,8 +3,9 @@
 Ng (2005), "Fourier slice photography" / Ng et al. (2005), "Light field photography with a
 hand-held plenoptic camera": every view is shifted so that the plane of disparity ``focus``
 lines up with the center view and the views are averaged; what lies on that plane is sharp,
-the rest is blurred as by a lens as wide as the aperture. Sub-pixel shifts are bilinear, and
-each pixel is normalised by the rays that landed in it (:mod:`lfsam.render.shift`).
+the rest is blurred as by a lens as wide as the aperture. Sub-pixel shifts are Lanczos-3 by
+default (bilinear blurs a sharp texture by each view's own sub-pixel phase), and each pixel is
+normalised by the rays that landed in it (:mod:`lfsam.render.shift`).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ def refocus(
     aperture: float | None = None,
     disparity_range: tuple[float, float] | None = None,
     device: str | torch.device | None = None,
+    kernel: str = "lanczos3",
 ) -> np.ndarray:
     """The light field refocused at disparity ``focus``.
 
@@ -45,6 +47,11 @@ def refocus(
         The scene's range; a focus outside it is clipped to it, with a warning.
     device : str or torch.device, optional
         Where to compute (default CPU).
+    kernel : {"lanczos3", "linear"}
+        Sub-pixel interpolation (:func:`lfsam.render.shift.shift_and_add`). Lanczos-3 keeps a
+        sharp texture on the focal plane sharp (bilinear sampling blurs each view by its own
+        sub-pixel phase: a checkerboard object of ``lfsam synth`` refocused at its own plane
+        is 32 dB from the center view with bilinear sampling, 35 dB with Lanczos-3).
 
     Returns
     -------
@@ -65,7 +72,7 @@ def refocus(
     device = resolve_device("cpu" if device is None else device)
     chosen, offsets = select_views(views.shape[:2], present, aperture)
     images = views_tensor(views, chosen, device)
-    total, weight = shift_and_add(images, offsets, focus)
+    total, weight = shift_and_add(images, offsets, focus, kernel=kernel)
     image = total / weight.clamp_min(1e-6)
     image = torch.where(weight > 1e-6, image, torch.zeros_like(image))
     return image.permute(1, 2, 0).clamp(0, 255).cpu().numpy().astype(np.float32)

@@ -32,16 +32,22 @@ __all__ = ["DEPTH_TOLERANCE", "remove_objects"]
 DEPTH_TOLERANCE = 0.5
 #: Spread of the weights over the view distance, view steps.
 SIGMA = 1.0
+#: Keep weight above which a ray counts where no ray is wholly clear of the grown masks.
+LOOSE = 0.5
+#: Candidates closer than this (pixels per view step) are looked at once.
+SAME = 0.05
+#: Rays a candidate surface needs to be taken where any candidate has that many.
+MIN_RAYS = 2
 
 
-def _fill_view(sources, grid_shape, n, hidden, offsets, depth, sigma):
-    """Colours of target view ``n``'s ``hidden`` pixels from the other views, and which got any.
+def _gather(sources, n, ys, xs, d, offsets, sigma):
+    """Colours of target view ``n``'s pixels ``(ys, xs)`` seen at background disparity ``d``
+    by the other views, and how many rays saw each.
 
-    ``sources`` is ``(N, 5, U, V)``: RGB, keep weight and background disparity of every view.
+    ``sources`` is ``(N, 5, U, V)``: RGB, keep weight (clear of the grown masks) and (nearest)
+    background disparity of every view.
     """
     _, _, height, width = sources.shape
-    ys, xs = torch.nonzero(hidden, as_tuple=True)
-    d = depth[n][ys, xs]
     rel = offsets - offsets[n]  # (N, 2): source minus target
     others = torch.ones(offsets.shape[0], dtype=torch.bool)
     others[n] = False
@@ -51,14 +57,72 @@ def _fill_view(sources, grid_shape, n, hidden, offsets, depth, sigma):
     grid = torch.stack([2 * v / max(width - 1, 1) - 1, 2 * u / max(height - 1, 1) - 1], -1)
     sampled = F.grid_sample(sources[others], grid[:, None], mode="bilinear",
                             padding_mode="zeros", align_corners=True)[:, :, 0]  # (M, 5, K)
-    valid = (sampled[:, 3] > 0.999) & ((sampled[:, 4] - d[None]).abs() < DEPTH_TOLERANCE)
-    dist2 = (rel ** 2).sum(1)[:, None].expand_as(valid)
-    nearest = torch.where(valid, dist2, torch.full_like(dist2, float("inf"))).amin(0)
+    on_surface = (sampled[:, 4] - d[None]).abs() < DEPTH_TOLERANCE
+    clear = (sampled[:, 3] > 0.999) & on_surface
+    missed = sampled[:, 3] > LOOSE
+    # Rays clear of the grown masks; where none is, rays whose nearest neighbours are (keep
+    # weight above LOOSE): an anti-aliased edge's colour mixed in beats an inpainted guess.
+    loose = (sampled[:, 3] > LOOSE) & on_surface
+    valid = torch.where(clear.any(0, keepdim=True), clear, loose)
+    # A ray that misses the objects and sees only farther surfaces there: nothing at d.
+    refuted = missed & (sampled[:, 4] < d[None] - DEPTH_TOLERANCE)
+    dist2 = (rel ** 2).sum(1)  # (M,)
+    far = torch.full_like(dist2, float("inf"))
+    nearest = torch.where(valid, dist2[:, None], far[:, None]).amin(0)
     # Relative to the nearest view that sees the pixel: no underflow however far it is.
-    weight = valid.float() * torch.exp(-(dist2 - nearest.clamp(max=1e9)) / (2 * sigma**2))
+    weight = valid * torch.exp((nearest.clamp(max=1e9)[None] - dist2[:, None]) / (2 * sigma**2))
     total = weight.sum(0)
-    colour = (sampled[:, :3] * weight[:, None]).sum(0) / total.clamp_min(1e-12)
-    return ys, xs, colour, total > 0
+    colour = torch.einsum("mcp,mp->cp", sampled[:, :3], weight) / total.clamp_min(1e-12)
+    return colour, valid.sum(0), refuted.any(0)
+
+
+def _fill_view(sources, n, hidden, offsets, depth, surfaces, sigma):
+    """Colours of target view ``n``'s ``hidden`` pixels from the other views, and which got any.
+
+    Each pixel's candidates for what lies behind it are its background disparity and the
+    planes of the surfaces its rim shows (:func:`lfsam.render.background_disparity.
+    rim_surfaces`); of those that other views see there (a ray that misses the objects and
+    lands on a surface of that disparity), the nearest is taken: a surface seen at that
+    disparity there lies in front of any farther one (a z-buffer over the candidates). At
+    least :data:`MIN_RAYS` rays where any candidate has that many. Not seen: where the surface
+    whose rim is near (:data:`lfsam.render.background_disparity.REACH`) and nearer than the one
+    taken is neither seen nor refuted by any ray; where no ray sees any candidate.
+    """
+    ys, xs = torch.nonzero(hidden, as_tuple=True)
+    planes, near = surfaces  # (K, 3) planes, (K, U, V) within reach of their rim
+    candidates = [depth[n][ys, xs]]
+    for a, b, c in planes:
+        candidates.append((a + b * ys.double() + c * xs.double()).to(depth.dtype))
+    # A plane that gives (about) the background disparity's value is the same candidate there:
+    # its rays are looked at only where it departs from it.
+    first = _gather(sources, n, ys, xs, candidates[0], offsets, sigma)
+    colours, counts, refuted = [first[0]], [first[1]], [first[2]]
+    for d in candidates[1:]:
+        apart = (d - candidates[0]).abs() > SAME
+        colour, count, refute = first[0].clone(), first[1].clone(), first[2].clone()
+        if apart.any():
+            part = _gather(sources, n, ys[apart], xs[apart], d[apart], offsets, sigma)
+            colour[:, apart], count[apart], refute[apart] = part
+        colours.append(colour)
+        counts.append(count)
+        refuted.append(refute)
+    d = torch.stack(candidates)  # (C, P)
+    count = torch.stack(counts)
+    need = torch.where(count.amax(0) >= MIN_RAYS, MIN_RAYS, 1)
+    supported = count >= need[None]
+    score = torch.where(supported, d, torch.full_like(d, -float("inf")))
+    best = score.argmax(0)
+    colour = torch.stack(colours).gather(0, best[None, None].expand(1, 3, -1))[0]
+    seen = count.gather(0, best[None])[0] >= need
+    # A surface whose rim is near, nearer than the one taken, that no ray sees and none refutes
+    # (every ray toward it hits the objects) may well continue there: not seen.
+    likely = torch.zeros_like(d, dtype=torch.bool)
+    if len(planes):
+        likely[1:] = torch.from_numpy(near[:, ys.cpu().numpy(), xs.cpu().numpy()]).to(d.device)
+    open_ = likely & (count == 0) & ~torch.stack(refuted)
+    open_ &= d > score.amax(0)[None] + DEPTH_TOLERANCE
+    seen &= ~open_.any(0)
+    return ys, xs, colour, seen
 
 
 def remove_objects(
@@ -109,11 +173,11 @@ def remove_objects(
     views = np.asarray(views)
     masks = check_masks(masks, views)
     device = resolve_device("cpu" if device is None else device)
-    s_count, t_count = views.shape[:2]
     chosen, offsets = select_views(views.shape[:2], present, None)
     hit = dilate(torch.from_numpy(np.stack([masks[s, t] for s, t in chosen])), grow)
     own = np.stack([masks[s, t] for s, t in chosen])
-    depth = view_backgrounds(disparity, own, offsets, device=device)
+    depth, surfaces = view_backgrounds(disparity, own, offsets, device=device,
+                                       with_surfaces=True)
     images = views_tensor(views, chosen, torch.device("cpu"))
     # The nearest surface within a pixel of each sample: a ray grazing a nearer object's
     # (anti-aliased) edge does not count as seeing the surface behind.
@@ -126,8 +190,8 @@ def remove_objects(
                                     disable=not progress or None, leave=False)):
         if not hit[n].any():
             continue
-        ys, xs, colour, seen = _fill_view(sources, (s_count, t_count), n, hit[n].to(device),
-                                          offsets, depth.to(device), sigma)
+        ys, xs, colour, seen = _fill_view(sources, n, hit[n].to(device), offsets,
+                                          depth.to(device), surfaces[n], sigma)
         view = out[s, t]
         ys_np, xs_np = ys.cpu().numpy(), xs.cpu().numpy()
         filled = colour.T.round().clamp(0, 255).to(torch.uint8).cpu().numpy()

@@ -3,7 +3,8 @@
 :func:`scene_without` drops objects from a :class:`~lfsam.synth.spec.SceneSpec`;
 :func:`generate_scene_without` renders the twin of :func:`lfsam.synth.generate_scene` (same seed,
 same settings) without them: what lies behind the objects, with its exact disparity and labels
-(docs/design.md section 13).
+(docs/design.md section 13). :func:`seen_behind` says which of the objects' pixels another view
+sees the surface behind: where a removal can be judged against the twin.
 """
 
 from __future__ import annotations
@@ -12,6 +13,10 @@ from collections.abc import Iterable
 from dataclasses import replace
 from typing import Any
 
+import numpy as np
+import torch
+import torch.nn.functional as F
+
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 from lfsam.synth.materials import assign_materials
@@ -19,7 +24,7 @@ from lfsam.synth.render import render_scene
 from lfsam.synth.scene import random_scene
 from lfsam.synth.spec import SceneSpec
 
-__all__ = ["generate_scene_without", "scene_without"]
+__all__ = ["generate_scene_without", "scene_without", "seen_behind"]
 
 
 def scene_without(spec: SceneSpec, labels: Iterable[int]) -> SceneSpec:
@@ -73,3 +78,53 @@ def generate_scene_without(without: Iterable[int], **settings: Any) -> LightFiel
     labels = [obj.label for obj in spec.objects[1:]]
     materials = assign_materials(labels, glass, mirror) if glass or mirror else None
     return render_scene(scene_without(spec, without), materials=materials, **render)
+
+
+def seen_behind(scene: LightField, twin: LightField, labels: Iterable[int],
+                tolerance: float = 0.25) -> np.ndarray:
+    """Each view's pixels of the objects ``labels`` whose surface behind another view sees.
+
+    The surface behind a pixel is the twin's there (at the twin's disparity ``d``); the view at
+    ``(s', t')`` sees it at ``(u - d (s' - s), v - d (t' - t))`` if that lies inside the view,
+    off the objects in ``scene`` (no object pixel in its bilinear footprint) and on a surface
+    of the twin's disparity ``d`` there (within ``tolerance``: nothing else in front).
+
+    Parameters
+    ----------
+    scene, twin : LightField
+        A synthetic scene and its twin without the objects (:func:`generate_scene_without`),
+        both with ground-truth labels and disparity.
+    labels : iterable of int
+        The removed objects.
+
+    Returns
+    -------
+    (S, T, U, V) bool array
+        True where another view sees what lies behind the objects (the pixels a removal can
+        fill from the views); the objects' other pixels no view sees.
+    """
+    hidden = np.isin(scene.labels, list(labels))
+    s_count, t_count, height, width = hidden.shape
+    seen = np.zeros_like(hidden)
+    flat = (s_count * t_count, 1, height, width)
+    disparity = torch.from_numpy(np.asarray(twin.disparity, np.float32).reshape(flat))
+    on_object = torch.from_numpy(hidden.reshape(flat).astype(np.float32))
+    for s in range(s_count):
+        for t in range(t_count):
+            ys, xs = np.nonzero(hidden[s, t])
+            if not ys.size:
+                continue
+            d = torch.from_numpy(np.asarray(twin.disparity[s, t], np.float32)[ys, xs])
+            others = [(a, b) for a in range(s_count) for b in range(t_count) if (a, b) != (s, t)]
+            rel = torch.tensor([(a - s, b - t) for a, b in others], dtype=torch.float32)
+            u = torch.from_numpy(ys).float()[None] - d[None] * rel[:, :1]
+            v = torch.from_numpy(xs).float()[None] - d[None] * rel[:, 1:]
+            grid = torch.stack([2 * v / max(width - 1, 1) - 1, 2 * u / max(height - 1, 1) - 1],
+                               -1)[:, None]
+            index = [a * t_count + b for a, b in others]
+            inside = (u >= 0) & (u <= height - 1) & (v >= 0) & (v <= width - 1)
+            there = F.grid_sample(disparity[index], grid, mode="nearest", align_corners=True)
+            blocked = F.grid_sample(on_object[index], grid, mode="bilinear", align_corners=True)
+            visible = inside & ((there[:, 0, 0] - d[None]).abs() < tolerance)
+            seen[s, t][ys, xs] = (visible & (blocked[:, 0, 0] < 1e-3)).any(0).numpy()
+    return seen

@@ -6,7 +6,7 @@ mask layer, the current object over the committed ones over the automatic ones),
 session's disparity source and the light field's camera or one picked with "Camera…" (a
 ``--camera`` JSON file, :func:`lfsam.camera.load_camera`). The work runs in a thread of its own,
 never in the GUI thread; its answer reaches the GUI thread through a queued Qt signal, as in
-:mod:`lfsam.viewer.follow_dock`. The points are drawn in an embedded vispy canvas (a turntable
+:mod:`lfsam.viewer.side_dock`. The points are drawn in an embedded vispy canvas (a turntable
 camera that starts near the center view's camera, turned a little to show depth; drag to turn,
 scroll to zoom) and the measures are listed below it (:func:`lfsam.objects3d.format_table`).
 
@@ -32,9 +32,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import threading
-import time
-import traceback
 from functools import partial
 from typing import Any
 
@@ -42,14 +39,11 @@ import numpy as np
 from qtpy.QtCore import Signal
 from qtpy.QtGui import QFontDatabase
 from qtpy.QtWidgets import (
-    QApplication,
     QCheckBox,
     QHBoxLayout,
     QLabel,
     QPlainTextEdit,
-    QPushButton,
     QVBoxLayout,
-    QWidget,
 )
 
 from lfsam.camera import CAMERA_EXAMPLE, Camera, camera_of, load_camera, missing_camera_message
@@ -58,9 +52,8 @@ from lfsam.objects3d import Objects3D, format_table, objects_in_3d
 from lfsam.poses import ObjectPoses, VideoPoses
 from lfsam.result import SegmentationResult
 from lfsam.viewer import controls as C
-from lfsam.viewer import layers as L
 from lfsam.viewer import pose_visuals as PV
-from lfsam.viewer.native_libraries import preload_native_libraries
+from lfsam.viewer.side_dock import SideDock, no_widget_message, push_button
 from lfsam.viz.colors import label_colors
 
 __all__ = ["ObjectsDock"]
@@ -69,19 +62,14 @@ __all__ = ["ObjectsDock"]
 POINT_SIZE = 3.0
 #: The canvas starts turned this far (azimuth, elevation; degrees) from the center view's camera.
 START_TURN = (-20.0, 10.0)
-NO_WIDGET = ("open the lfsam widget first (Plugins > lfsam light fields > Segment light field), "
-             "then Show in 3D")
+NO_WIDGET = no_widget_message("Show in 3D")
 
 
-class ObjectsDock(QWidget):
+class ObjectsDock(SideDock):
     """Show the objects of the lfsam dock's light field as 3D point clouds (module docstring).
 
-    Parameters
-    ----------
-    napari_viewer : napari.Viewer
-    widget : LightFieldWidget, optional
-        The lfsam dock; default: the one docked in ``napari_viewer`` (looked for again at each
-        "Show in 3D").
+    Made from the viewer and, optionally, the lfsam dock whose masks it shows, as
+    :class:`lfsam.viewer.side_dock.SideDock` is.
 
     Attributes
     ----------
@@ -109,31 +97,29 @@ class ObjectsDock(QWidget):
     poses_button : QPushButton
     """
 
+    no_widget = NO_WIDGET
+    thread_name = "lfsam-objects3d"
     _delivered = Signal(object)
     _posed = Signal(object)
     _progress = Signal(str)
 
     def __init__(self, napari_viewer: Any, widget: Any = None) -> None:
-        super().__init__()
-        preload_native_libraries()  # torch before OpenGL draws (native_libraries docstring)
-        self.viewer, self.widget = napari_viewer, widget
+        super().__init__(napari_viewer, widget)
         self.found: Objects3D | None = None
         self.points_shown = 0
         self.camera: Camera | None = None
-        self._thread: threading.Thread | None = None
-        self._running, self._rows = False, 1
+        self._rows = 1
         self.poses: list[ObjectPoses] | None = None
         self.pose_lengths: dict[int, np.ndarray] = {}
         self.pose_frame = 0
         self.axes_vertices = np.zeros((0, 3))
 
-        self.show_button = QPushButton("Show in 3D")
-        self.show_button.setToolTip("the objects of the lfsam dock as point clouds in metres")
-        self.poses_button = QPushButton("Poses")
-        self.poses_button.setToolTip("each object's 6D pose over the video's frames: its axes "
-                                     "at the frame shown and its path")
-        self.camera_button = QPushButton("Camera…")
-        self.camera_button.setToolTip(f"a camera JSON file: {CAMERA_EXAMPLE}")
+        self.show_button = push_button(
+            "Show in 3D", "the objects of the lfsam dock as point clouds in metres")
+        self.poses_button = push_button(
+            "Poses", "each object's 6D pose over the video's frames: its axes at the frame shown "
+            "and its path")
+        self.camera_button = push_button("Camera…", f"a camera JSON file: {CAMERA_EXAMPLE}")
         self.by_object = QCheckBox("colour by object")
         self.status = QLabel()
         self.status.setWordWrap(True)
@@ -185,16 +171,6 @@ class ObjectsDock(QWidget):
         self.paths.visible = self.axes.visible = False
 
     # --- the lfsam dock and what it shows -------------------------------------------------------
-    def _find_widget(self) -> Any:
-        """The lfsam dock: the one given, else the first docked in the viewer (or None)."""
-        if self.widget is None:
-            from lfsam.viewer.widget import LightFieldWidget
-
-            docked = getattr(getattr(self.viewer, "window", None), "dock_widgets", None) or {}
-            self.widget = next((w for w in list(docked.values())
-                                if isinstance(w, LightFieldWidget)), None)
-        return self.widget
-
     def _source(self) -> tuple[Any, Any, Camera]:
         """The lfsam dock, its session and the camera to use (GUI thread).
 
@@ -203,12 +179,7 @@ class ObjectsDock(QWidget):
         LfsamError
             No lfsam dock, no light field or no camera (one line each).
         """
-        widget = self._find_widget()
-        if widget is None:
-            raise LfsamError(NO_WIDGET)
-        session = widget.session
-        if session is None or L.COMMITTED not in widget.layers:
-            raise LfsamError("no light field: open one in the lfsam dock first")
+        widget, session = self._session()
         lightfield = session.lightfield
         camera = self.camera or camera_of(lightfield.meta)
         if camera is None:
@@ -252,12 +223,7 @@ class ObjectsDock(QWidget):
         labels, lightfield = widget.masks.composite(), session.lightfield
         return 1, lambda _k: labels, lambda _k: lightfield, disparity, camera, views
 
-    # --- the work -------------------------------------------------------------------------------
-    @property
-    def running(self) -> bool:
-        """Whether "Show in 3D" or "Poses" is being computed."""
-        return self._running
-
+    # --- the work (:class:`SideDock`; :attr:`running`: "Show in 3D" or "Poses") -----------------
     def compute(self, block: bool = False, timeout: float = 120.0) -> None:
         """"Show in 3D": compute the objects in a thread of their own and show them when done;
         ``block``: wait for them (``timeout`` seconds at most) while Qt processes its events
@@ -293,39 +259,9 @@ class ObjectsDock(QWidget):
         self._start(work, self._posed, f"{what}registering the objects' poses over {count} "
                     "frame(s)…", block, timeout)
 
-    def _still_running(self) -> bool:
-        if self._running:
-            self._set_status("still computing; wait for it to finish")
-        return self._running
-
-    def _start(self, work: Any, signal: Any, status: str, block: bool, timeout: float) -> None:
-        self._running = True
-        self._enable(False)
-        self._set_status(status)
-        self._thread = threading.Thread(target=self._run, args=(work, signal),
-                                        name="lfsam-objects3d", daemon=True)
-        self._thread.start()
-        end = time.monotonic() + timeout
-        while block and self._running and time.monotonic() < end:
-            QApplication.processEvents()
-            time.sleep(0.005)
-
     def _enable(self, on: bool) -> None:
         self.show_button.setEnabled(on)
         self.poses_button.setEnabled(on)
-
-    def _run(self, work: Any, signal: Any) -> None:
-        """The work's thread: ``work()``; its answer or one line goes to the GUI by
-        ``signal``."""
-        try:
-            answer: Any = work()
-        except LfsamError as exc:
-            answer = str(exc)
-        except BaseException as exc:  # a bug: its traceback on stderr, one line in the dock
-            traceback.print_exc()
-            answer = f"error: {exc!r}"
-        with contextlib.suppress(RuntimeError):  # the dock is gone (the viewer closed)
-            signal.emit(answer)
 
     def _poses_work(self, count: int, labels_at: Any, lightfield_at: Any, disparity: Any,
                     camera: Camera, views: str) -> tuple:
@@ -345,8 +281,7 @@ class ObjectsDock(QWidget):
         return session.objects, lengths, session.camera, count
 
     def _on_done(self, answer: Any) -> None:
-        self._running, self._thread = False, None
-        self._enable(True)
+        self._finish()
         if isinstance(answer, str):
             self._fail(answer)
             return
@@ -360,8 +295,7 @@ class ObjectsDock(QWidget):
             " drag to turn, scroll to zoom")
 
     def _on_poses(self, answer: Any) -> None:
-        self._running, self._thread = False, None
-        self._enable(True)
+        self._finish()
         if isinstance(answer, str):
             self.poses, self.pose_lengths = None, {}
             self._draw_poses()
@@ -482,9 +416,6 @@ class ObjectsDock(QWidget):
         cam.center, cam.distance = (0.0, depth, 0.0), 1.5 * depth
         half = self._rows / 2 / camera.focal_px
         cam.fov = float(np.clip(np.degrees(2 * np.arctan(half)), 10.0, 120.0))
-
-    def _set_status(self, text: str) -> None:
-        self.status.setText(text)
 
     def closeEvent(self, event: Any) -> None:
         """Let a running computation finish in the background; close the canvas."""

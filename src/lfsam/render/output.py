@@ -1,10 +1,14 @@
-"""Writing what ``lfsam render`` makes: images, coverage maps and removed light fields.
+"""Writing what ``lfsam render`` and the viewer's "lfsam render" dock make: images, coverage
+maps and removed light fields.
 
 Every output is written atomically (:mod:`lfsam.fileutil`): complete or absent. A removed light
 field is an ordinary light field in lfsam's native format (a scene folder of PNG views, or
 ``.npz``), so ``lfsam info``, ``segment``, ``disparity`` and ``view`` read it; the pixels no
 view saw (inpainted) are flagged in ``inpainted.npy`` (bool ``[S, T, U, V]``), a file of the
 folder or a member of the archive (docs/design.md section 13).
+
+The command line (:mod:`lfsam.cli.render`) and the viewer (:mod:`lfsam.viewer.render_dock`)
+write the same files through this same code.
 """
 
 from __future__ import annotations
