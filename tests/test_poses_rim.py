@@ -154,3 +154,23 @@ def test_a_fit_pulled_off_by_what_is_not_the_object_is_uncertain(wide_masks):
     true = np.asarray(last["pose"]) @ np.linalg.inv(pose0)
     model = transform(pose0, box_surface_points(size))
     assert add_error(model, track.frames[4].motion, true) / np.linalg.norm(size) <= 0.02
+
+
+def test_a_poor_fit_on_the_frame_an_object_comes_back_is_uncertain(wide_masks):
+    """Hidden in frame 3, the box comes back in frame 4 with masks 6 pixels too wide (every
+    pixel trusted): its fit is poor, so it is ``uncertain``, not ``found again``."""
+    video, _ = wide_masks
+    tracker = PoseTracker(RIGID_CAMERA, video[0].view_shape, PoseOptions(rim=None))
+    s_c, t_c = video[0].center
+    statuses = []
+    for index, lf in enumerate(video):
+        labels = lf.labels * (lf.labels > 1)
+        if index == 3:
+            labels = np.zeros_like(labels)
+        if index == 4:
+            labels = ndimage.grey_dilation(labels, size=(1, 1, 13, 13))
+        views = [ViewData((s - s_c, t - t_c), lf.views[s, t], labels[s, t], lf.disparity[s, t])
+                 for s in range(lf.grid_shape[0]) for t in range(lf.grid_shape[1])]
+        entries = tracker.add_frame(views, frame=index)
+        statuses.append(entries[0].status)
+    assert statuses == ["tracked", "tracked", "tracked", "lost", "uncertain"], statuses

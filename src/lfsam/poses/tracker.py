@@ -371,7 +371,9 @@ class PoseTracker:
             len(track.rmses) >= 2
             and found.rmse > max(opts.uncertain_rmse * float(np.median(track.rmses)),
                                  opts.uncertain_floor_m))
-        status = "found again" if track.lost else "uncertain" if poor else "tracked"
+        # A poor fit is uncertain even on the frame an object comes back in: "found again"
+        # promises a pose as good as "tracked".
+        status = "uncertain" if poor else "found again" if track.lost else "tracked"
         track.lost = False
         motions.append(motion)
         track.frames.append(self.frame)

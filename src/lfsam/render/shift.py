@@ -162,6 +162,11 @@ def shift_and_add(
     weight : (U, V) float tensor
         Sum of the landed keep weights (the number of rays where every ray is kept); the
         refocused image is ``total / weight`` where ``weight > 0``.
+
+    Raises
+    ------
+    ValueError
+        For a ``kernel`` not in :data:`KERNELS` (the caller's code is at fault).
     """
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {sorted(KERNELS)}, got {kernel!r}")
