@@ -2,15 +2,19 @@
 
 Jarabo et al. (2014), "How do people edit light fields?": edits of a light field must stay
 consistent across its views. Each view's object pixels (the mask grown by a pixel) are filled
-from the other views where the surface behind is visible: a pixel of view ``(s, t)`` with
-background disparity ``d`` (:mod:`lfsam.render.background_disparity`, never the object's own)
-is seen by view ``(s', t')`` at ``(u - d (s' - s), v - d (t' - t))``; that view's colour there
-counts if its ray misses the objects (none of the four bilinear neighbours masked) and the
-view sees that surface there (the nearest background disparity within a pixel of the sample
-within :data:`DEPTH_TOLERANCE` of it, so another object in front, or its anti-aliased edge, does
-not count). The colours are averaged with weights falling
-with the distance between the views (nearer views differ less in sampling and lighting).
-Pixels no other view sees are inpainted by OpenCV (:mod:`lfsam.render.inpaint`) and flagged.
+from the other views where the surface behind is visible. What lies behind a pixel is one of a
+few candidates: its background disparity (:mod:`lfsam.render.background_disparity`, never the
+object's own) and the planes of the surfaces the object's rim shows in that view
+(:func:`~lfsam.render.background_disparity.rim_surfaces`). A candidate ``d`` of a pixel of view
+``(s, t)`` is seen by view ``(s', t')`` at ``(u - d (s' - s), v - d (t' - t))``: that view's
+colour there counts if its ray misses the objects (none of the four bilinear neighbours masked;
+where no ray does, a bilinear keep weight above :data:`LOOSE`) and the view sees that surface
+there (the nearest background disparity within a pixel of the sample within
+:data:`DEPTH_TOLERANCE` of it, so another object in front, or its anti-aliased edge, does not
+count). Of the candidates seen there, the nearest is taken (a z-buffer), and its colours are
+averaged with weights falling with the distance between the views (nearer views differ less in
+sampling and lighting). Pixels no other view sees are inpainted by OpenCV
+(:mod:`lfsam.render.inpaint`) and flagged.
 """
 
 from __future__ import annotations
