@@ -197,3 +197,29 @@ def test_see_through_leaves_out_the_other_objects_in_front_when_asked():
     assert _psnr(clear[hidden], truth) >= _psnr(veiled[hidden], truth) + 10.0
     kept = see_through(lf.views, masks, focus=focus, occluders=np.zeros_like(masks))
     assert np.array_equal(kept[0], veiled)  # no occluders: as without them
+
+
+def test_pixels_too_deep_inside_the_masks_are_not_gathered_and_the_answer_is_the_same(
+        scene, monkeypatch):
+    """Removal leaves out the pixels no ray can reach (deeper inside every other view's mask
+    than the candidates can move a ray); without that shortcut the answer is the same."""
+    import lfsam.render.remove as remove
+
+    lf, obj, _ = scene
+    sc, tc = lf.center
+    masks = lf.labels == obj
+    gathered = []
+    choose = remove._choose
+
+    def counting(sources, n, ys, xs, *args):
+        gathered.append(ys.numel())
+        return choose(sources, n, ys, xs, *args)
+
+    monkeypatch.setattr(remove, "_choose", counting)
+    views, unseen = remove_objects(lf.views, masks, lf.disparity[sc, tc])
+    pruned = sum(gathered)
+    gathered.clear()
+    monkeypatch.setattr(remove, "PRUNE_MARGIN", float("inf"))  # nothing is too deep
+    every_views, every_unseen = remove_objects(lf.views, masks, lf.disparity[sc, tc])
+    assert np.array_equal(views, every_views) and np.array_equal(unseen, every_unseen)
+    assert pruned < sum(gathered), (pruned, sum(gathered))  # some were left out
