@@ -125,18 +125,17 @@ def _rim_plane(disparity: np.ndarray, mask: np.ndarray, hole: np.ndarray) -> np.
     if rows.size < 3:
         value = float(np.median(disparity[ring])) if rows.size else 0.0
         return np.full((height, width), value, dtype=np.float32)
-    coef, _ = _robust_plane(rows, cols, disparity[rows, cols])
+    coef = _robust_plane(rows, cols, disparity[rows, cols])
     uu, vv = np.mgrid[0:height, 0:width]
     return (coef[0] + coef[1] * uu + coef[2] * vv).astype(np.float32)
 
 
-def _robust_plane(rows: np.ndarray, cols: np.ndarray, values: np.ndarray):
+def _robust_plane(rows: np.ndarray, cols: np.ndarray, values: np.ndarray) -> np.ndarray:
     """``(a, b, c)`` of ``a + b u + c v`` by least squares, 4 rounds dropping the points above
-    3 median errors (0.02 at least); and the points kept."""
+    3 median errors (0.02 at least)."""
     design = np.stack([np.ones(rows.size), rows, cols], axis=1).astype(np.float64)
     values = values.astype(np.float64)
     use = np.ones(rows.size, dtype=bool)
-    coef = np.array([float(np.median(values)), 0.0, 0.0])
     for _ in range(4):  # least squares, dropping the rim of other surfaces
         coef = np.linalg.lstsq(design[use], values[use], rcond=None)[0]
         error = np.abs(design @ coef - values)
@@ -144,7 +143,7 @@ def _robust_plane(rows: np.ndarray, cols: np.ndarray, values: np.ndarray):
         use = error <= spread
         if use.sum() < 3:
             break
-    return coef, use
+    return coef
 
 
 def rim_surfaces(disparity: np.ndarray, mask: np.ndarray, grown: int = GAP,
@@ -195,7 +194,7 @@ def rim_surfaces(disparity: np.ndarray, mask: np.ndarray, grown: int = GAP,
         seed = np.abs(values - mode) <= SEED_REACH
         if seed.sum() < 3:
             break
-        coef, _ = _robust_plane(rows[seed], cols[seed], values[seed])
+        coef = _robust_plane(rows[seed], cols[seed], values[seed])
         on = np.abs(coef[0] + coef[1] * rows + coef[2] * cols - values) <= ON_PLANE
         if on.sum() < least:
             break

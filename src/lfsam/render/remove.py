@@ -69,7 +69,7 @@ def _gather(sources, n, ys, xs, d, offsets, sigma):
     missed = sampled[:, 3] > LOOSE
     # Rays clear of the grown masks; where none is, rays whose nearest neighbours are (keep
     # weight above LOOSE): an anti-aliased edge's colour mixed in beats an inpainted guess.
-    loose = (sampled[:, 3] > LOOSE) & on_surface
+    loose = missed & on_surface
     valid = torch.where(clear.any(0, keepdim=True), clear, loose)
     # A ray that misses the objects and sees only farther surfaces there: nothing at d.
     refuted = missed & (sampled[:, 4] < d[None] - DEPTH_TOLERANCE)

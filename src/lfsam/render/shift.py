@@ -20,28 +20,6 @@ import torch
 
 __all__ = ["KERNELS", "kernel_taps", "shift_and_add", "translate"]
 
-def _add_shifted(out: torch.Tensor, image: torch.Tensor, du: float, dv: float) -> None:
-    """``out += image`` sampled at ``(u + du, v + dv)``, bilinear, zero outside (in place).
-
-    Four whole-pixel slices, each added with its bilinear weight (``Tensor.add_`` with
-    ``alpha``): no padded copy, exact for whole-pixel shifts.
-    """
-    height, width = image.shape[-2:]
-    iu, iv = math.floor(du), math.floor(dv)
-    a, b = du - iu, dv - iv
-    for oy, wy in ((0, 1.0 - a), (1, a)):
-        for ox, wx in ((0, 1.0 - b), (1, b)):
-            weight = wy * wx
-            ru, rv = iu + oy, iv + ox  # out[u, v] += weight * image[u + ru, v + rv]
-            if weight == 0.0 or abs(ru) >= height or abs(rv) >= width:
-                continue
-            u0, u1 = max(0, -ru), min(height, height - ru)
-            v0, v1 = max(0, -rv), min(width, width - rv)
-            out[..., u0:u1, v0:v1].add_(
-                image[..., u0 + ru:u1 + ru, v0 + rv:v1 + rv], alpha=weight
-            )
-
-
 def translate(images: torch.Tensor, du: torch.Tensor, dv: torch.Tensor) -> torch.Tensor:
     """Sample ``images[n]`` at ``(u + du[n], v + dv[n])``, bilinear, zero outside.
 
@@ -64,8 +42,11 @@ def translate(images: torch.Tensor, du: torch.Tensor, dv: torch.Tensor) -> torch
     [[1.0, 2.0, 0.0], [4.0, 5.0, 0.0]]
     """
     out = torch.zeros_like(images)
-    for k in range(images.shape[0]):
-        _add_shifted(out[k], images[k], float(du[k]), float(dv[k]))
+    rows = torch.zeros_like(images[0])
+    for k in range(images.shape[0]):  # bilinear is separable: along the rows, then the columns
+        rows.zero_()
+        _add_along(rows, images[k], float(dv[k]), "linear", -1)
+        _add_along(out[k], rows, float(du[k]), "linear", -2)
     return out
 
 
