@@ -59,13 +59,13 @@ def parse_size(text: str) -> tuple[int, int]:
 
 
 def scenes(args: argparse.Namespace) -> list[tuple[object, str]]:
-    size = parse_size(args.size)
-    out = [(generate_scene(grid=(9, 9), size=size, seed=seed), "center")
+    size, grid = parse_size(args.size), parse_size(args.grid)
+    out = [(generate_scene(grid=grid, size=size, seed=seed), "center")
            for seed in range(args.first_seed, args.first_seed + args.seeds)]
     seed, found = 1000, 0
     while found < args.hidden and seed < 1000 + 4 * max(args.hidden, 1):
         try:
-            lf = generate_scene(grid=(9, 9), size=size, seed=seed, hidden_objects=1)
+            lf = generate_scene(grid=grid, size=size, seed=seed, hidden_objects=1)
         except LfsamError:
             pass
         else:
@@ -83,7 +83,8 @@ def _references(result) -> dict[int, tuple[int, int]]:
 def accuracy_part(args: argparse.Namespace) -> None:
     size = parse_size(args.size)
     data = scenes(args)
-    print(f"\n## accuracy: oracle, automatic, 9x9 views of {size[0]}x{size[1]}, {len(data)} "
+    print(f"\n## accuracy: oracle, automatic, {args.grid} views of {size[0]}x{size[1]}, "
+          f"{len(data)} "
           f"held-out scenes ({args.seeds} seeds from {args.first_seed}, {len(data) - args.seeds}"
           f" with a hidden object), {args.disparity} disparity\n")
     print("| oracle answers | refine views | consensus | mean vIoU | range over scenes | "
@@ -119,12 +120,12 @@ def cost_part(args: argparse.Namespace) -> None:
     from bench_sparse import click_prompts
 
     size = parse_size(args.size)
-    lf = generate_scene(grid=(9, 9), size=size, seed=args.first_seed)
+    lf = generate_scene(grid=parse_size(args.grid), size=size, seed=args.first_seed)
     segmenter = load_segmenter(args.cost_model, random_weights=True, device="cpu",
                                keep_decoder_state=False)
     prompts = click_prompts(lf, 16)
-    print(f"\n## cost: {args.cost_model} (random weights), 9x9 views of {size[0]}x{size[1]}, "
-          f"{len(prompts)} clicks, {args.disparity} disparity, CPU\n")
+    print(f"\n## cost: {args.cost_model} (random weights), {args.grid} views of "
+          f"{size[0]}x{size[1]}, {len(prompts)} clicks, {args.disparity} disparity, CPU\n")
     print("| refine views | s without | s with consensus | ratio |")
     print("|---|---|---|---|")
     for refine_views in ("all", "sparse"):
@@ -150,6 +151,7 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=100)
     parser.add_argument("--hidden", type=int, default=5)
     parser.add_argument("--size", default="240x320")
+    parser.add_argument("--grid", default="9x9", help="views, S x T")
     parser.add_argument("--disparity", default="estimate")
     parser.add_argument("--answers", default=",".join(ANSWERS))
     parser.add_argument("--cost-model", default="edgetam")

@@ -72,8 +72,8 @@ CASES = {
          "operators a frame (one untimed run) | operators | waits | ratio\nsearch jitter 0 | "),
     ),
     "bench_consensus.py": (
-        ["--seeds", "1", "--hidden", "0", "--size", "32x48", "--answers", "exact",
-         "--cost-model", "sam2-tiny-test"],
+        ["--seeds", "1", "--hidden", "0", "--size", "32x48", "--grid", "3x3",
+         "--answers", "exact", "--cost-model", "sam2-tiny-test"],
         "target: ratio <= 1.15",
     ),
     "bench_objects3d.py": (
