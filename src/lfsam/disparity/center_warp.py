@@ -57,15 +57,19 @@ def _zbuffer(disparity: torch.Tensor, ds: float, dt: float) -> torch.Tensor:
 
 
 def _confirmed(
-    candidate: torch.Tensor, center: torch.Tensor, ds: float, dt: float
+    candidate: torch.Tensor, center: torch.Tensor, ds: float, dt: float,
+    rows: torch.Tensor | None = None, cols: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """Where the center view confirms ``candidate`` (a disparity per view pixel ``q``, ``-inf``
     or ``inf`` for none): it shows a surface of that disparity (within :data:`_CONFIRM`) at
-    ``q + d (ds, dt)``, where the view's pixel would be seen from the center."""
-    height, width = candidate.shape
+    ``q + d (ds, dt)``, where the view's pixel would be seen from the center.
+
+    ``candidate`` is the whole view, or the values at the pixels ``(rows, cols)`` (float32)."""
+    height, width = center.shape
     device = candidate.device
-    rows = torch.arange(height, device=device, dtype=torch.float32)[:, None]
-    cols = torch.arange(width, device=device, dtype=torch.float32)[None, :]
+    if rows is None or cols is None:
+        rows = torch.arange(height, device=device, dtype=torch.float32)[:, None]
+        cols = torch.arange(width, device=device, dtype=torch.float32)[None, :]
     finite = torch.isfinite(candidate)
     d = torch.where(finite, candidate, torch.zeros_like(candidate))
     u = torch.round(rows + d * ds).long()
@@ -81,16 +85,23 @@ def _close_cracks(
     """Nearest-pixel splatting leaves cracks in a stretched surface, through which a farther
     surface shows (or nothing lands). A pixel takes the nearest disparity among its 3 x 3
     neighbours' that the center view confirms (:func:`_confirmed`) when that is nearer than its
-    own by more than :data:`_CONFIRM` (a crack); otherwise it keeps its own value."""
-    height, width = zbuffer.shape
+    own by more than :data:`_CONFIRM` (a crack); otherwise it keeps its own value. Only pixels
+    with a neighbour that much nearer are looked at (no other can change)."""
+    nearest = torch.nn.functional.max_pool2d(zbuffer[None, None], 3, stride=1, padding=1)[0, 0]
+    rows, cols = torch.nonzero(nearest > zbuffer + _CONFIRM, as_tuple=True)
+    if rows.numel() == 0:
+        return zbuffer
     padded = torch.nn.functional.pad(zbuffer[None, None], (1, 1, 1, 1), value=-math.inf)[0, 0]
-    best = torch.full_like(zbuffer, -math.inf)
+    own = zbuffer[rows, cols]
+    best = torch.full_like(own, -math.inf)
     for du in range(3):
         for dv in range(3):
-            candidate = padded[du : du + height, dv : dv + width]
-            ok = _confirmed(candidate, center, ds, dt)
+            candidate = padded[rows + du, cols + dv]
+            ok = _confirmed(candidate, center, ds, dt, rows.float(), cols.float())
             best = torch.where(ok & (candidate > best), candidate, best)
-    return torch.where(best > zbuffer + _CONFIRM, best, zbuffer)
+    out = zbuffer.clone()
+    out[rows, cols] = torch.where(best > own + _CONFIRM, best, own)
+    return out
 
 
 def _fill_holes(
@@ -105,29 +116,28 @@ def _fill_holes(
     confirmed sides the nearer wins (as in the z-buffer); with none confirmed (a disocclusion:
     the center sees neither surface there) the farther side wins, because a disocclusion shows
     what lies behind; one side only where the other leaves the frame. Holes that see nothing
-    within ``reach`` take the smallest landed disparity."""
+    within ``reach`` take the smallest landed disparity. The work is done on the holes' pixels
+    only."""
     height, width = zbuffer.shape
-    device = zbuffer.device
     landed = torch.isfinite(zbuffer)
-    holes = ~landed
-    if not bool(holes.any()):
+    hole_rows, hole_cols = torch.nonzero(~landed, as_tuple=True)
+    if hole_rows.numel() == 0:
         return zbuffer
     scale = max(abs(ds), abs(dt))
     step_u, step_v = ds / scale, dt / scale  # one pixel along the dominant axis per step
-    rows = torch.arange(height, device=device, dtype=torch.float32)[:, None]
-    cols = torch.arange(width, device=device, dtype=torch.float32)[None, :]
+    rows, cols = hole_rows.float(), hole_cols.float()
     found = []
     for sign in (1.0, -1.0):
-        value = torch.full_like(zbuffer, math.inf)
+        value = torch.full_like(rows, math.inf)
         for k in range(1, reach + 1):
-            u = torch.round(rows + sign * k * step_u).long().expand(height, width)
-            v = torch.round(cols + sign * k * step_v).long().expand(height, width)
+            u = torch.round(rows + sign * k * step_u).long()
+            v = torch.round(cols + sign * k * step_v).long()
             inside = (u >= 0) & (u < height) & (v >= 0) & (v < width)
             sample = zbuffer[u.clamp(0, height - 1), v.clamp(0, width - 1)]
             new = inside & torch.isfinite(sample) & torch.isinf(value)
             value = torch.where(new, sample, value)
         found.append(value)
-    confirmed = [_confirmed(value, center, ds, dt) for value in found]
+    confirmed = [_confirmed(value, center, ds, dt, rows, cols) for value in found]
     both = confirmed[0] & confirmed[1]
     farther = torch.minimum(found[0], found[1])
     filled = torch.where(
@@ -135,9 +145,11 @@ def _fill_holes(
         torch.maximum(found[0], found[1]),
         torch.where(confirmed[0], found[0], torch.where(confirmed[1], found[1], farther)),
     )
-    if bool(torch.isinf(filled[holes]).any()):
+    if bool(torch.isinf(filled).any()):
         filled = torch.where(torch.isinf(filled), zbuffer[landed].min(), filled)
-    return torch.where(holes, filled, zbuffer)
+    out = zbuffer.clone()
+    out[hole_rows, hole_cols] = filled
+    return out
 
 
 def warp_center_disparity(

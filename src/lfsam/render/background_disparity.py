@@ -43,12 +43,15 @@ REACH = 12
 
 
 def dilate(masks: torch.Tensor, radius: int) -> torch.Tensor:
-    """Bool masks ``(..., U, V)`` grown by ``radius`` pixels (a square neighbourhood)."""
+    """Bool masks ``(..., U, V)`` grown by ``radius`` pixels (a square neighbourhood: a
+    maximum along the rows, then along the columns)."""
     if radius <= 0:
         return masks.bool()
     shape = masks.shape
     flat = masks.reshape(-1, 1, *shape[-2:]).float()
-    grown = F.max_pool2d(flat, 2 * radius + 1, stride=1, padding=radius)
+    size = 2 * radius + 1
+    grown = F.max_pool2d(flat, (1, size), stride=1, padding=(0, radius))
+    grown = F.max_pool2d(grown, (size, 1), stride=1, padding=(radius, 0))
     return grown.reshape(shape) > 0.5
 
 

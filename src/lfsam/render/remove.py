@@ -45,25 +45,29 @@ SAME = 0.05
 PRUNE_MARGIN = 3.0
 #: Rays a candidate surface needs to be taken where any candidate has that many.
 MIN_RAYS = 2
+#: Pixels filled at a time (their arrays over the other views stay in the CPU's cache).
+PIECE = 8192
 
 
 def _gather(sources, n, ys, xs, d, offsets, sigma):
     """Colours of target view ``n``'s pixels ``(ys, xs)`` seen at background disparity ``d``
-    by the other views, and how many rays saw each.
+    by the other views, how many rays saw each, and which a ray refutes.
 
     ``sources`` is ``(N, 5, U, V)``: RGB, keep weight (clear of the grown masks) and (nearest)
     background disparity of every view.
     """
     _, _, height, width = sources.shape
-    rel = offsets - offsets[n]  # (N, 2): source minus target
-    others = torch.ones(offsets.shape[0], dtype=torch.bool)
+    rel = (offsets - offsets[n]).float()  # (N, 2): source minus target
+    others = torch.ones(offsets.shape[0], dtype=torch.bool, device=rel.device)
     others[n] = False
-    rel = rel[others].float()
     u = ys.float()[None] - d[None] * rel[:, :1]
     v = xs.float()[None] - d[None] * rel[:, 1:]
     grid = torch.stack([2 * v / max(width - 1, 1) - 1, 2 * u / max(height - 1, 1) - 1], -1)
-    sampled = F.grid_sample(sources[others], grid[:, None], mode="bilinear",
-                            padding_mode="zeros", align_corners=True)[:, :, 0]  # (M, 5, K)
+    # Every view is sampled (the target's own rays dropped after): indexing ``sources`` would
+    # copy all its views at every call.
+    sampled = F.grid_sample(sources, grid[:, None], mode="bilinear",
+                            padding_mode="zeros", align_corners=True)[others, :, 0]  # (M, 5, K)
+    rel = rel[others]
     on_surface = (sampled[:, 4] - d[None]).abs() < DEPTH_TOLERANCE
     clear = (sampled[:, 3] > 0.999) & on_surface
     missed = sampled[:, 3] > LOOSE
@@ -137,16 +141,35 @@ def _fill_view(sources, inside, n, hidden, offsets, depth, surfaces, sigma):
     toward their middle. Where that lies deeper inside view ``k``'s grown mask than this reach
     (``inside``: the distance to its edge; plus :data:`PRUNE_MARGIN` for the bilinear footprint)
     for every view ``k``, no ray can see the pixel: it is not seen, and its rays are never
-    gathered (the same answer, for a fraction of the work on a large object).
+    gathered (the same answer, for a fraction of the work on a large object). Each pixel's
+    answer is its own: they go through in pieces of :data:`PIECE`, whose arrays over the views
+    stay in the CPU's cache (the same answer, several times faster than whole arrays).
     """
     ys, xs = torch.nonzero(hidden, as_tuple=True)
     planes, near = surfaces  # (K, 3) planes, (K, U, V) within reach of their rim
     candidates = [depth[n][ys, xs]]
     for a, b, c in planes:
         candidates.append((a + b * ys.double() + c * xs.double()).to(depth.dtype))
+    colour = torch.zeros((3, ys.numel()), dtype=sources.dtype, device=sources.device)
+    seen = torch.zeros(ys.numel(), dtype=torch.bool, device=sources.device)
+    for start in range(0, ys.numel(), PIECE):
+        piece = slice(start, start + PIECE)
+        part = [c[piece] for c in candidates]
+        open_ = _reachable(inside, n, ys[piece], xs[piece], part, offsets)
+        if open_.any():
+            index = torch.nonzero(open_)[:, 0] + start
+            colour[:, index], seen[index] = _choose(
+                sources, n, ys[index], xs[index], [c[open_] for c in part], near, offsets,
+                sigma)
+    return ys, xs, colour, seen
+
+
+def _reachable(inside, n, ys, xs, candidates, offsets):
+    """Which of target view ``n``'s pixels ``(ys, xs)`` some other view's ray may see at one
+    of their candidates (:func:`_fill_view`)."""
     stacked = torch.stack(candidates)
     low, high = stacked.amin(0), stacked.amax(0)
-    _, _, height, width = sources.shape
+    _, height, width = inside.shape
     rel = (offsets - offsets[n]).float()  # (N, 2): every view minus the target (0 for itself)
     middle = (low + high)[None] / 2
     u = ys.float()[None] - middle * rel[:, :1]
@@ -157,14 +180,7 @@ def _fill_view(sources, inside, n, hidden, offsets, depth, surfaces, sigma):
     reach = (high - low)[None] / 2 * rel.norm(dim=1)[:, None] + PRUNE_MARGIN
     others = torch.ones(rel.shape[0], dtype=torch.bool, device=rel.device)
     others[n] = False
-    open_ = ~(depth_in[others] > reach[others]).all(0)
-    colour = torch.zeros((3, ys.numel()), dtype=sources.dtype, device=sources.device)
-    seen = torch.zeros(ys.numel(), dtype=torch.bool, device=sources.device)
-    if open_.any():
-        colour[:, open_], seen[open_] = _choose(sources, n, ys[open_], xs[open_],
-                                                [c[open_] for c in candidates], near, offsets,
-                                                sigma)
-    return ys, xs, colour, seen
+    return ~(depth_in[others] > reach[others]).all(0)
 
 
 def remove_objects(
