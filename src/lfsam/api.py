@@ -19,7 +19,6 @@ from typing import Any
 
 import numpy as np
 
-from lfsam.baseline import video_baseline
 from lfsam.errors import LfsamError
 from lfsam.generator import LightFieldMaskGenerator
 from lfsam.lightfield import LightField
@@ -375,6 +374,8 @@ def segment(
         "view_size": list(lightfield.view_shape),
     }
     if run.method == "video-baseline":
+        # imported here: the baseline brings in Meta's predictor and torchvision (about 4 s)
+        from lfsam.baseline import video_baseline
 
         result = video_baseline(
             lightfield,
