@@ -12,11 +12,14 @@ the same way.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import torch
 import torch.nn.functional as F
 from scipy.ndimage import distance_transform_edt
 
+from lfsam.devices import resolve_device
 from lfsam.disparity import warp_center_disparity
 from lfsam.render.inpaint import inpaint
 
@@ -247,8 +250,8 @@ def view_backgrounds(
     """
     center = np.asarray(center, dtype=np.float32)
     finite = np.where(np.isfinite(center), center, np.nanmin(center[np.isfinite(center)]))
-    out, surfaces = [], []
-    for k, (ds, dt) in enumerate(torch.as_tensor(offsets).tolist()):
+
+    def one(k: int, ds: float, dt: float) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
         view = finite if ds == 0 and dt == 0 else warp_center_disparity(
             finite, (ds, dt), device=device)[0]
         filled = view.copy()
@@ -264,8 +267,16 @@ def view_backgrounds(
                 planes[:, 0] -= planes[:, 1] * rows.start + planes[:, 2] * cols.start
                 near = np.zeros((len(planes), *view.shape), dtype=bool)
                 near[:, rows, cols] = inside
-        out.append(filled)
-        surfaces.append((planes, near))
+        return filled, (planes, near)
+
+    # Views on their own, two at a time on the CPU (torch, OpenCV and NumPy release the GIL).
+    on_cpu = torch.device(resolve_device(device)).type == "cpu"
+    workers = max(1, min(2, torch.get_num_threads())) if on_cpu else 1
+    pairs = torch.as_tensor(offsets).tolist()
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        done = list(pool.map(lambda item: one(item[0], *item[1]), enumerate(pairs)))
+    out = [filled for filled, _ in done]
+    surfaces = [surface for _, surface in done]
     depth = torch.from_numpy(np.stack(out))
     return (depth, surfaces) if with_surfaces else depth
 

@@ -19,6 +19,8 @@ sampling and lighting). Pixels no other view sees are inpainted by OpenCV
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import torch
 import torch.nn.functional as F
@@ -247,12 +249,14 @@ def remove_objects(
     out = np.array(views, copy=True)
     unseen = np.zeros(views.shape[:4], dtype=bool)
     offsets = offsets.to(device)
-    for n, (s, t) in enumerate(tqdm(chosen, desc="removing", unit="view",
-                                    disable=not progress or None, leave=False)):
+    depth = depth.to(device)
+
+    def fill(n: int) -> None:
+        s, t = chosen[n]
         if not hit[n].any():
-            continue
+            return
         ys, xs, colour, seen = _fill_view(sources, inside, n, hit[n].to(device), offsets,
-                                          depth.to(device), surfaces[n], sigma)
+                                          depth, surfaces[n], sigma)
         view = out[s, t]
         ys_np, xs_np = ys.cpu().numpy(), xs.cpu().numpy()
         filled = colour.T.round().clamp(0, 255).to(torch.uint8).cpu().numpy()
@@ -263,4 +267,13 @@ def remove_objects(
         if holes.any():
             out[s, t] = inpaint(view, holes)
             unseen[s, t] = holes
+
+    # Each view is filled on its own (its own slices of ``out`` and ``unseen``): on the CPU two
+    # views at a time, as torch, OpenCV and NumPy release the GIL (one view's small operations
+    # leave a core idle).
+    workers = 1 if device.type != "cpu" else max(1, min(2, torch.get_num_threads()))
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        for _ in tqdm(pool.map(fill, range(len(chosen))), total=len(chosen), desc="removing",
+                      unit="view", disable=not progress or None, leave=False):
+            pass
     return out, unseen
