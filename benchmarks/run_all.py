@@ -18,6 +18,7 @@ SCRIPTS = [
     "bench_speed.py",
     "bench_interactive.py",
     "bench_references.py",
+    "bench_render.py",
 ]
 
 

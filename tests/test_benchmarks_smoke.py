@@ -80,6 +80,10 @@ CASES = {
         ["--scenes", "1", "--size", "48x64", "--parts", "synthetic"],
         "| median depth relative error |",
     ),
+    "bench_render.py": (
+        ["--seeds", "7", "--size", "64x96", "--speed-size", "64x64", "--repeats", "1"],
+        ("| seed | object | see-through dB |", "| refocus s | see-through s | remove s |"),
+    ),
     "bench_references.py": (
         ["--model", "sam2-tiny-test", "--answers", "oracle", "--points-per-side", "16",
          "--grid", "3x3", "--size", "48x64", "--modes", "corners", "--rounds", "1",
