@@ -47,7 +47,7 @@ SAME = 0.05
 PRUNE_MARGIN = 3.0
 #: Rays a candidate surface needs to be taken where any candidate has that many.
 MIN_RAYS = 2
-#: Pixels filled at a time (their arrays over the other views stay in the CPU's cache).
+#: Pixels filled at a time (their arrays over the other views stay small).
 PIECE = 8192
 
 
@@ -144,8 +144,8 @@ def _fill_view(sources, inside, n, hidden, offsets, depth, surfaces, sigma):
     (``inside``: the distance to its edge; plus :data:`PRUNE_MARGIN` for the bilinear footprint)
     for every view ``k``, no ray can see the pixel: it is not seen, and its rays are never
     gathered (the same answer, for a fraction of the work on a large object). Each pixel's
-    answer is its own: they go through in pieces of :data:`PIECE`, whose arrays over the views
-    stay in the CPU's cache (the same answer, several times faster than whole arrays).
+    answer is its own: they go through in pieces of :data:`PIECE` (the same answer; the arrays
+    over the views stay small).
     """
     ys, xs = torch.nonzero(hidden, as_tuple=True)
     planes, near = surfaces  # (K, 3) planes, (K, U, V) within reach of their rim
