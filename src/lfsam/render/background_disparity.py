@@ -22,6 +22,7 @@ from scipy.ndimage import distance_transform_edt
 from lfsam.devices import resolve_device
 from lfsam.disparity import warp_center_disparity
 from lfsam.render.inpaint import inpaint
+from lfsam.render.views import view_workers
 
 __all__ = ["background_center", "dilate", "rim_disparity", "rim_surfaces", "view_backgrounds"]
 
@@ -251,7 +252,10 @@ def view_backgrounds(
     center = np.asarray(center, dtype=np.float32)
     finite = np.where(np.isfinite(center), center, np.nanmin(center[np.isfinite(center)]))
 
-    def one(k: int, ds: float, dt: float) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    pairs = torch.as_tensor(offsets).tolist()
+
+    def one(k: int) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        ds, dt = pairs[k]
         view = finite if ds == 0 and dt == 0 else warp_center_disparity(
             finite, (ds, dt), device=device)[0]
         filled = view.copy()
@@ -269,12 +273,8 @@ def view_backgrounds(
                 near[:, rows, cols] = inside
         return filled, (planes, near)
 
-    # Views on their own, two at a time on the CPU (torch, OpenCV and NumPy release the GIL).
-    on_cpu = torch.device(resolve_device(device)).type == "cpu"
-    workers = max(1, min(2, torch.get_num_threads())) if on_cpu else 1
-    pairs = torch.as_tensor(offsets).tolist()
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        done = list(pool.map(lambda item: one(item[0], *item[1]), enumerate(pairs)))
+    with ThreadPoolExecutor(max_workers=view_workers(resolve_device(device))) as pool:
+        done = list(pool.map(one, range(len(pairs))))
     out = [filled for filled, _ in done]
     surfaces = [surface for _, surface in done]
     depth = torch.from_numpy(np.stack(out))

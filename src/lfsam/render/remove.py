@@ -30,7 +30,7 @@ from tqdm import tqdm
 from lfsam.devices import resolve_device
 from lfsam.render.background_disparity import dilate, view_backgrounds
 from lfsam.render.inpaint import inpaint, require_cv2
-from lfsam.render.views import check_masks, select_views, views_tensor
+from lfsam.render.views import check_masks, select_views, view_workers, views_tensor
 
 __all__ = ["DEPTH_TOLERANCE", "remove_objects"]
 
@@ -51,6 +51,11 @@ MIN_RAYS = 2
 PIECE = 8192
 
 
+def _sample_grid(u, v, height, width):
+    """``grid_sample``'s grid (``align_corners=True``) for pixel rows ``u`` and columns ``v``."""
+    return torch.stack([2 * v / max(width - 1, 1) - 1, 2 * u / max(height - 1, 1) - 1], -1)
+
+
 def _gather(sources, n, ys, xs, d, offsets, sigma):
     """Colours of target view ``n``'s pixels ``(ys, xs)`` seen at background disparity ``d``
     by the other views, how many rays saw each, and which a ray refutes.
@@ -64,7 +69,7 @@ def _gather(sources, n, ys, xs, d, offsets, sigma):
     others[n] = False
     u = ys.float()[None] - d[None] * rel[:, :1]
     v = xs.float()[None] - d[None] * rel[:, 1:]
-    grid = torch.stack([2 * v / max(width - 1, 1) - 1, 2 * u / max(height - 1, 1) - 1], -1)
+    grid = _sample_grid(u, v, height, width)
     # Every view is sampled (the target's own rays dropped after): indexing ``sources`` would
     # copy all its views at every call.
     sampled = F.grid_sample(sources, grid[:, None], mode="bilinear",
@@ -176,7 +181,7 @@ def _reachable(inside, n, ys, xs, candidates, offsets):
     middle = (low + high)[None] / 2
     u = ys.float()[None] - middle * rel[:, :1]
     v = xs.float()[None] - middle * rel[:, 1:]
-    grid = torch.stack([2 * v / max(width - 1, 1) - 1, 2 * u / max(height - 1, 1) - 1], -1)
+    grid = _sample_grid(u, v, height, width)
     depth_in = F.grid_sample(inside[:, None], grid[:, None], mode="bilinear",
                              padding_mode="zeros", align_corners=True)[:, 0, 0]  # (N, P)
     reach = (high - low)[None] / 2 * rel.norm(dim=1)[:, None] + PRUNE_MARGIN
@@ -268,11 +273,8 @@ def remove_objects(
             out[s, t] = inpaint(view, holes)
             unseen[s, t] = holes
 
-    # Each view is filled on its own (its own slices of ``out`` and ``unseen``): on the CPU two
-    # views at a time, as torch, OpenCV and NumPy release the GIL (one view's small operations
-    # leave a core idle).
-    workers = 1 if device.type != "cpu" else max(1, min(2, torch.get_num_threads()))
-    with ThreadPoolExecutor(max_workers=workers) as pool:
+    # Each view is filled on its own (its own slices of ``out`` and ``unseen``).
+    with ThreadPoolExecutor(max_workers=view_workers(device)) as pool:
         for _ in tqdm(pool.map(fill, range(len(chosen))), total=len(chosen), desc="removing",
                       unit="view", disable=not progress or None, leave=False):
             pass
