@@ -503,3 +503,53 @@ def test_sam1_absent_points_leave_its_answer(sam1_folder):
                                                         boxes=box))
         # this model's logits are about 0.02: compare at its scale
         assert (attended.low_res_logits[:1] - alone.low_res_logits).abs().max() > 1e-5
+
+
+# --- EdgeTAM's encoder fused (docs/design.md section 3.8) ------------------------------------
+def test_fused_edgetam_encoder_gives_the_unfused_embeddings_and_masks(monkeypatch):
+    """EdgeTAM's RepViT runs with its batch norms and RepVGG branches folded into single
+    convolutions, channels-last: the embeddings of the model as transformers builds it within
+    1e-5 of their largest value, its low-resolution logits within 1e-4, masks that agree. The
+    batch norms get random statistics and affine terms first, so a fold that dropped or
+    misplaced one would not pass."""
+    import copy
+
+    from lfsam.segmenters.transformers import model as model_module
+    from lfsam.segmenters.transformers.build import _random_model
+
+    generator = torch.Generator().manual_seed(5)
+    reference = _random_model("edgetam", tiny_edgetam_config(), 0).eval()
+    with torch.no_grad():
+        for module in reference.vision_encoder.modules():
+            if isinstance(module, torch.nn.BatchNorm2d):
+                n = module.num_features
+                module.running_mean.copy_(torch.randn(n, generator=generator) * 0.3)
+                module.running_var.copy_(torch.rand(n, generator=generator) + 0.5)
+                module.weight.copy_(torch.rand(n, generator=generator) + 0.5)
+                module.bias.copy_(torch.randn(n, generator=generator) * 0.2)
+    info = {"name": "edgetam-tiny-test"}
+    fused = model_module.TransformersImageModel(copy.deepcopy(reference), info)
+    assert fused.fused_encoder
+    modules = list(fused.hf_model.vision_encoder.modules())
+    assert not any(isinstance(m, torch.nn.BatchNorm2d) for m in modules)
+    assert sum(isinstance(m, torch.nn.Conv2d) for m in modules) < sum(
+        isinstance(m, torch.nn.Conv2d) for m in reference.vision_encoder.modules())
+
+    pixels = torch.randn(2, 3, 256, 256, generator=generator)
+    with torch.no_grad():
+        theirs = reference.get_image_embeddings(pixels)
+        ours = fused.image_embeddings(pixels.contiguous(memory_format=torch.channels_last))
+    for a, b in zip(ours, theirs, strict=True):
+        torch.testing.assert_close(a, b, atol=1e-5 * float(b.abs().max()), rtol=0)
+
+    monkeypatch.setattr(model_module, "fuse_timm_encoder", lambda hf_model: False)
+    plain = model_module.TransformersImageModel(copy.deepcopy(reference), info)
+    assert not plain.fused_encoder
+    fast, slow = TransformersSegmenter(fused), TransformersSegmenter(plain)
+    assert fast.channels_last and not slow.channels_last
+    view = generate_scene(grid=(1, 1), size=(48, 64), seed=2, num_objects=3).views[0, 0]
+    prompts = Prompts(points=[[[20.0, 30.0]], [[50.0, 12.0]]], point_labels=[[1], [1]])
+    a = fast.predict(fast.encode(view[None])[0], prompts)
+    b = slow.predict(slow.encode(view[None])[0], prompts)
+    torch.testing.assert_close(a.low_res_logits, b.low_res_logits, atol=1e-4, rtol=0)
+    assert (a.masks == b.masks).float().mean().item() > 0.999

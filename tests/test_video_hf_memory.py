@@ -342,8 +342,12 @@ def test_a_video_checkpoint_folder_brings_its_memory_weights(tmp_path):
     assert has_transformers_video_memory(segmenter)
     images, first, second = _frames(4, seed=5)
     memory, ours = _stream(segmenter, images, [first, second])
-    expected = saved.state_dict()
-    loaded = memory.model.state_dict()
+    # every weight as saved, but the image encoder's: lfsam runs it fused (its batch norms and
+    # RepVGG branches folded into convolutions, test_segmenters_transformers.py), so its
+    # function is checked below, by tracking as transformers does
+    encoder = "vision_encoder.backbone."
+    expected = {k: v for k, v in saved.state_dict().items() if not k.startswith(encoder)}
+    loaded = {k: v for k, v in memory.model.state_dict().items() if not k.startswith(encoder)}
     assert loaded.keys() == expected.keys()
     assert all(torch.equal(loaded[k], expected[k]) for k in expected)
     assert (ours[1:] > 0).any(axis=(2, 3)).all()

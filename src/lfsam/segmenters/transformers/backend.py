@@ -94,9 +94,12 @@ class TransformersSegmenter(Sam2Segmenter):
 
     def __init__(self, model: torch.nn.Module, **kwargs: Any) -> None:
         super().__init__(model, **kwargs)
-        #: bfloat16 convolutions run fastest on channels-last tensors (oneDNN); float32 keeps
-        #: transformers' own layout, so its masks stay transformers' to the bit
-        self.channels_last = self.autocast is not None
+        #: bfloat16 convolutions run fastest on channels-last tensors (oneDNN), and so do a fused
+        #: timm encoder's (EdgeTAM, :func:`~lfsam.segmenters.transformers.model.fuse_timm_encoder`);
+        #: otherwise float32 keeps transformers' own layout, so its masks stay transformers' to
+        #: the bit
+        self.channels_last = self.autocast is not None or bool(
+            getattr(self.model, "fused_encoder", False))
         if self.channels_last:
             self.model.hf_model.vision_encoder.to(memory_format=torch.channels_last)
         if self.model.padded_input:  # SAM v1: prompts and masks in the padded geometry
