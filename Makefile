@@ -10,15 +10,19 @@ STAMP := $(VENV)/.lfsam-installed
 install: $(STAMP)
 
 # torch + torchvision first; then Meta's sam2, whose build imports torch, without build isolation
-# and without its optional CUDA extension; then this package with its dev extras.
+# and without its optional CUDA extension; then this package with its dev extras. pip does not
+# compile every installed file (--no-compile: half of a fresh install's time went to modules
+# lfsam never imports); tools/compile_bytecode.py writes the bytecode of what lfsam imports.
+PIP_INSTALL := $(PY) -m pip install --quiet --no-compile
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade "pip>=23" setuptools wheel
-	$(PY) -m pip install --quiet -c constraints.txt torch torchvision
-	SAM2_BUILD_CUDA=0 SAM2_BUILD_ALLOW_ERRORS=1 $(PY) -m pip install --quiet --no-build-isolation -c constraints.txt sam2
-	$(PY) -m pip install --quiet -c constraints.txt -e ".[dev]"
+	$(PIP_INSTALL) --upgrade "pip>=23" setuptools wheel
+	$(PIP_INSTALL) -c constraints.txt torch torchvision
+	SAM2_BUILD_CUDA=0 SAM2_BUILD_ALLOW_ERRORS=1 $(PIP_INSTALL) --no-build-isolation -c constraints.txt sam2
+	$(PIP_INSTALL) -c constraints.txt -e ".[dev]"
 	@# the viewer moved to Qt 6: a PyQt5 left in an older .venv would still be picked by qtpy
 	-@$(PY) -m pip uninstall --quiet -y PyQt5 PyQt5-Qt5 PyQt5-sip >/dev/null 2>&1
+	$(PY) tools/compile_bytecode.py
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -27,7 +31,8 @@ demo: $(STAMP)
 test: $(STAMP) system-deps
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/lint-imports
-	xvfb-run -a $(VENV)/bin/python -m pytest -q -n 2 --dist worksteal
+	@# bytecode written for whatever a test imports first (PYTHONDONTWRITEBYTECODE unset for it)
+	env -u PYTHONDONTWRITEBYTECODE xvfb-run -a $(VENV)/bin/python -m pytest -q -n 2 --dist worksteal
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

@@ -140,3 +140,20 @@ def test_a_correction_click_changes_the_tracked_mask(present):
     assert np.abs(memory.logits - before).max() > 1e-3  # SAM 2 took the click into account
     inputs = memory.state["point_inputs_per_obj"][0][1]
     assert inputs["point_labels"].tolist() == [[0]]
+
+
+def test_the_memory_thresholds_masks_where_the_video_baseline_does():
+    """The memory's mask threshold is the video baseline's (kept apart so that the memory
+    module does not import Meta's image predictor, torchvision and torch._dynamo)."""
+    import subprocess
+    import sys
+
+    from lfsam.baseline.video import MASK_THRESHOLD
+    from lfsam.video.memory import sam2_memory
+
+    assert sam2_memory._MASK_THRESHOLD == MASK_THRESHOLD
+    heavy = "('sam2', 'torchvision', 'torch._dynamo')"
+    code = ("import sys, lfsam.video.tracking.online; "
+            f"print(sorted(m for m in {heavy} if m in sys.modules))")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert run.stdout.strip() == "[]"

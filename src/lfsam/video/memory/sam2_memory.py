@@ -41,14 +41,16 @@ from typing import Any
 import numpy as np
 import torch
 
-from lfsam.baseline.frames import init_video_state, video_frames
 from lfsam.baseline.predictor import quiet_sam2_video, video_predictor_for
-from lfsam.baseline.video import MASK_THRESHOLD
 from lfsam.errors import LfsamError
 from lfsam.segmenters.base import Segmenter, ViewEmbedding
 from lfsam.segmenters.sam2.build import inference_context
 
 __all__ = ["ReferenceMemory", "has_video_memory", "reference_memory_for"]
+
+_MASK_THRESHOLD = 0.0
+"""SAM 2's mask threshold on logits (``lfsam.baseline.video.MASK_THRESHOLD``, Meta's
+``mask_threshold``); ``tests/test_video_memory.py`` checks that the two agree."""
 
 
 def has_video_memory(segmenter: Segmenter) -> bool:
@@ -123,6 +125,9 @@ class ReferenceMemory:
         self.device = torch.device(self.predictor.device)
         self.view_shape = (int(view_shape[0]), int(view_shape[1]))
         self.frames = _CurrentFrame(self.device)
+        # Meta's frame transform imports its image predictor (and torchvision): only for SAM 2
+        from lfsam.baseline.frames import init_video_state
+
         self.state: dict[str, Any] = init_video_state(self.predictor, self.frames, view_shape)
         model = self.predictor
         #: Frames of per-object outputs kept behind the current one (lossless, see module doc).
@@ -151,6 +156,8 @@ class ReferenceMemory:
         if index <= self.frame:
             raise LfsamError(f"frames go forward: frame {index} after frame {self.frame}")
         image = np.asarray(image)
+        from lfsam.baseline.frames import video_frames
+
         tensor = video_frames(image[None], int(self.predictor.image_size), self.device,
                               "image")[0]
         self.frames.index, self.frames.tensor, self.frame = index, tensor, index
@@ -206,5 +213,5 @@ class ReferenceMemory:
 
     def _masks(self, ids: Sequence[int], logits: torch.Tensor) -> dict[int, np.ndarray]:
         self.logits = logits[:, 0].float().cpu().numpy()
-        masks = self.logits > MASK_THRESHOLD
+        masks = self.logits > _MASK_THRESHOLD
         return {int(i): masks[n] for n, i in enumerate(ids)}
