@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from lfsam.disparity import estimate_disparity
 from lfsam.disparity.aggregation import aggregate_costs
@@ -119,3 +121,26 @@ def test_shrinking_box_on_frames_narrower_than_its_window():
     image = _random((1, 5, 3), 8)
     shrink = box_blur_rect(image, 4, 4, "shrink")
     assert torch.allclose(shrink, image.mean((-2, -1), keepdim=True).expand_as(image), atol=1e-6)
+
+
+@settings(max_examples=40, deadline=None)
+@given(rows=st.integers(1, 40), cols=st.integers(1, 40), radius_rows=st.integers(0, 12),
+       radius_cols=st.integers(0, 12), border=st.sampled_from(["replicate", "shrink"]),
+       seed=st.integers(0, 2**16))
+def test_opencv_box_sums_are_the_torch_sums(rows, cols, radius_rows, radius_cols, border, seed):
+    """On a CPU the box filter's window sums are OpenCV's (cv2.boxFilter); the separable torch
+    sums by doubling, the path on a GPU and without OpenCV, give the same means to float32
+    rounding, windows wider than the image included."""
+    from lfsam.disparity import filters
+
+    image = _random((3, rows, cols), seed) * 4 - 1
+    box = filters.BoxFilter((rows, cols), radius_rows, radius_cols, border)
+    assert filters._opencv_can_sum(image)
+    ours = box._means(image.clone())
+    assert filters._opencv_can_sum(image) and not filters._opencv_can_sum(image.double())
+    try:
+        filters._HAS_CV2 = False
+        theirs = box._means(image.clone())
+    finally:
+        filters._HAS_CV2 = filters._has_cv2()
+    torch.testing.assert_close(ours, theirs, atol=1e-5, rtol=0)

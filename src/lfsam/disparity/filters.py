@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 
@@ -229,6 +230,8 @@ class BoxFilter:
 
     def _means(self, x: torch.Tensor) -> torch.Tensor:
         """The window means of ``x``, shape ``(N, rows, cols)``."""
+        if _opencv_can_sum(x):
+            return self._means_opencv(x)
         mode = "replicate" if self.border == "replicate" else "constant"
         rows, cols = self.radius_rows, self.radius_cols
         if cols > 0:
@@ -236,6 +239,47 @@ class BoxFilter:
         if rows > 0:
             x = _window_sums(F.pad(x, (0, 0, rows, rows), mode=mode), 2 * rows + 1, -2)
         return x.mul_(self.scale)
+
+    def _means_opencv(self, x: torch.Tensor) -> torch.Tensor:
+        """:meth:`_means` by OpenCV's box filter, one image at a time (CPU float32).
+
+        ``cv2.boxFilter`` sums each window with running sums in SIMD code; unnormalised, with
+        ``BORDER_REPLICATE`` (the frame's outermost pixels repeated) or ``BORDER_CONSTANT`` (zeros:
+        the sums of the pixels inside, which :attr:`scale` turns into ``"shrink"``'s means), it
+        gives the sums of :func:`_window_sums` on the padded image to float32 rounding (about
+        1e-7 apart) in a fifth of the time (docs/design.md section 3.2, "Speed: cache-sized
+        pieces").
+        """
+        import cv2
+
+        threads = torch.get_num_threads()  # OpenCV's pool as wide as torch's (one per test worker)
+        if cv2.getNumThreads() != threads:
+            cv2.setNumThreads(threads)
+        border = cv2.BORDER_REPLICATE if self.border == "replicate" else cv2.BORDER_CONSTANT
+        size = (2 * self.radius_cols + 1, 2 * self.radius_rows + 1)  # (width, height)
+        images = x.detach().contiguous().numpy()
+        sums = np.empty_like(images)
+        for image, out in zip(images, sums, strict=True):
+            cv2.boxFilter(image, -1, size, dst=out, normalize=False, borderType=border)
+        return torch.from_numpy(sums).mul_(self.scale)
+
+
+def _opencv_can_sum(x: torch.Tensor) -> bool:
+    """Whether :meth:`BoxFilter._means` hands ``x`` to OpenCV: a float32 CPU tensor outside
+    autograd, with OpenCV installed (a dependency of lfsam; the torch sums are the fallback and
+    the path on a GPU)."""
+    if x.device.type != "cpu" or x.dtype != torch.float32 or x.requires_grad:
+        return False
+    return _HAS_CV2
+
+
+def _has_cv2() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("cv2") is not None
+
+
+_HAS_CV2 = _has_cv2()
 
 
 def box_blur_rect(
