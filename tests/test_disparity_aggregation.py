@@ -138,9 +138,10 @@ def test_opencv_box_sums_are_the_torch_sums(rows, cols, radius_rows, radius_cols
     assert filters._opencv_can_sum(image)
     ours = box._means(image.clone())
     assert filters._opencv_can_sum(image) and not filters._opencv_can_sum(image.double())
+    installed = filters._HAS_CV2
     try:
         filters._HAS_CV2 = False
         theirs = box._means(image.clone())
     finally:
-        filters._HAS_CV2 = filters._has_cv2()
+        filters._HAS_CV2 = installed
     torch.testing.assert_close(ours, theirs, atol=1e-5, rtol=0)

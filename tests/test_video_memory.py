@@ -142,16 +142,16 @@ def test_a_correction_click_changes_the_tracked_mask(present):
     assert inputs["point_labels"].tolist() == [[0]]
 
 
-def test_the_memory_thresholds_masks_where_the_video_baseline_does():
-    """The memory's mask threshold is the video baseline's (kept apart so that the memory
-    module does not import Meta's image predictor, torchvision and torch._dynamo)."""
+def test_the_tracker_does_not_import_sam2s_image_predictor():
+    """The video memory thresholds masks where the video baseline does, and importing the
+    tracker brings in neither Meta's sam2, torchvision nor torch._dynamo (3-4 s)."""
     import subprocess
     import sys
 
-    from lfsam.baseline.video import MASK_THRESHOLD
+    from lfsam.baseline import video
     from lfsam.video.memory import sam2_memory
 
-    assert sam2_memory._MASK_THRESHOLD == MASK_THRESHOLD
+    assert sam2_memory.MASK_THRESHOLD is video.MASK_THRESHOLD
     heavy = "('sam2', 'torchvision', 'torch._dynamo')"
     code = ("import sys, lfsam.video.tracking.online; "
             f"print(sorted(m for m in {heavy} if m in sys.modules))")

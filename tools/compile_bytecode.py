@@ -5,7 +5,7 @@ dependencies (torch, transformers' hundreds of model folders, ray, napari, sympy
 116 of the 213 seconds of a fresh ``.venv`` on the 2-core machine, for modules lfsam never
 imports. ``make install`` now installs with ``--no-compile`` and then runs this script, which
 imports every module of lfsam (the viewer's and the CLI's included) and the test tools with
-bytecode writing on, so exactly the modules a run imports get their ``.pyc`` (29 s). Python
+bytecode writing on, so exactly the modules a run imports get their ``.pyc`` (37 s). Python
 writes the rest on first import, unless ``PYTHONDONTWRITEBYTECODE`` is set: with it, a module
 not warmed here is compiled in memory at each import (slower, never wrong). docs/performance.md,
 "`make test` in two processes", has the measurements.

@@ -24,9 +24,14 @@ from lfsam.segmenters.base import Segmenter
 from lfsam.segmenters.registry import MODELS
 from lfsam.segmenters.sam2.build import build_sam2_video
 
-__all__ = ["quiet_sam2_video", "video_predictor_for"]
+__all__ = ["MASK_THRESHOLD", "quiet_sam2_video", "video_predictor_for"]
 
 _PREDICTORS: weakref.WeakKeyDictionary[torch.nn.Module, Any] = weakref.WeakKeyDictionary()
+
+
+MASK_THRESHOLD = 0.0
+"""SAM 2's mask threshold on logits (Meta's ``mask_threshold``): the video baseline's and the
+video memory's masks are the logits above it."""
 
 
 def video_predictor_for(segmenter: Segmenter) -> Any:

@@ -30,7 +30,7 @@ import torch
 from tqdm.auto import tqdm
 
 from lfsam.baseline.frames import FRAME_TRANSFORMS, init_video_state, video_frames
-from lfsam.baseline.predictor import quiet_sam2_video, video_predictor_for
+from lfsam.baseline.predictor import MASK_THRESHOLD, quiet_sam2_video, video_predictor_for
 from lfsam.baseline.prompts import transfer_prompts
 from lfsam.disparity import resolve_disparity
 from lfsam.errors import LfsamError
@@ -47,9 +47,6 @@ __all__ = ["BASELINE_STARTS", "video_baseline"]
 
 BASELINE_STARTS = ("first", "center")
 """Where tracking starts: the first view of the snake (paper) or the center view."""
-
-MASK_THRESHOLD = 0.0
-"""Logit threshold of the tracked masks (SAM 2's video examples use ``logits > 0``)."""
 
 
 def video_baseline(

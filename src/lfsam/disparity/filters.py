@@ -7,6 +7,7 @@ stays constant and there is no darkening at the frame border.
 
 from __future__ import annotations
 
+import importlib.util
 import math
 
 import numpy as np
@@ -264,22 +265,15 @@ class BoxFilter:
         return torch.from_numpy(sums).mul_(self.scale)
 
 
+_HAS_CV2 = importlib.util.find_spec("cv2") is not None
+"""OpenCV is installed (the ``dev``, ``poses`` and ``render`` extras bring it; without it the
+box sums are torch's, the same to float32 rounding)."""
+
+
 def _opencv_can_sum(x: torch.Tensor) -> bool:
     """Whether :meth:`BoxFilter._means` hands ``x`` to OpenCV: a float32 CPU tensor outside
-    autograd, with OpenCV installed (a dependency of lfsam; the torch sums are the fallback and
-    the path on a GPU)."""
-    if x.device.type != "cpu" or x.dtype != torch.float32 or x.requires_grad:
-        return False
-    return _HAS_CV2
-
-
-def _has_cv2() -> bool:
-    import importlib.util
-
-    return importlib.util.find_spec("cv2") is not None
-
-
-_HAS_CV2 = _has_cv2()
+    autograd, with OpenCV installed (the torch sums are the path on a GPU and the fallback)."""
+    return _HAS_CV2 and x.device.type == "cpu" and x.dtype == torch.float32 and not x.requires_grad
 
 
 def box_blur_rect(

@@ -20,8 +20,8 @@ and ``padded_input`` tells the backend that the view is resized by its longest s
 
 An image encoder built of ``timm`` blocks with inference-time fusions (EdgeTAM's RepViT: each
 convolution's batch norm, and each RepVGG block's 3x3, 1x1 and identity branches, folded into one
-convolution) runs fused and channels-last (:func:`fuse_timm_encoder`): the same function, 1.5x
-faster on a CPU (docs/design.md section 3.8, "EdgeTAM's encoder fused").
+convolution) runs fused (:func:`fuse_timm_encoder`; the segmenter runs it channels-last): the
+same function, 1.5x faster on a CPU (docs/design.md section 3.8, "EdgeTAM's encoder fused").
 """
 
 from __future__ import annotations
@@ -69,8 +69,7 @@ class CachedPositions(nn.Module):
 
 def fuse_timm_encoder(hf_model: nn.Module) -> bool:
     """Fold the inference-time branches of a ``timm`` image encoder into single convolutions,
-    in place, and lay the vision encoder out channels-last; False (and nothing changed) for an
-    encoder that is not ``timm``'s.
+    in place; False (and nothing changed) for an encoder that is not ``timm``'s.
 
     ``timm.utils.model.reparameterize_model`` replaces each module that has a ``fuse`` method
     with its fused form: in EdgeTAM's RepViT every ``ConvNorm`` (convolution + batch norm) and
@@ -79,9 +78,10 @@ def fuse_timm_encoder(hf_model: nn.Module) -> bool:
     for (Wang et al., "RepViT: Revisiting Mobile CNN From ViT Perspective", CVPR 2024). In eval
     mode the function is the same; floating-point sums in another order give embeddings within
     about 1e-6 of the unfused ones (relative to their largest value; ``tests/
-    test_segmenters_transformers.py``). Channels-last tensors are what oneDNN's convolutions run
-    fastest on. Measured on the 2-core CPU (docs/performance.md, "EdgeTAM's encoder fused"):
-    one 1024 x 1024 view 0.99 s unfused, 0.89 s fused, 0.67 s fused and channels-last.
+    test_segmenters_transformers.py``). The segmenter then runs the encoder channels-last, the
+    layout oneDNN's convolutions run fastest on (``TransformersSegmenter``). Measured on the
+    2-core CPU (docs/performance.md, "EdgeTAM's encoder fused"): one 1024 x 1024 view 0.99 s
+    unfused, 0.89 s fused, 0.67 s fused and channels-last.
 
     Parameters
     ----------
@@ -91,7 +91,7 @@ def fuse_timm_encoder(hf_model: nn.Module) -> bool:
     Returns
     -------
     bool
-        Whether the encoder was fused (and made channels-last).
+        Whether the encoder was fused.
     """
     backbone = getattr(getattr(hf_model, "vision_encoder", None), "backbone", None)
     timm_model = getattr(backbone, "timm_model", None)
@@ -101,7 +101,6 @@ def fuse_timm_encoder(hf_model: nn.Module) -> bool:
 
     with torch.no_grad():
         reparameterize_model(timm_model, inplace=True)
-    hf_model.vision_encoder.to(memory_format=torch.channels_last)
     return True
 
 
@@ -149,7 +148,7 @@ class TransformersImageModel(nn.Module):
             "params": int(sum(p.numel() for p in hf_model.parameters())),
             "image_size": self.image_size,
         }
-        #: the encoder's timm blocks fused and channels-last (EdgeTAM; :func:`fuse_timm_encoder`)
+        #: the encoder's timm blocks fused (EdgeTAM; :func:`fuse_timm_encoder`)
         self.fused_encoder = fuse_timm_encoder(hf_model)
 
     @property

@@ -41,16 +41,12 @@ from typing import Any
 import numpy as np
 import torch
 
-from lfsam.baseline.predictor import quiet_sam2_video, video_predictor_for
+from lfsam.baseline.predictor import MASK_THRESHOLD, quiet_sam2_video, video_predictor_for
 from lfsam.errors import LfsamError
 from lfsam.segmenters.base import Segmenter, ViewEmbedding
 from lfsam.segmenters.sam2.build import inference_context
 
 __all__ = ["ReferenceMemory", "has_video_memory", "reference_memory_for"]
-
-_MASK_THRESHOLD = 0.0
-"""SAM 2's mask threshold on logits (``lfsam.baseline.video.MASK_THRESHOLD``, Meta's
-``mask_threshold``); ``tests/test_video_memory.py`` checks that the two agree."""
 
 
 def has_video_memory(segmenter: Segmenter) -> bool:
@@ -213,5 +209,5 @@ class ReferenceMemory:
 
     def _masks(self, ids: Sequence[int], logits: torch.Tensor) -> dict[int, np.ndarray]:
         self.logits = logits[:, 0].float().cpu().numpy()
-        masks = self.logits > _MASK_THRESHOLD
+        masks = self.logits > MASK_THRESHOLD
         return {int(i): masks[n] for n, i in enumerate(ids)}
