@@ -110,13 +110,20 @@ def match_ids(result_labels: np.ndarray, gt_labels: np.ndarray, boxes) -> dict[i
 
 
 def score(motions: dict[int, dict[int, np.ndarray | None]], truth: list[dict],
-          hidden: set[tuple[int, int]] = frozenset()) -> dict:
+          hidden: set[tuple[int, int]] = frozenset(),
+          maskless: set[tuple[int, int]] = frozenset()) -> dict:
     """ADD shares and rotation errors per (box, frame after the box's first); the motions are
     from the box's first frame. ``hidden``: (box, frame) pairs where the box shows in no view,
-    left out (no pose is the right answer there)."""
-    rows = []
+    left out (no pose is the right answer there). ``unstarted``: the (box, frame) pairs before
+    the box's first pose where it shows in some view (the tracker waits while a partly covered
+    box shows too little to pin a pose: docs/design.md section 12). ``maskless``: (box, frame)
+    pairs where the segmentation gave the box no pixel although it shows: a pose lost there
+    is the segmentation's (counted apart as ``no mask``)."""
+    rows, unstarted = [], []
     for label, per_frame in motions.items():
         first = min(per_frame)
+        unstarted += [(label, k) for k in range(first)
+                      if label in truth[k] and (label, k) not in hidden]
         pose0, size = truth[first][label]
         model = transform(pose0, box_surface_points(size))
         diameter = float(np.linalg.norm(size))
@@ -130,7 +137,9 @@ def score(motions: dict[int, dict[int, np.ndarray | None]], truth: list[dict],
                 rows.append((label, frame, add_error(model, motion, true) / diameter,
                              rotation_error_deg(motion, true)))
     return {"rows": rows, "add": np.array([r[2] for r in rows]),
-            "rot": np.array([r[3] for r in rows])}
+            "rot": np.array([r[3] for r in rows]), "unstarted": unstarted,
+            "maskless": [(label, frame) for label, frame, *_ in rows
+                         if (label, frame) in maskless]}
 
 
 def summary(name: str, scored: list[dict], seconds: list[float] | None = None) -> None:
@@ -140,17 +149,23 @@ def summary(name: str, scored: list[dict], seconds: list[float] | None = None) -
     line = (f"{name:<28} pairs {len(add):3d}  ADD max {100 * np.nanmax(add):6.2f} %  "
             f"<=2 %: {np.mean(finite <= 0.02):5.3f}  <=5 %: {np.mean(finite <= 0.05):5.3f}  "
             f"ADD-0.1d {add_recall(add):5.3f}  rot median {np.nanmedian(rot):5.2f} max "
-            f"{np.nanmax(rot):5.2f} deg  lost {int(np.isnan(add).sum())}")
+            f"{np.nanmax(rot):5.2f} deg  lost {int(np.isnan(add).sum())} (no mask "
+            f"{sum(len(s.get('maskless', [])) for s in scored)})  not started "
+            f"{sum(len(s.get('unstarted', [])) for s in scored)}")
     if seconds:
         line += f"  {np.mean(seconds):.3f} s/object/frame (max {np.max(seconds):.3f})"
     print(line)
 
 
 def table(name: str, scored: dict) -> None:
-    print(f"  {name}: ADD % of diameter (rotation error deg) per box, frames 1..")
+    print(f"  {name}: frame: ADD % of diameter (rotation error deg) per box, from the frame "
+          "after its first pose")
     for label in sorted({r[0] for r in scored["rows"]}):
-        cells = [f"{100 * a:5.2f} ({r:4.2f})" for lab, _, a, r in scored["rows"] if lab == label]
-        print(f"    box {label}: " + " ".join(cells))
+        cells = [f"{frame}: {100 * a:5.2f} ({r:4.2f})" for lab, frame, a, r in scored["rows"]
+                 if lab == label]
+        late = [k for lab, k in scored.get("unstarted", []) if lab == label]
+        print(f"    box {label}: " + " ".join(cells)
+              + (f"  (not started in frames {late})" if late else ""))
 
 
 def baseline(frames, result, mapping, disparity: str, estimates=None) -> dict:
@@ -238,8 +253,10 @@ def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict) -> None:
                                  frames[k].labels[frames[k].center], truth[k]))
     hidden = {(label, k) for k, lf in enumerate(frames) for label in truth[k]
               if not (lf.labels == label).any()}
+    maskless = {(label, k) for k in range(len(frames)) for obj, label in mapping.items()
+                if (label, k) not in hidden and not (result.frame(k).labels == obj).any()}
     document = json.loads(out.read_text())
-    scored = score(_motions(document, mapping), truth, hidden)
+    scored = score(_motions(document, mapping), truth, hidden, maskless)
     runs.setdefault(f"gt{tag}", []).append(scored)
     per_object = [f["seconds"] for o in document["objects"] if o["id"] in mapping
                   for f in o["frames"]]
@@ -254,12 +271,12 @@ def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict) -> None:
                                 str(video_path), "--json", str(default_out)])
         document = json.loads(default_out.read_text())
         runs.setdefault(f"default{tag}", []).append(
-            score(_motions(document, mapping), truth, hidden))
+            score(_motions(document, mapping), truth, hidden, maskless))
         print(f"  `lfsam poses` with its defaults (estimated disparity, corners): command "
               f"{default_command:.1f} s (target <= 60 s); {_statuses(document, mapping)}")
         table("defaults: estimated disparity, views corners", runs[f"default{tag}"][-1])
     runs.setdefault(f"baseline gt{tag}", []).append(
-        score(baseline(frames, result, mapping, "gt"), truth, hidden))
+        score(baseline(frames, result, mapping, "gt"), truth, hidden, maskless))
     if args.skip_estimate:
         return
     start = time.perf_counter()
@@ -278,7 +295,7 @@ def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict) -> None:
     objects = tracker.objects
     motions = {mapping[o.object_id]: {f.frame: f.motion for f in o.frames}
                for o in objects if o.object_id in mapping}
-    scored = score(motions, truth, hidden)
+    scored = score(motions, truth, hidden, maskless)
     runs.setdefault(f"estimate{tag}", []).append(scored)
     per_object = [f.seconds for o in objects if o.object_id in mapping for f in o.frames]
     seconds.setdefault(f"estimate{tag}", []).extend(per_object)
@@ -291,7 +308,7 @@ def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict) -> None:
     table(f"estimated disparity, views {args.estimate_views}", scored)
     center = [estimates[k][lf.center] for k, lf in enumerate(frames)]
     runs.setdefault(f"baseline estimate{tag}", []).append(
-        score(baseline(frames, result, mapping, "estimate", center), truth, hidden))
+        score(baseline(frames, result, mapping, "estimate", center), truth, hidden, maskless))
 
 
 def main() -> None:

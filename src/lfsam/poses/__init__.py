@@ -22,10 +22,17 @@ The light-field way to register (:class:`PoseTracker`, plain arrays in and out):
    :mod:`lfsam.spatial.registration`); a constant-velocity guess without enough matches;
 3. fine: point-to-plane ICP of all the frame's points onto the object's **keyframe model** (its
    points at the first frame, joined by later keyframes' points moved back by their motion), the
-   feature inliers kept as fixed pairs that pin what planes cannot; registering to the model and
+   feature inliers kept as fixed pairs that pin what planes cannot (a pair farther apart than
+   the gate left out, as a point is), the motion predicted at constant velocity
+   (:mod:`lfsam.poses.prediction`) holding what neither pins; registering to the model and
    not only to the previous frame is what keeps the motion from drifting;
 4. a new keyframe when the object has turned :attr:`PoseOptions.keyframe_deg` since the last
-   one or the model explains less than :attr:`PoseOptions.keyframe_inliers` of its points.
+   one or the model explains less than :attr:`PoseOptions.keyframe_inliers` of its points,
+   and the fit's points pin all six directions.
+
+An object partly covered by a nearer one starts once what shows of it pins a motion or stops
+growing (:attr:`PoseOptions.covered_start`; docs/design.md section 12, "Poses through
+occlusions").
 
 :func:`poses_of_video` (:mod:`lfsam.poses.video`) runs it over ``(result, light field)`` frames
 with a disparity source (``"estimate"``, ``"gt"``, a map) and a camera, as :mod:`lfsam.objects3d`

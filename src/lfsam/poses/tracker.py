@@ -19,12 +19,13 @@ from lfsam.camera import Camera
 from lfsam.errors import LfsamError
 from lfsam.metrics.pose import rotation_error_deg
 from lfsam.poses.prediction import predict_motion
-from lfsam.poses.rim import RimOptions, trusted_labels
+from lfsam.poses.rim import RimOptions, covered_share, trusted_labels
 from lfsam.spatial import MIN_CONFIDENCE, object_points
 from lfsam.spatial.features import ViewFeatures, match_features, view_features
 from lfsam.spatial.registration import (
     estimate_normals,
     icp,
+    plane_conditioning,
     ransac_rigid,
     transform,
     voxel_downsample,
@@ -97,6 +98,20 @@ class PoseOptions:
         ``uncertain_inliers`` of the points: a registration pulled off by what is not the
         object fits its points several times worse than the object's own noise (design.md
         section 12, "Imperfect masks").
+    prior_weight : float
+        Weight of the predicted motion in ICP (:func:`lfsam.spatial.registration.icp`'s
+        ``prior_weight``), relative to all the points' residuals together, in the directions
+        their planes leave nearly free (a strip of one face): docs/design.md section 12,
+        "Poses through occlusions".
+    pinned : float
+        Points pin a motion where :func:`~lfsam.spatial.registration.plane_conditioning` is
+        at least this: a fit joins the model only then, and an object starts only then while
+        it is partly covered and growing.
+    covered_start, still_growing : float
+        An object not yet tracked waits while more than ``covered_start`` of the ring around
+        its center-view mask lies nearer than it (:func:`lfsam.poses.rim.covered_share`), its
+        points do not pin a motion and it has over ``still_growing`` times the voxels of the
+        frame before: a sliver's frame and model are not the object's.
     rim : RimOptions or None
         Which pixels of each mask are lifted and matched (:mod:`lfsam.poses.rim`: not those
         just behind a depth jump, nor those near another label that are not the object's
@@ -121,6 +136,10 @@ class PoseOptions:
     uncertain_rmse: float = 3.0
     uncertain_floor_m: float = 0.0005
     uncertain_inliers: float = 0.5
+    prior_weight: float = 0.0001
+    pinned: float = 0.02
+    covered_start: float = 0.1
+    still_growing: float = 1.1
     rim: RimOptions | None = field(default_factory=RimOptions)
 
 
@@ -262,6 +281,7 @@ class PoseTracker:
         self.options = options or PoseOptions()
         self.categories = dict(categories or {})
         self.tracks: dict[int, _Track] = {}
+        self._waiting: dict[int, int] = {}  # objects not started yet: their last voxel count
         self.frame = -1
 
     @property
@@ -316,9 +336,34 @@ class PoseTracker:
         normals = estimate_normals(xyz, self.options.normal_neighbours)
         return xyz, normals, cKDTree(xyz)
 
-    def _start(self, obj_id: int, xyz: np.ndarray, dense: np.ndarray, features) -> FramePose:
-        pose0 = first_pose(dense)
+    def _covered(self, views: Sequence[ViewData], object_ids: list[int]) -> dict[int, float]:
+        """:func:`covered_share` of objects not started yet, in the center view (or the first
+        view given)."""
+        if not object_ids or self.options.rim is None:
+            return {}
+        view = next((v for v in views if tuple(v.offset) == (0, 0)), views[0])
+        shares = covered_share(view.labels, view.disparity, self.options.rim,
+                               zero_disparity_offset=self.camera.zero_disparity_offset)
+        return {i: shares.get(i, 0.0) for i in object_ids}
+
+    def _start(self, obj_id: int, xyz: np.ndarray, dense: np.ndarray, features,
+               covered: float = 0.0) -> FramePose | None:
+        """The object's first frame: its model and first pose; None (not started yet) while
+        more than :attr:`PoseOptions.covered_start` of its edge lies behind a nearer object,
+        its points leave the motion free (:func:`plane_conditioning` under
+        :attr:`PoseOptions.pinned`) and it still grows (more than
+        :attr:`PoseOptions.still_growing` times its voxels of the frame before): the frame of a
+        sliver coming out from behind another object is not the object's, and its model would
+        pin nothing (docs/design.md section 12, "Poses through occlusions")."""
         model, normals, tree = self._model(xyz)
+        before = self._waiting.get(obj_id)
+        growing = before is None or len(xyz) > self.options.still_growing * before
+        if (covered > self.options.covered_start and growing
+                and plane_conditioning(model, normals) < self.options.pinned):
+            self._waiting[obj_id] = len(xyz)
+            return None
+        self._waiting.pop(obj_id, None)
+        pose0 = first_pose(dense)
         result = ObjectPoses(obj_id, self.categories.get(obj_id), pose0)
         found = _features_in_model(features, obj_id, np.eye(4))
         self.tracks[obj_id] = _Track(result, model, normals, tree, np.eye(4), found, found,
@@ -350,7 +395,8 @@ class PoseTracker:
     def _follow(self, track: _Track, obj_id: int, xyz: np.ndarray, features) -> FramePose:
         opts = self.options
         motions = track.motions
-        guess = predict_motion(motions, track.frames, self.frame)
+        guess = predict_motion(motions, track.frames, self.frame,
+                               centre=track.result.first_pose[:3, 3])
         model_pts, cur_pts = self._pairs(track, obj_id, features)
         fitted, inliers = ransac_rigid(model_pts, cur_pts, opts.ransac_m,
                                        seed=self.frame * 1009 + obj_id)
@@ -360,7 +406,8 @@ class PoseTracker:
                  else None)
         found = icp(_thin(xyz, opts.max_points), track.model, track.normals,
                     np.linalg.inv(init), tree=track.tree, gates=opts.gates_m, pairs=pairs,
-                    pair_weight=opts.pair_weight, weak_pair_weight=opts.weak_pair_weight)
+                    pair_weight=opts.pair_weight, weak_pair_weight=opts.weak_pair_weight,
+                    prior=np.linalg.inv(guess), prior_weight=opts.prior_weight)
         if found.inliers < opts.min_inliers:
             track.lost = True
             return FramePose(self.frame, "lost", None, None, found.inliers, None, len(xyz),
@@ -375,14 +422,15 @@ class PoseTracker:
         # promises a pose as good as "tracked".
         status = "uncertain" if poor else "found again" if track.lost else "tracked"
         track.lost = False
-        motions.append(motion)
-        track.frames.append(self.frame)
         current = _features_in_model(features, obj_id, to_model)
-        track.prev_features = current
-        if not poor:
+        if not poor:  # an uncertain pose would carry its error into the next prediction and
+            motions.append(motion)  # into the next frame's feature pairs
+            track.frames.append(self.frame)
+            track.prev_features = current
             track.rmses.append(found.rmse)
         turned = rotation_error_deg(motion, track.key_motion)
-        if not poor and (turned > opts.keyframe_deg or found.inliers < opts.keyframe_inliers):
+        if not poor and found.conditioning >= opts.pinned and (
+                turned > opts.keyframe_deg or found.inliers < opts.keyframe_inliers):
             joined = np.concatenate([track.model, transform(to_model, xyz)])
             (joined,) = voxel_downsample(joined, opts.voxel_m)
             track.model, track.normals, track.tree = self._model(joined)
@@ -409,6 +457,7 @@ class PoseTracker:
             counts = np.bincount(np.asarray(view.labels).ravel().clip(0))
             seen |= {int(i) for i in np.flatnonzero(counts) if i != 0}
         ids = sorted(seen | set(self.tracks))
+        covered = self._covered(views, [i for i in ids if i not in self.tracks])
         if self.options.rim is not None:
             views = [dataclasses.replace(
                 view, labels=trusted_labels(
@@ -431,7 +480,9 @@ class PoseTracker:
                 track.lost = True
                 entry = FramePose(self.frame, "lost", None, None, None, None, len(xyz), 0, 0.0)
             elif track is None:
-                entry = self._start(obj_id, xyz, dense, features)
+                entry = self._start(obj_id, xyz, dense, features, covered.get(obj_id, 0.0))
+                if entry is None:
+                    continue  # partly covered, and what shows leaves its pose free
             else:
                 entry = self._follow(track, obj_id, xyz, features)
             entry.seconds = shared + time.perf_counter() - began

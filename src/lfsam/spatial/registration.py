@@ -11,7 +11,8 @@ few vectorised NumPy lines each:
 - :func:`voxel_downsample` and :func:`estimate_normals` — the usual ICP preparation;
 - :func:`icp` — point-to-plane ICP (Chen & Medioni 1992) with Gauss-Newton steps, a shrinking
   distance gate and, optionally, fixed point pairs (feature matches) that pin the directions a
-  plane cannot (two faces of a box slide along their common edge).
+  plane cannot (two faces of a box slide along their common edge) and a weak prior on the
+  transform (a predicted motion) that holds what neither pins (a strip of one face).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ __all__ = [
     "estimate_normals",
     "icp",
     "kabsch",
+    "plane_conditioning",
     "ransac_rigid",
     "transform",
     "voxel_downsample",
@@ -162,12 +164,40 @@ def estimate_normals(xyz: np.ndarray, neighbours: int = 12,
 @dataclass
 class IcpResult:
     """The refined transform (4x4, source to target), the share of source points with a target
-    point within the final gate (``inliers``), and their RMS point-to-plane distance
-    (``rmse``, same units as the points)."""
+    point within the final gate (``inliers``), their RMS point-to-plane distance (``rmse``,
+    same units as the points) and how well their planes pin all six directions
+    (``conditioning``: the smallest eigenvalue of their point-to-plane normal equations over
+    the largest, in :func:`icp`'s scaled unknowns; 0 for a plane, which leaves three free;
+    NaN without inliers)."""
 
     transform: np.ndarray
     inliers: float
     rmse: float
+    conditioning: float = float("nan")
+
+
+def plane_conditioning(xyz: np.ndarray, normals: np.ndarray) -> float:
+    """How well points with their surface normals pin a rigid motion, as :func:`icp` solves
+    for it: the smallest eigenvalue of their point-to-plane normal equations over the largest
+    (rotation about the centroid scaled by the RMS radius, and translation). 0 for one plane
+    (it leaves three directions free) or a cylinder (one), about 0.1-0.3 for three faces of a
+    box; 0 without points.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> face = np.c_[rng.uniform(-1, 1, (200, 2)), np.zeros(200)]
+    >>> round(plane_conditioning(face, np.tile([0.0, 0.0, 1.0], (200, 1))), 6)
+    0.0
+    """
+    xyz = np.asarray(xyz, dtype=np.float64)
+    if len(xyz) == 0:
+        return 0.0
+    centre = xyz.mean(axis=0)
+    radius = max(float(np.sqrt(((xyz - centre) ** 2).sum(axis=1).mean())), 1e-6)
+    jac = np.concatenate([np.cross((xyz - centre) / radius, normals), normals], axis=1)
+    values = np.linalg.eigvalsh(jac.T @ jac)
+    return float(max(values[0], 0.0) / values[-1]) if values[-1] > 0 else 0.0
 
 
 def _rotation(omega: np.ndarray) -> np.ndarray:
@@ -177,6 +207,30 @@ def _rotation(omega: np.ndarray) -> np.ndarray:
     axis = omega / angle
     cross = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
     return np.eye(3) + np.sin(angle) * cross + (1 - np.cos(angle)) * cross @ cross
+
+
+def _rotation_vector(rot: np.ndarray) -> np.ndarray:
+    """The axis-angle vector of the rotation matrix ``rot`` (the inverse of :func:`_rotation`)."""
+    cos = float(np.clip((np.trace(rot) - 1.0) / 2.0, -1.0, 1.0))
+    angle = float(np.arccos(cos))
+    skew = np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
+    if angle < 1e-12:
+        return skew / 2.0
+    if np.pi - angle < 1e-6:  # half a turn: the axis is the symmetric part's main column
+        column = int(np.argmax(np.diag(rot)))
+        axis = (rot[:, column] + np.eye(3)[column]) / np.sqrt(2.0 * (1.0 + rot[column, column]))
+        return axis * angle
+    return skew * (angle / (2.0 * np.sin(angle)))
+
+
+def _prior_step(prior: np.ndarray, current: np.ndarray, centre: np.ndarray,
+                radius: float) -> np.ndarray:
+    """The Gauss-Newton step (scaled rotation about ``centre``, translation) of :func:`icp` that
+    carries ``current`` onto ``prior``."""
+    update = prior @ np.linalg.inv(current)
+    rot = update[:3, :3]
+    shift = rot @ centre + update[:3, 3] - centre
+    return np.concatenate([_rotation_vector(rot) * radius, shift])
 
 
 def _pair_system(ps: np.ndarray, targets: np.ndarray, centre: np.ndarray, radius: float):
@@ -204,6 +258,8 @@ def icp(
     pair_weight: float = 1.0,
     weak_pair_weight: float | None = None,
     weak: float = 0.02,
+    prior: np.ndarray | None = None,
+    prior_weight: float = 0.0,
 ) -> IcpResult:
     """Point-to-plane ICP of ``source`` onto ``target`` from ``init``.
 
@@ -224,11 +280,21 @@ def icp(
     pairs : ((K, 3), (K, 3)), optional
         Fixed point pairs (source, target), e.g. feature matches, added as point-to-point
         residuals with weight ``pair_weight`` relative to all the point-to-plane residuals
-        together (each pair ``pair_weight N / K``).
+        together (each pair ``pair_weight N / K``); like the points, a pair farther apart than
+        the gate is left out of the step (a wrong match that RANSAC's tolerance let through
+        must not pull a fit the planes pin).
     weak_pair_weight, weak : float, optional
         When the planes leave a direction nearly free (the smallest eigenvalue of their
         normal equations below ``weak`` times the largest: one face of a box, two faces sliding
         along their edge), the pairs weigh ``weak_pair_weight`` instead.
+    prior, prior_weight : (4, 4), float, optional
+        A transform expected beforehand (a predicted motion; source to target) and its weight,
+        relative to all the point-to-plane residuals together, in the directions the planes and
+        pairs leave nearly free (eigenvalues of their normal equations below ``weak`` times the
+        largest: a strip of one face slides in its plane and turns about its normal): there
+        each step is damped towards ``prior`` (a Gaussian prior around it); the directions
+        they pin are theirs alone, so a prediction that is off (no velocity known yet) does
+        not bias a well-seen object.
 
     Returns
     -------
@@ -256,15 +322,25 @@ def icp(
             gradient = jac.T @ residual
             if pairs is not None and len(pairs[0]):
                 ps = transform(current, pairs[0])
+                near = np.linalg.norm(ps - pairs[1], axis=1) <= gate
+                ps, pair_targets = ps[near], pairs[1][near]
+            if pairs is not None and len(pairs[0]) and len(ps):
                 weight = pair_weight
                 if weak_pair_weight is not None:
                     values = np.linalg.eigvalsh(hessian)
                     if values[0] < weak * values[-1]:
                         weight = weak_pair_weight
                 weight *= ok.sum() / len(ps)
-                pair_h, pair_g = _pair_system(ps, pairs[1], centre, radius)
+                pair_h, pair_g = _pair_system(ps, pair_targets, centre, radius)
                 hessian = hessian + weight * pair_h
                 gradient = gradient + weight * pair_g
+            if prior is not None and prior_weight > 0:
+                values, vectors = np.linalg.eigh(hessian)
+                free = vectors[:, values < weak * values[-1]]
+                if free.shape[1]:
+                    damping = prior_weight * ok.sum() * (free @ free.T)
+                    hessian = hessian + damping
+                    gradient = gradient - damping @ _prior_step(prior, current, centre, radius)
             step = -np.linalg.solve(hessian + 1e-9 * np.eye(6), gradient)
             rot = _rotation(step[:3] / radius)
             update = np.eye(4)
@@ -277,9 +353,10 @@ def icp(
     gate = gates[-1]
     dist, idx = tree.query(moved, distance_upper_bound=gate)
     ok = np.isfinite(dist)
+    rmse = conditioning = float("nan")
     if ok.any():
-        residual = np.einsum("ni,ni->n", moved[ok] - target[idx[ok]], target_normals[idx[ok]])
+        p, n = moved[ok], target_normals[idx[ok]]
+        residual = np.einsum("ni,ni->n", p - target[idx[ok]], n)
         rmse = float(np.sqrt(np.mean(residual**2)))
-    else:
-        rmse = float("nan")
-    return IcpResult(current, float(ok.sum() / n_src), rmse)
+        conditioning = plane_conditioning(p, n)
+    return IcpResult(current, float(ok.sum() / n_src), rmse, conditioning)
