@@ -26,7 +26,10 @@ distance between the box's surface points moved by the estimated and the true mo
 share of the box's diameter, the rotation error in degrees; per run: the worst ADD, the share of
 pairs with ADD <= 2 % and <= 5 %, ADD-0.1d recall, median and worst rotation error, and the
 tracker's seconds per object per frame (points, features, registration: beyond segmentation and
-disparity). Boxes are matched to the oracle's objects by their first frame's labels.
+disparity); ``lost``: pairs without a pose where the box shows in some view (``no mask``: of
+those, where the segmentation gave it no pixel); ``not started``: pairs before a box's first
+pose where it shows (a partly covered box waits until it pins a pose). Boxes are matched to the
+oracle's objects by the first frame they show in.
 
 Run::
 
