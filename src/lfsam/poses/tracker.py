@@ -241,6 +241,20 @@ class _Track:
     rmses: list[float] = field(default_factory=list)
 
 
+@dataclass
+class _Pending:
+    """An object held back from starting (:meth:`PoseTracker._start`): what its last frame
+    would have started it with."""
+
+    frame: int
+    voxels: int
+    model: np.ndarray
+    normals: np.ndarray
+    tree: cKDTree
+    pose: np.ndarray
+    features: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]]
+
+
 def _features_in_model(features: dict[tuple[int, int], ViewFeatures], object_id: int,
                        to_model: np.ndarray) -> dict[tuple[int, int], tuple]:
     out = {}
@@ -281,7 +295,7 @@ class PoseTracker:
         self.options = options or PoseOptions()
         self.categories = dict(categories or {})
         self.tracks: dict[int, _Track] = {}
-        self._waiting: dict[int, int] = {}  # objects not started yet: their last voxel count
+        self._waiting: dict[int, _Pending] = {}  # objects held back: their last sight
         self.frame = -1
 
     @property
@@ -347,29 +361,50 @@ class PoseTracker:
         return {i: shares.get(i, 0.0) for i in object_ids}
 
     def _start(self, obj_id: int, xyz: np.ndarray, dense: np.ndarray, features,
-               covered: float = 0.0) -> FramePose | None:
-        """The object's first frame: its model and first pose; None (not started yet) while
-        more than :attr:`PoseOptions.covered_start` of its edge lies behind a nearer object,
-        its points leave the motion free (:func:`plane_conditioning` under
+               covered: float = 0.0) -> list[FramePose]:
+        """The object's first frame: its model and first pose, or nothing yet while more than
+        :attr:`PoseOptions.covered_start` of the ring around it lies nearer (something covers
+        it), its points leave the motion free (:func:`plane_conditioning` under
         :attr:`PoseOptions.pinned`) and it still grows (more than
-        :attr:`PoseOptions.still_growing` times its voxels of the frame before): the frame of a
-        sliver coming out from behind another object is not the object's, and its model would
-        pin nothing (docs/design.md section 12, "Poses through occlusions")."""
+        :attr:`PoseOptions.still_growing` times its voxels of the frame it was last seen in):
+        the frame of a sliver coming out from behind another object is not the object's, and
+        its model would pin nothing (docs/design.md section 12, "Poses through occlusions").
+        An object that stopped growing starts at the frame it was last held back in (it showed
+        as much there), this frame registered to it: both entries are returned."""
         model, normals, tree = self._model(xyz)
-        before = self._waiting.get(obj_id)
-        growing = before is None or len(xyz) > self.options.still_growing * before
-        if (covered > self.options.covered_start and growing
+        now = _Pending(self.frame, len(xyz), model, normals, tree, first_pose(dense),
+                       _features_in_model(features, obj_id, np.eye(4)))
+        before = self._waiting.pop(obj_id, None)
+        if before is not None and len(xyz) <= self.options.still_growing * before.voxels:
+            first = self._begin(obj_id, before)
+            first.seconds = 0.0
+            return [first, self._follow(self.tracks[obj_id], obj_id, xyz, features)]
+        if (covered > self.options.covered_start
                 and plane_conditioning(model, normals) < self.options.pinned):
-            self._waiting[obj_id] = len(xyz)
-            return None
-        self._waiting.pop(obj_id, None)
-        pose0 = first_pose(dense)
-        result = ObjectPoses(obj_id, self.categories.get(obj_id), pose0)
-        found = _features_in_model(features, obj_id, np.eye(4))
-        self.tracks[obj_id] = _Track(result, model, normals, tree, np.eye(4), found, found,
-                                     [np.eye(4)], [self.frame])
-        return FramePose(self.frame, "tracked", np.eye(4), pose0.copy(), 1.0, 0.0, len(xyz),
-                         0, 0.0)
+            self._waiting[obj_id] = now
+            return []
+        return [self._begin(obj_id, now)]
+
+    def _begin(self, obj_id: int, start: _Pending) -> FramePose:
+        """A track from ``start``, its first frame."""
+        result = ObjectPoses(obj_id, self.categories.get(obj_id), start.pose)
+        self.tracks[obj_id] = _Track(result, start.model, start.normals, start.tree, np.eye(4),
+                                     start.features, start.features, [np.eye(4)],
+                                     [start.frame])
+        return FramePose(start.frame, "tracked", np.eye(4), start.pose.copy(), 1.0, 0.0,
+                         start.voxels, 0, 0.0)
+
+    def finish(self) -> list[FramePose]:
+        """Start every object still held back (:meth:`_start`) at the last frame it was seen
+        in: at the end of a video, or of a single light field, what showed is all there is.
+        Returns their first entries (also added to :attr:`objects`)."""
+        out = []
+        for obj_id in sorted(self._waiting):
+            entry = self._begin(obj_id, self._waiting[obj_id])
+            self.tracks[obj_id].result.frames.append(entry)
+            out.append(entry)
+        self._waiting.clear()
+        return out
 
     def _pairs(self, track: _Track, obj_id: int, features) -> tuple[np.ndarray, np.ndarray]:
         """(model points, current points) of feature matches against the keyframe and the
@@ -480,9 +515,13 @@ class PoseTracker:
                 track.lost = True
                 entry = FramePose(self.frame, "lost", None, None, None, None, len(xyz), 0, 0.0)
             elif track is None:
-                entry = self._start(obj_id, xyz, dense, features, covered.get(obj_id, 0.0))
-                if entry is None:
+                started = self._start(obj_id, xyz, dense, features, covered.get(obj_id, 0.0))
+                if not started:
                     continue  # partly covered, and what shows leaves its pose free
+                *earlier, entry = started
+                for first in earlier:
+                    self.tracks[obj_id].result.frames.append(first)
+                    out.append(first)
             else:
                 entry = self._follow(track, obj_id, xyz, features)
             entry.seconds = shared + time.perf_counter() - began

@@ -107,6 +107,7 @@ def poses_of_video(
             on_frame(session.frames - 1, entries)
     if session.camera is None:
         raise LfsamError("no frames to register")
+    session.finish()
     return session.camera, session.objects
 
 
@@ -138,6 +139,11 @@ class VideoPoses:
     def objects(self) -> list[ObjectPoses]:
         """Every object seen so far."""
         return [] if self.tracker is None else self.tracker.objects
+
+    def finish(self) -> list[FramePose]:
+        """The video ended: objects still held back start at the last frame they were seen in
+        (:meth:`lfsam.poses.PoseTracker.finish`); their first entries."""
+        return [] if self.tracker is None else self.tracker.finish()
 
     def add(self, result: SegmentationResult, lightfield: LightField) -> list[FramePose]:
         """Register the objects of the next frame (module docstring)."""

@@ -272,6 +272,7 @@ class ObjectsDock(SideDock):
             session.add(SegmentationResult(labels=labels_at(index)), lightfield_at(index))
             with contextlib.suppress(RuntimeError):
                 self._progress.emit(f"poses: frame {index + 1} of {count} registered…")
+        session.finish()
         if not session.objects:
             raise LfsamError("no object to pose: click one, Segment everything or Track in the "
                              "lfsam dock first")
