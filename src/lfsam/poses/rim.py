@@ -133,14 +133,16 @@ def trusted_labels(labels: np.ndarray, disparity: np.ndarray,
 
 
 def covered_share(labels: np.ndarray, disparity: np.ndarray, options: RimOptions | None = None,
-                  *, zero_disparity_offset: float = 0.0) -> dict[int, float]:
+                  *, zero_disparity_offset: float = 0.0,
+                  object_ids: list[int] | None = None) -> dict[int, float]:
     """Per label, the share of the ring just outside its mask (pixels within 2
     :attr:`RimOptions.inside_px` + :attr:`RimOptions.jump_px` of it, Chebyshev: past a mask
     eroded by :attr:`RimOptions.inside_px`) that lies nearer than the
     object by a jump (:attr:`RimOptions.jump` of its median absolute disparity): 0 for an
     object seen whole against what lies behind it, high for one partly covered by a nearer
     object, whichever way its mask is a pixel or two off (issue 64; docs/design.md section 12,
-    "Poses through occlusions").
+    "Poses through occlusions"). ``object_ids``: only these labels (default every one in
+    ``labels``).
 
     Examples
     --------
@@ -159,7 +161,7 @@ def covered_share(labels: np.ndarray, disparity: np.ndarray, options: RimOptions
     # a mask eroded by inside_px still reaches past its object's own pixels into the cover
     reach = max(2 * opts.inside_px + opts.jump_px, 1)
     out = {}
-    for label in np.unique(labels):
+    for label in np.unique(labels) if object_ids is None else object_ids:
         if label == 0:
             continue
         mask = labels == label

@@ -357,7 +357,8 @@ class PoseTracker:
             return {}
         view = next((v for v in views if tuple(v.offset) == (0, 0)), views[0])
         shares = covered_share(view.labels, view.disparity, self.options.rim,
-                               zero_disparity_offset=self.camera.zero_disparity_offset)
+                               zero_disparity_offset=self.camera.zero_disparity_offset,
+                               object_ids=object_ids)
         return {i: shares.get(i, 0.0) for i in object_ids}
 
     def _start(self, obj_id: int, xyz: np.ndarray, dense: np.ndarray, features,
@@ -377,7 +378,6 @@ class PoseTracker:
         before = self._waiting.pop(obj_id, None)
         if before is not None and len(xyz) <= self.options.still_growing * before.voxels:
             first = self._begin(obj_id, before)
-            first.seconds = 0.0
             return [first, self._follow(self.tracks[obj_id], obj_id, xyz, features)]
         if (covered > self.options.covered_start
                 and plane_conditioning(model, normals) < self.options.pinned):

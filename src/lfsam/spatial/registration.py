@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
 
 __all__ = [
     "IcpResult",
@@ -193,11 +194,18 @@ def plane_conditioning(xyz: np.ndarray, normals: np.ndarray) -> float:
     xyz = np.asarray(xyz, dtype=np.float64)
     if len(xyz) == 0:
         return 0.0
-    centre = xyz.mean(axis=0)
-    radius = max(float(np.sqrt(((xyz - centre) ** 2).sum(axis=1).mean())), 1e-6)
-    jac = np.concatenate([np.cross((xyz - centre) / radius, normals), normals], axis=1)
+    _, _, jac = _plane_jacobian(xyz, normals)
     values = np.linalg.eigvalsh(jac.T @ jac)
     return float(max(values[0], 0.0) / values[-1]) if values[-1] > 0 else 0.0
+
+
+def _plane_jacobian(p: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+    """The point-to-plane Jacobian of points ``p`` with normals ``n`` in :func:`icp`'s unknowns
+    (a rotation about their centroid scaled by their RMS radius, then a translation): the
+    centroid, the radius and the ``(N, 6)`` Jacobian."""
+    centre = p.mean(axis=0)
+    radius = max(float(np.sqrt(((p - centre) ** 2).sum(axis=1).mean())), 1e-6)
+    return centre, radius, np.concatenate([np.cross((p - centre) / radius, n), n], axis=1)
 
 
 def _rotation(omega: np.ndarray) -> np.ndarray:
@@ -209,20 +217,6 @@ def _rotation(omega: np.ndarray) -> np.ndarray:
     return np.eye(3) + np.sin(angle) * cross + (1 - np.cos(angle)) * cross @ cross
 
 
-def _rotation_vector(rot: np.ndarray) -> np.ndarray:
-    """The axis-angle vector of the rotation matrix ``rot`` (the inverse of :func:`_rotation`)."""
-    cos = float(np.clip((np.trace(rot) - 1.0) / 2.0, -1.0, 1.0))
-    angle = float(np.arccos(cos))
-    skew = np.array([rot[2, 1] - rot[1, 2], rot[0, 2] - rot[2, 0], rot[1, 0] - rot[0, 1]])
-    if angle < 1e-12:
-        return skew / 2.0
-    if np.pi - angle < 1e-6:  # half a turn: the axis is the symmetric part's main column
-        column = int(np.argmax(np.diag(rot)))
-        axis = (rot[:, column] + np.eye(3)[column]) / np.sqrt(2.0 * (1.0 + rot[column, column]))
-        return axis * angle
-    return skew * (angle / (2.0 * np.sin(angle)))
-
-
 def _prior_step(prior: np.ndarray, current: np.ndarray, centre: np.ndarray,
                 radius: float) -> np.ndarray:
     """The Gauss-Newton step (scaled rotation about ``centre``, translation) of :func:`icp` that
@@ -230,7 +224,7 @@ def _prior_step(prior: np.ndarray, current: np.ndarray, centre: np.ndarray,
     update = prior @ np.linalg.inv(current)
     rot = update[:3, :3]
     shift = rot @ centre + update[:3, 3] - centre
-    return np.concatenate([_rotation_vector(rot) * radius, shift])
+    return np.concatenate([Rotation.from_matrix(rot).as_rotvec() * radius, shift])
 
 
 def _pair_system(ps: np.ndarray, targets: np.ndarray, centre: np.ndarray, radius: float):
@@ -314,10 +308,8 @@ def icp(
             p = moved[ok]
             q = target[idx[ok]]
             n = target_normals[idx[ok]]
-            centre = p.mean(axis=0)
-            radius = max(float(np.sqrt(((p - centre) ** 2).sum(axis=1).mean())), 1e-6)
+            centre, radius, jac = _plane_jacobian(p, n)
             residual = np.einsum("ni,ni->n", p - q, n)
-            jac = np.concatenate([np.cross((p - centre) / radius, n), n], axis=1)
             hessian = jac.T @ jac
             gradient = jac.T @ residual
             if pairs is not None and len(pairs[0]):
