@@ -15,7 +15,8 @@ feature weight):
    (estimated disparity, the center and the corner views; timed whole: issue 65's 60-s
    target), and :class:`lfsam.poses.PoseTracker` with the estimated disparity
    (``--estimate-views``: ``corners`` by default, as the command: the center and the four
-   corner views' own estimates, five per frame; ``carried``: the center's estimate carried to
+   corner views' own estimates, five per frame, with the estimator's light settings, or
+   ``--estimate own`` with ``lfsam disparity``'s; ``carried``: the center's estimate carried to
    all 49 views, one per frame; ``center`` one; ``all`` is 49 estimates per frame, minutes per
    frame on a CPU), the estimates made once and shared with the baseline;
 4. a plain frame-to-frame baseline (SIFT matches inside the center view's masks, lifted to 3D,
@@ -35,6 +36,7 @@ Run::
 
     python benchmarks/bench_poses.py [--seeds 4,5,6] [--oracle-jitter 0,1,2]
         [--work /tmp/bench_poses] [--estimate-views carried|corners|center|all]
+        [--estimate light|own]
         [--skip-estimate] [--skip-default]
 """
 
@@ -51,7 +53,6 @@ from pathlib import Path
 import numpy as np
 
 from lfsam.camera import camera_of
-from lfsam.disparity import estimate_disparity
 from lfsam.disparity.carried import estimate_views as carried_views
 from lfsam.metrics.pose import add_error, add_recall, rotation_error_deg
 from lfsam.poses import PoseTracker, ViewData
@@ -193,9 +194,12 @@ def baseline(frames, result, mapping, disparity: str, estimates=None) -> dict:
     return motions
 
 
-def estimate_views(frames, views: str, cache: Path | None = None) -> list[dict]:
-    """Per frame {view: (disparity, confidence)} of the default estimator (with its fusion, as
-    ``lfsam poses --disparity estimate``); kept in ``cache`` (an .npz) for the next run."""
+def estimate_views(frames, views: str, cache: Path | None = None,
+                   mode: str = "light") -> list[dict]:
+    """Per frame {view: (disparity, confidence)} as ``lfsam poses --disparity estimate
+    --estimate MODE`` makes them (:func:`lfsam.disparity.carried.estimate_views`; ``views
+    carried``: the center's default estimate carried to every view); kept in ``cache`` (an
+    .npz) for the next run."""
     if cache is not None and cache.is_file():
         stored = np.load(cache)
         keys = [tuple(int(x) for x in key) for key in stored["views"]]
@@ -211,11 +215,7 @@ def estimate_views(frames, views: str, cache: Path | None = None) -> list[dict]:
         chosen = {"center": [lf.center],
                   "corners": [lf.center, (0, 0), (0, last_t), (last_s, 0), (last_s, last_t)],
                   "all": every}[views]
-        found = {}
-        for view in chosen:
-            estimate = estimate_disparity(lf, view=view)
-            found[view] = (np.asarray(estimate.disparity), np.asarray(estimate.confidence))
-        out.append(found)
+        out.append(carried_views(lf, chosen, mode=mode))
     if cache is not None:
         keys = list(out[0])
         np.savez(cache, views=np.array(keys),
@@ -283,8 +283,10 @@ def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict) -> None:
     if args.skip_estimate:
         return
     start = time.perf_counter()
+    mode = "" if args.estimate == "own" else f"_{args.estimate}"
     estimates = estimate_views(frames, args.estimate_views,
-                               Path(f"{video_path}_estimates_{args.estimate_views}.npz"))
+                               Path(f"{video_path}_estimates_{args.estimate_views}{mode}.npz"),
+                               mode=args.estimate)
     estimate_seconds = time.perf_counter() - start
     tracker = PoseTracker(camera_of(frames[0].meta), frames[0].view_shape)
     cpu_seconds: list[float] = []
@@ -324,6 +326,9 @@ def main() -> None:
                         help="the videos with a box crossing in front of the others (`lfsam "
                              "synth --rigid --crossing`: poses through 3D occlusions, issue 64)")
     parser.add_argument("--work", default="/tmp/bench_poses")
+    parser.add_argument("--estimate", choices=("light", "own"), default="light",
+                        help="each view's estimate: the light settings (`lfsam poses`' default) "
+                        "or `lfsam disparity`'s defaults")
     parser.add_argument("--estimate-views", choices=("carried", "center", "corners", "all"),
                         default="corners")
     parser.add_argument("--skip-estimate", action="store_true")

@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from lfsam.disparity.carried import carry_estimate, estimate_views
+from lfsam.disparity import estimate_disparity
+from lfsam.disparity.carried import LIGHT_ESTIMATE, carry_estimate, estimate_views
 from lfsam.errors import LfsamError
 from lfsam.synth import generate_scene
 
@@ -70,5 +71,12 @@ def test_estimate_views_carried_and_each():
             assert ((c >= 0) & (c <= 1)).all()
     # the center is the one estimate both modes share
     np.testing.assert_array_equal(carried[(1, 1)][0], each[(1, 1)][0])
+    # light: each view's own estimate with the light settings, not the defaults
+    light = estimate_views(lf, views[1:], mode="light", device="cpu")
+    for view in views[1:]:
+        alone = estimate_disparity(lf, view=view, device="cpu", **LIGHT_ESTIMATE)
+        np.testing.assert_array_equal(light[view][0], alone.disparity)
+        np.testing.assert_array_equal(light[view][1], alone.confidence)
+        assert alone.meta["fusion"] is False and alone.meta["wide_feature_radius"] is None
     with pytest.raises(LfsamError, match="estimate mode must be one of"):
         estimate_views(lf, views, mode="all")

@@ -266,7 +266,8 @@ def test_estimated_depth_by_default_uses_the_center_and_corner_views(tmp_path, c
     captured = capsys.readouterr()
     assert "estimating 5 views' disparity in every frame" in captured.err
     document = json.loads((tmp_path / "p.json").read_text())
-    assert document["views"] == "corners" and document["estimate"] == "own"
+    assert document["views"] == "corners" and document["estimate"] == "light"
+    assert VideoPoses().estimate == "light"
     assert default_pose_views("estimate") == "corners" and default_pose_views("gt") == "all"
     assert VideoPoses().views == "corners" and VideoPoses(disparity="gt").views == "all"
     with pytest.raises(LfsamError, match="estimate must be one of"):
@@ -279,3 +280,25 @@ def test_estimated_depth_by_default_uses_the_center_and_corner_views(tmp_path, c
     motion = np.asarray(box["frames"][1]["motion"])
     true = _truth(video[1])[0] @ np.linalg.inv(pose0)
     assert add_error(model, motion, true) < 0.05 * np.linalg.norm(size)
+
+
+def test_the_estimate_line_says_what_each_choice_costs(capsys):
+    """Before the work `lfsam poses` says how many views it estimates per frame, and a user who
+    asks for the full estimator (--estimate own) or every view is told what that costs."""
+    import argparse
+
+    from lfsam.cli.poses import _say_estimating
+
+    def said(**chosen) -> str:
+        args = argparse.Namespace(**{"disparity": "estimate", "estimate": "light",
+                                     "views": "corners", **chosen})
+        _say_estimating(args, (7, 7))
+        return capsys.readouterr().err
+
+    assert "estimating 5 views' disparity" in said() and "times" not in said()
+    assert "3.5 times the time of --estimate light" in said(estimate="own")
+    every = said(views="all", estimate="own")
+    assert "49 views'" in every and "10 times the time of --views corners" in every
+    assert "3.5 times" in every
+    assert "center view's disparity" in said(estimate="carried")
+    assert said(disparity="gt") == ""

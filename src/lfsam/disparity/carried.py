@@ -35,11 +35,22 @@ from lfsam.disparity.methods import estimate_disparity
 from lfsam.errors import LfsamError
 from lfsam.lightfield import LightField
 
-__all__ = ["CARRY_AGREE", "ESTIMATE_MODES", "carry_estimate", "estimate_views"]
+__all__ = ["CARRY_AGREE", "ESTIMATE_MODES", "LIGHT_ESTIMATE", "carry_estimate", "estimate_views"]
 
-#: How :func:`estimate_views` gets each view's disparity: each view's own estimate (one per
-#: view), or the center view's estimate carried to the others (one estimate).
-ESTIMATE_MODES = ("own", "carried")
+#: How :func:`estimate_views` gets each view's disparity: each view's own estimate with the
+#: estimator's light settings (:data:`LIGHT_ESTIMATE`, one per view), each view's own estimate
+#: with ``lfsam disparity``'s defaults (one per view, about 3.5 times the time), or the center
+#: view's estimate carried to the others (one estimate).
+ESTIMATE_MODES = ("light", "own", "carried")
+
+#: The occlusion-aware estimator's options of ``mode="light"`` (docs/design.md section 12,
+#: "Depth per frame"): one feature scale, no structure-tensor fusion, no surface fit: the
+#: half-grid cost volume, its oriented aggregation and the sub-pixel winner. Those three steps
+#: sharpen depth edges and smooth weakly textured surfaces of a single map; the pose tracker
+#: leaves out an object's rim and averages thousands of points over five views, where they
+#: changed no pose beyond the targets (docs/performance.md, "Poses with estimated depth by
+#: default") at 3.5 times the time.
+LIGHT_ESTIMATE = {"wide_feature_radius": None, "fusion": False, "surface_fit": False}
 
 #: A carried pixel keeps the reference's confidence when the reference shows its disparity
 #: within this (pixels per view step) where it would see the pixel.
@@ -122,10 +133,12 @@ def estimate_views(
         One frame's light field.
     views : sequence of (s, t)
         The views wanted (0-based view row and column).
-    mode : {"own", "carried"}
-        ``"own"``: every view is estimated on its own (a cost volume per view: as many times
-        the cost as there are views); ``"carried"``: the center view is estimated once and
-        carried to every other view (:func:`carry_estimate`).
+    mode : {"light", "own", "carried"}
+        ``"light"``: every view is estimated on its own with :data:`LIGHT_ESTIMATE` (a cost
+        volume per view: as many times the cost as there are views); ``"own"``: the same with
+        the estimator's defaults (``lfsam disparity``'s estimate); ``"carried"``: the center view
+        is estimated once with the defaults and carried to every other view
+        (:func:`carry_estimate`).
     device : str or torch.device, optional
 
     Returns
@@ -140,10 +153,11 @@ def estimate_views(
     if mode not in ESTIMATE_MODES:
         raise LfsamError(f"estimate mode must be one of {ESTIMATE_MODES}, got {mode!r}")
     wanted = [(int(s), int(t)) for s, t in views]
-    if mode == "own":
+    if mode in ("light", "own"):
+        options = LIGHT_ESTIMATE if mode == "light" else {}
         out = {}
         for view in wanted:
-            found = estimate_disparity(lightfield, device=device, view=view)
+            found = estimate_disparity(lightfield, device=device, view=view, **options)
             out[view] = (np.asarray(found.disparity), np.asarray(found.confidence))
         return out
     center = tuple(int(x) for x in lightfield.center)

@@ -63,7 +63,7 @@ def poses_of_video(
     disparity: str | os.PathLike | np.ndarray = "estimate",
     camera: Camera | str | os.PathLike | None = None,
     views: str | None = None,
-    estimate: str = "own",
+    estimate: str = "light",
     options: PoseOptions | None = None,
     device: str | None = None,
     on_frame: Callable[[int, list[FramePose]], None] | None = None,
@@ -81,11 +81,14 @@ def poses_of_video(
         The views whose pixels become points (:data:`POSE_VIEWS`; features use the center and
         the corners of these); default :func:`default_pose_views` (``"corners"`` with an
         estimate, else ``"all"``).
-    estimate : {"own", "carried"}
+    estimate : {"light", "own", "carried"}
         With ``disparity="estimate"``: every used view's own estimate (one cost volume per view
-        and frame: 5 with ``views="corners"``, 49 on a 7 x 7 grid with ``views="all"``), or the
-        center view's estimate carried to the other views (one per frame, less accurate;
-        :func:`lfsam.disparity.carried.estimate_views`).
+        and frame: 5 with ``views="corners"``, 49 on a 7 x 7 grid with ``views="all"``) with the
+        estimator's light settings (:data:`lfsam.disparity.carried.LIGHT_ESTIMATE`) or its
+        defaults (``"own"``, about 3.5 times the time, more accurate), or the center view's
+        estimate carried to the other views (one per frame, less accurate;
+        :func:`lfsam.disparity.carried.estimate_views`; docs/design.md section 12, "Depth per
+        frame").
     options : PoseOptions, optional
     on_frame : callable, optional
         Called with ``(frame, [FramePose, ...])`` after each frame (live output).
@@ -121,7 +124,7 @@ class VideoPoses:
 
     def __init__(self, *, disparity: str | os.PathLike | np.ndarray = "estimate",
                  camera: Camera | str | os.PathLike | None = None, views: str | None = None,
-                 estimate: str = "own", options: PoseOptions | None = None,
+                 estimate: str = "light", options: PoseOptions | None = None,
                  device: str | None = None) -> None:
         views = default_pose_views(disparity) if views is None else views
         if views not in POSE_VIEWS:

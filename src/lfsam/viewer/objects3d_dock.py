@@ -14,7 +14,8 @@ scroll to zoom) and the measures are listed below it (:func:`lfsam.objects3d.for
 the masks the lfsam dock shows, in the same thread of its own: over every frame of a light-field
 video (the masks of a track, or any shown frame by frame), or on the single light field (each
 object's first pose), with the session's disparity source (``estimate``: the center and corner
-views' points, 5 estimates per frame) and the same camera. Each object's pose axes at the frame
+views' points, 5 estimates per frame with the estimator's light settings, as ``lfsam poses``)
+and the same camera. Each object's pose axes at the frame
 on the ``frame`` slider (red, green, blue: its x, y, z) and its path (the pose's origins over the
 frames it was found in) are drawn with the points; moving the slider moves the axes
 (:mod:`lfsam.viewer.pose_visuals`).
