@@ -44,14 +44,14 @@ Per object and frame:
            object's own: check it before you act on it), lost (too few points or no fit: no
            pose is given) or found again.
 
-How: the object's points from every view that sees it (--views all, the default; the light
-field sees around occluders), a coarse motion from SIFT matches inside its masks in the center
-and corner views lifted to 3D (RANSAC + Kabsch), refined by point-to-plane ICP of all its
-points onto a keyframe model of the object (no drift from chaining frame to frame). A mask's
-rim is checked against the depth: pixels just behind a depth jump, and pixels within 2 pixels
-of another label that are not the object's own silhouette, are left out, so a mask a pixel or
-two off (as every real segmenter's is) adds no point of the wall behind the object. A single
-light field (a result .npz) gives each object's pose with identity motion.
+How: the object's points from every view that sees it (--views all, the default with --disparity gt
+or a file; the light field sees around occluders), a coarse motion from SIFT matches inside its
+masks in the center and corner views lifted to 3D (RANSAC + Kabsch), refined by point-to-plane ICP
+of all its points onto a keyframe model of the object (no drift from chaining frame to frame). A
+mask's rim is checked against the depth: pixels just behind a depth jump, and pixels within 2 pixels
+of another label that are not the object's own silhouette, are left out, so a mask a pixel or two
+off (as every real segmenter's is) adds no point of the wall behind the object. A single light field
+(a result .npz) gives each object's pose with identity motion.
 
 The camera is --camera CAMERA.json ({CAMERA_EXAMPLE}), else the light field's own (an HCI 4D
 parameters.cfg, or an lfsam scene folder's: `lfsam synth` writes one). With --disparity
