@@ -73,8 +73,9 @@ def test_estimate_views_carried_and_each():
     np.testing.assert_array_equal(carried[(1, 1)][0], each[(1, 1)][0])
     # light: each view's own estimate with the light settings, not the defaults
     light = estimate_views(lf, views[1:], mode="light", device="cpu")
-    for view in views[1:]:
-        alone = estimate_disparity(lf, view=view, device="cpu", **LIGHT_ESTIMATE)
+    span = estimate_disparity(lf, view=views[1], device="cpu").disparity_range
+    for view in views[1:]:  # the first view's range serves every view
+        alone = estimate_disparity(lf, span, view=view, device="cpu", **LIGHT_ESTIMATE)
         np.testing.assert_array_equal(light[view][0], alone.disparity)
         np.testing.assert_array_equal(light[view][1], alone.confidence)
         assert alone.meta["fusion"] is False and alone.meta["wide_feature_radius"] is None

@@ -135,10 +135,11 @@ def estimate_views(
         The views wanted (0-based view row and column).
     mode : {"light", "own", "carried"}
         ``"light"``: every view is estimated on its own with :data:`LIGHT_ESTIMATE` (a cost
-        volume per view: as many times the cost as there are views); ``"own"``: the same with
-        the estimator's defaults (``lfsam disparity``'s estimate); ``"carried"``: the center view
-        is estimated once with the defaults and carried to every other view
-        (:func:`carry_estimate`).
+        volume per view: as many times the cost as there are views) over the disparity range
+        found with the first view (:func:`lfsam.disparity.range.estimate_disparity_range`, once:
+        the views share one scene); ``"own"``: the same with the estimator's defaults (``lfsam
+        disparity``'s estimate); ``"carried"``: the center view is estimated once with the
+        defaults and carried to every other view (:func:`carry_estimate`).
     device : str or torch.device, optional
 
     Returns
@@ -156,8 +157,10 @@ def estimate_views(
     if mode in ("light", "own"):
         options = LIGHT_ESTIMATE if mode == "light" else {}
         out = {}
+        span = None  # the scene's disparity range: found with the first view, kept for the rest
         for view in wanted:
-            found = estimate_disparity(lightfield, device=device, view=view, **options)
+            found = estimate_disparity(lightfield, span, device=device, view=view, **options)
+            span = found.disparity_range
             out[view] = (np.asarray(found.disparity), np.asarray(found.confidence))
         return out
     center = tuple(int(x) for x in lightfield.center)
