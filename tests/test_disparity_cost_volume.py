@@ -262,3 +262,46 @@ def test_cli_method_and_confidence(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["disparity", str(tmp_path / "lf.npz"), "--out", str(out), "--method", "sgm"])
     assert "invalid choice" in capsys.readouterr().err
+
+
+def _naive_all_views_cost(views, hypotheses, truncation):
+    """The all-views cost volume pixel by pixel in NumPy: each view's feature bilinearly sampled
+    where the pixel lands in it, truncated, averaged over the views whose sample lies inside
+    the frame (``truncation`` where none does)."""
+    features = views.features.numpy().astype(np.float64)
+    reference = views.reference_features.numpy().astype(np.float64)
+    rows, cols = reference.shape
+    u, v = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+    out = np.empty((len(hypotheses), rows, cols))
+    for index, d in enumerate(hypotheses):
+        total, count = np.zeros((rows, cols)), np.zeros((rows, cols))
+        for k, (ds, dt) in enumerate(views.offsets.tolist()):
+            pu, pv = u - d * ds, v - d * dt
+            inside = (pu >= 0) & (pu <= rows - 1) & (pv >= 0) & (pv <= cols - 1)
+            cu, cv = np.clip(pu, 0, rows - 1), np.clip(pv, 0, cols - 1)
+            u0, v0 = np.floor(cu).astype(int), np.floor(cv).astype(int)
+            u1, v1 = np.minimum(u0 + 1, rows - 1), np.minimum(v0 + 1, cols - 1)
+            fu, fv = cu - u0, cv - v0
+            f = features[k]
+            sample = ((1 - fu) * ((1 - fv) * f[u0, v0] + fv * f[u0, v1])
+                      + fu * ((1 - fv) * f[u1, v0] + fv * f[u1, v1]))
+            cost = np.minimum(np.abs(sample - reference), truncation)
+            total += np.where(inside, cost, 0.0)
+            count += inside
+        out[index] = np.where(count > 0, total / np.maximum(count, 1), truncation)
+    return out
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.lists(st.floats(-20.0, 20.0, allow_nan=False), min_size=1, max_size=4),
+       st.sampled_from([(0, 0), (1, 1), (2, 1)]), st.integers(0, 3))
+def test_cost_volume_matches_a_pixel_by_pixel_reference(values, view, seed):
+    """Every view's truncated cost is counted exactly where its sample lies inside the frame,
+    also at hypotheses that shift a view wholly out of it (docs/design.md section 3.2)."""
+    from lfsam.disparity.cost_volume import build_cost_volume, view_set
+
+    lf = generate_scene(grid=(3, 3), size=(12, 16), seed=seed)
+    views = view_set(lf, view, device="cpu")
+    hypotheses = np.asarray(values, dtype=np.float64)
+    got = build_cost_volume(views, hypotheses, truncation=0.5, occlusion_aware=False).numpy()
+    np.testing.assert_allclose(got, _naive_all_views_cost(views, hypotheses, 0.5), atol=2e-6)
