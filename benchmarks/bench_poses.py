@@ -283,9 +283,9 @@ def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict) -> None:
     if args.skip_estimate:
         return
     start = time.perf_counter()
-    mode = "" if args.estimate == "own" else f"_{args.estimate}"
+    suffix = "" if args.estimate == "own" else f"_{args.estimate}"  # own: the older caches' name
     estimates = estimate_views(frames, args.estimate_views,
-                               Path(f"{video_path}_estimates_{args.estimate_views}{mode}.npz"),
+                               Path(f"{video_path}_estimates_{args.estimate_views}{suffix}.npz"),
                                mode=args.estimate)
     estimate_seconds = time.perf_counter() - start
     tracker = PoseTracker(camera_of(frames[0].meta), frames[0].view_shape)
