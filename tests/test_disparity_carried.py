@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from lfsam.devices import view_workers
 from lfsam.disparity import estimate_disparity
 from lfsam.disparity.carried import LIGHT_ESTIMATE, carry_estimate, estimate_views
 from lfsam.errors import LfsamError
@@ -81,3 +83,25 @@ def test_estimate_views_carried_and_each():
         assert alone.meta["fusion"] is False and alone.meta["wide_feature_radius"] is None
     with pytest.raises(LfsamError, match="estimate mode must be one of"):
         estimate_views(lf, views, mode="all")
+
+
+def test_views_estimated_two_at_a_time_are_those_of_one_at_a_time():
+    """With two torch threads the views after the first are estimated in two threads at once
+    (:func:`lfsam.devices.view_workers`): each estimate is the one made alone, in the order
+    asked for."""
+    lf = generate_scene(grid=(5, 5), size=(40, 56), seed=7)
+    views = [(2, 2), (0, 0), (0, 4), (4, 0), (4, 4)]
+    threads = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        assert view_workers(torch.device("cpu")) == 2
+        together = estimate_views(lf, views, mode="light", device="cpu")
+    finally:
+        torch.set_num_threads(threads)
+    assert list(together) == views
+    span = estimate_disparity(lf, view=views[0], device="cpu",
+                              **LIGHT_ESTIMATE).disparity_range
+    for view in views:
+        alone = estimate_disparity(lf, span, view=view, device="cpu", **LIGHT_ESTIMATE)
+        np.testing.assert_array_equal(together[view][0], alone.disparity)
+        np.testing.assert_array_equal(together[view][1], alone.confidence)

@@ -157,6 +157,28 @@ def test_fewer_views_and_a_single_light_field(video):
     assert np.linalg.norm(track.first_pose[:3, 3] - _truth(video[2])[0][:3, 3]) < 0.05
 
 
+def test_the_next_frame_prepared_ahead_gives_the_poses_of_one_frame_at_a_time(video):
+    """`poses_of_video` estimates the next frame's views while it registers one (issue 65):
+    the poses, their frames and the calls of ``on_frame`` are those of :class:`VideoPoses`
+    fed frame after frame; a bad frame's error names that frame."""
+    frames = [(SegmentationResult(labels=lf.labels * (lf.labels > 1)), lf) for lf in video[:2]]
+    seen = []
+    _, ahead = poses_of_video(frames, views="center",
+                              on_frame=lambda k, entries: seen.append((k, len(entries))))
+    session = VideoPoses(views="center")
+    calls = [(k, len(session.add(*frame))) for k, frame in enumerate(frames)]
+    assert seen == calls and [k for k, _ in seen] == [0, 1]
+    assert len(ahead) == len(session.objects) > 0
+    for mine, theirs in zip(ahead, session.objects, strict=True):
+        assert [f.frame for f in mine.frames] == [f.frame for f in theirs.frames]
+        for a, b in zip(mine.frames, theirs.frames, strict=True):
+            assert a.status == b.status
+            np.testing.assert_array_equal(a.motion, b.motion)
+    wrong = SegmentationResult(labels=frames[1][0].labels[:, :, :-1])
+    with pytest.raises(LfsamError, match="the result of frame 1"):
+        poses_of_video([frames[0], (wrong, frames[1][1])], disparity="gt")
+
+
 def test_too_few_points_is_lost_then_found_again(video):
     tracker = PoseTracker(RIGID_CAMERA, video[0].view_shape)
     centre = video[0].center

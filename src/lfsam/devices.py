@@ -27,6 +27,7 @@ __all__ = [
     "default_encode_batch_size",
     "default_prompt_batch_size",
     "resolve_device",
+    "view_workers",
 ]
 
 DEVICE_HELP = "auto (CUDA, then MPS, then CPU), cpu, cuda, cuda:N or mps"
@@ -151,3 +152,11 @@ def default_prompt_batch_size(device: str | torch.device) -> int:
 def _mps_available() -> bool:
     mps = getattr(torch.backends, "mps", None)
     return bool(mps is not None and mps.is_available())
+
+
+def view_workers(device: torch.device) -> int:
+    """Views processed at a time (docs/design.md sections 12 and 13): two on the CPU, each in a
+    thread (torch, OpenCV and NumPy release the GIL, and one view's many small operations leave
+    a core idle), as many as torch's threads allow; one on a GPU, which runs one view's work at
+    once."""
+    return max(1, min(2, torch.get_num_threads())) if device.type == "cpu" else 1

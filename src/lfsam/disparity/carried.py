@@ -25,10 +25,12 @@ degrees against 0.87 from the center's and the corners' own estimates).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import torch
 
+from lfsam.devices import view_workers
 from lfsam.disparity.center_warp import warp_center_disparity
 from lfsam.disparity.epi import resolve_device
 from lfsam.disparity.methods import estimate_disparity
@@ -137,7 +139,9 @@ def estimate_views(
         ``"light"``: every view is estimated on its own with :data:`LIGHT_ESTIMATE` (a cost
         volume per view: as many times the cost as there are views) over the disparity range
         found with the first view (:func:`lfsam.disparity.range.estimate_disparity_range`, once:
-        the views share one scene); ``"own"``: the same with the estimator's defaults (``lfsam
+        the views share one scene), the other views two at a time on a CPU
+        (:func:`lfsam.devices.view_workers`, threads; the same arrays as one at a time);
+        ``"own"``: the same with the estimator's defaults (``lfsam
         disparity``'s estimate); ``"carried"``: the center view is estimated once with the
         defaults and carried to every other view (:func:`carry_estimate`).
     device : str or torch.device, optional
@@ -156,12 +160,24 @@ def estimate_views(
     wanted = [(int(s), int(t)) for s, t in views]
     if mode in ("light", "own"):
         options = LIGHT_ESTIMATE if mode == "light" else {}
-        out = {}
-        span = None  # the scene's disparity range: found with the first view, kept for the rest
-        for view in wanted:
+        if not wanted:
+            return {}
+
+        def estimate(view: tuple[int, int], span: tuple[float, float] | None):
             found = estimate_disparity(lightfield, span, device=device, view=view, **options)
-            span = found.disparity_range
-            out[view] = (np.asarray(found.disparity), np.asarray(found.confidence))
+            return found.disparity_range, (np.asarray(found.disparity),
+                                           np.asarray(found.confidence))
+
+        # the scene's disparity range: found with the first view, kept for the rest, which are
+        # estimated a few at a time (each view's estimate is its own: the same arrays as one
+        # after the other)
+        span, first = estimate(wanted[0], None)
+        out = {wanted[0]: first}
+        rest = list(dict.fromkeys(view for view in wanted[1:] if view != wanted[0]))
+        with ThreadPoolExecutor(max_workers=view_workers(resolve_device(device))) as pool:
+            for view, (_, found) in zip(rest, pool.map(lambda v: estimate(v, span), rest),
+                                        strict=True):
+                out[view] = found
         return out
     center = tuple(int(x) for x in lightfield.center)
     found = estimate_disparity(lightfield, device=device, view=center)

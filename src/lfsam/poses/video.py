@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Iterable
+from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
@@ -104,10 +105,23 @@ def poses_of_video(
     """
     session = VideoPoses(disparity=disparity, camera=camera, views=views, estimate=estimate,
                          options=options, device=device)
-    for result, lightfield in frames:
-        entries = session.add(result, lightfield)
+
+    def register(prepared: Future) -> None:
+        entries = session.register(*prepared.result())
         if on_frame is not None:
             on_frame(session.frames - 1, entries)
+
+    # the next frame is read and its views estimated while this one is registered: the
+    # estimates are each frame's own, the registration runs frame after frame as before
+    with ThreadPoolExecutor(max_workers=1) as ahead:
+        pending: Future | None = None
+        for number, (result, lightfield) in enumerate(frames):
+            prepared = ahead.submit(session.prepare, result, lightfield, number)
+            if pending is not None:
+                register(pending)
+            pending = prepared
+        if pending is not None:
+            register(pending)
     if session.camera is None:
         raise LfsamError("no frames to register")
     session.finish()
@@ -149,8 +163,33 @@ class VideoPoses:
         return [] if self.tracker is None else self.tracker.finish()
 
     def add(self, result: SegmentationResult, lightfield: LightField) -> list[FramePose]:
-        """Register the objects of the next frame (module docstring)."""
-        check_result_shape(result.labels.shape, lightfield, f"the result of frame {self.frames}")
+        """Register the objects of the next frame (module docstring): :meth:`prepare` then
+        :meth:`register`."""
+        return self.register(*self.prepare(result, lightfield))
+
+    def prepare(self, result: SegmentationResult, lightfield: LightField,
+                frame: int | None = None
+                ) -> tuple[SegmentationResult, LightField, list[ViewData]]:
+        """A frame's views as the tracker takes them, their disparity estimated or read; it
+        touches no state of the session, so the next frame's can be made while one is
+        registered (:func:`poses_of_video`). ``frame``: its number in messages (default the
+        next one to register).
+
+        Raises
+        ------
+        LfsamError
+            A result that does not match its light field, a bad disparity source.
+        """
+        number = self.frames if frame is None else frame
+        check_result_shape(result.labels.shape, lightfield, f"the result of frame {number}")
+        spec, name = load_disparity_spec(self.disparity, lightfield)
+        data = _view_arrays(lightfield, result, spec, name, self.views, self.estimate,
+                            self.device)
+        return result, lightfield, data
+
+    def register(self, result: SegmentationResult, lightfield: LightField,
+                 views: list[ViewData]) -> list[FramePose]:
+        """Register the objects of the next frame from its :meth:`prepare`-d views."""
         if self.camera is None:
             self.camera = resolve_camera(lightfield, self._camera_spec)
         if self.tracker is None:
@@ -158,9 +197,6 @@ class VideoPoses:
                           (result.meta.get("categories") or {}).items() if v}
             self.tracker = PoseTracker(self.camera, lightfield.view_shape, self.options,
                                        categories)
-        spec, name = load_disparity_spec(self.disparity, lightfield)
-        data = _view_arrays(lightfield, result, spec, name, self.views, self.estimate,
-                            self.device)
-        entries = self.tracker.add_frame(data, frame=self.frames)
+        entries = self.tracker.add_frame(views, frame=self.frames)
         self.frames += 1
         return entries

@@ -19,10 +19,9 @@ import torch
 import torch.nn.functional as F
 from scipy.ndimage import distance_transform_edt
 
-from lfsam.devices import resolve_device
+from lfsam.devices import resolve_device, view_workers
 from lfsam.disparity import warp_center_disparity
 from lfsam.render.inpaint import inpaint
-from lfsam.render.views import view_workers
 
 __all__ = ["background_center", "dilate", "rim_disparity", "rim_surfaces", "view_backgrounds"]
 

@@ -27,10 +27,10 @@ import torch.nn.functional as F
 from scipy.ndimage import distance_transform_edt
 from tqdm import tqdm
 
-from lfsam.devices import resolve_device
+from lfsam.devices import resolve_device, view_workers
 from lfsam.render.background_disparity import dilate, view_backgrounds
 from lfsam.render.inpaint import inpaint, require_cv2
-from lfsam.render.views import check_masks, select_views, view_workers, views_tensor
+from lfsam.render.views import check_masks, select_views, views_tensor
 
 __all__ = ["DEPTH_TOLERANCE", "remove_objects"]
 

@@ -14,7 +14,7 @@ import torch
 
 from lfsam.errors import LfsamError
 
-__all__ = ["check_masks", "clip_focus", "select_views", "view_workers", "views_tensor"]
+__all__ = ["check_masks", "clip_focus", "select_views", "views_tensor"]
 
 
 def select_views(
@@ -98,9 +98,3 @@ def clip_focus(focus: float, disparity_range: tuple[float, float] | None) -> flo
         return clipped
     return float(focus)
 
-
-def view_workers(device: torch.device) -> int:
-    """Views processed at a time (docs/design.md section 13): two on the CPU (each in a thread:
-    torch, OpenCV and NumPy release the GIL, and one view's many small operations leave a core
-    idle), as many as torch's threads allow; one on a GPU, which runs one view's work at once."""
-    return max(1, min(2, torch.get_num_threads())) if device.type == "cpu" else 1
