@@ -51,10 +51,12 @@ from __future__ import annotations
 
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import torch
 
+from lfsam.devices import view_workers
 from lfsam.disparity.aggregation import aggregate_costs
 from lfsam.disparity.confidence import (
     combine_confidence,
@@ -194,6 +196,24 @@ def _full_cross(views: LightField | np.ndarray, offsets: np.ndarray) -> bool:
     in_row = int(np.sum(offsets[:, 0] == 0)) if len(offsets) else 0
     in_column = int(np.sum(offsets[:, 1] == 0)) if len(offsets) else 0
     return in_row == t_count - 1 and in_column == s_count - 1
+
+
+def _without_grad(function, *args, **kwargs):
+    """``function(*args, **kwargs)`` without autograd (a thread does not inherit the caller's
+    ``torch.no_grad``)."""
+    with torch.no_grad():
+        return function(*args, **kwargs)
+
+
+def _wide_scale(views_around: ViewSet, radius: int, eps: float, hypotheses: np.ndarray,
+                scale_options: dict) -> tuple[torch.Tensor, torch.Tensor]:
+    """The disparity and confidence of the second, wider feature window
+    (:mod:`lfsam.disparity.feature_scales`)."""
+    wide = views_around.with_features(
+        matching_features(views_around.grays, radius, eps),
+        matching_features(views_around.gray, radius, eps),
+    )
+    return _estimate_one_scale(wide, hypotheses, **scale_options)
 
 
 def _estimate_one_scale(
@@ -377,22 +397,29 @@ def estimate_disparity_occlusion_aware(
             "subpixel_fit": subpixel_fit,
             "step": step,
         }
-        disparity, confidence = _estimate_one_scale(views_around, hypotheses, **scale_options)
-        fine = None
-        if wide_feature_radius is not None and wide_feature_radius != feature_radius:
-            wide = views_around.with_features(
-                matching_features(views_around.grays, wide_feature_radius, feature_eps),
-                matching_features(views_around.gray, wide_feature_radius, feature_eps),
-            )
-            wide_disparity, wide_confidence = _estimate_one_scale(wide, hypotheses, **scale_options)
-            fine = fine_scale_mask(views_around.gray, disparity)
-            disparity = torch.where(fine, disparity, wide_disparity)
-            confidence = torch.where(fine, confidence, wide_confidence)
         fused = fusion and _full_cross(views, views_around.offsets)
+        two_scales = wide_feature_radius is not None and wide_feature_radius != feature_radius
+        # the wide scale and the structure tensor do not depend on the fine scale: they run
+        # beside it (threads; on a CPU one estimate's many small operations leave a core idle),
+        # each giving what it gives alone
+        with ThreadPoolExecutor(max_workers=view_workers(views_around.device)) as pool:
+            tensor_job = pool.submit(
+                _without_grad, estimate_disparity_structure_tensor, views, (lo, hi),
+                device=views_around.device, view=reference,
+            ) if fused else None
+            wide_job = pool.submit(
+                _without_grad, _wide_scale, views_around, wide_feature_radius, feature_eps,
+                hypotheses, scale_options,
+            ) if two_scales else None
+            disparity, confidence = _estimate_one_scale(views_around, hypotheses, **scale_options)
+            fine = None
+            if wide_job is not None:
+                wide_disparity, wide_confidence = wide_job.result()
+                fine = fine_scale_mask(views_around.gray, disparity)
+                disparity = torch.where(fine, disparity, wide_disparity)
+                confidence = torch.where(fine, confidence, wide_confidence)
+            tensor = tensor_job.result() if tensor_job is not None else None
         if fused:
-            tensor = estimate_disparity_structure_tensor(
-                views, (lo, hi), device=views_around.device, view=reference
-            )
             disparity = fuse_disparities(
                 disparity,
                 confidence,
