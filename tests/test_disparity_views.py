@@ -260,6 +260,40 @@ def test_view_disparities_resolve_each_view_once(scene, tmp_path, monkeypatch):
     assert sorted(center_only.resolved) == [(0, 0)]
 
 
+def test_a_prefetched_view_is_estimated_once_in_a_thread_with_the_same_map(scene, monkeypatch):
+    """`ViewDisparities.prefetch` starts a view's estimate in a thread (issue 65): `get` waits
+    for it and gives the map an estimate without it gives; a second prefetch or get does not
+    estimate again; an estimate's error is raised by the call that asks for the view."""
+    import threading
+
+    import lfsam.disparity.source as source
+
+    calls, real = [], source.estimate_disparity
+
+    def counting(*args, **kwargs):
+        calls.append((kwargs.get("view"), threading.current_thread().name))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(source, "estimate_disparity", counting)
+    small = LightField(scene.views[:, :, :32, :48].copy())
+    ahead = ViewDisparities(small, "estimate", device="cpu")
+    ahead.prefetch()
+    ahead.prefetch((2, 2))
+    got = ahead.get()
+    assert ahead.get() is got and not got.flags.writeable
+    assert calls == [((2, 2), "lfsam-disparity-(2, 2)")]
+    np.testing.assert_array_equal(got, ViewDisparities(small, "estimate", device="cpu").get())
+
+    def failing(*args, **kwargs):
+        raise LfsamError("the estimate failed")
+
+    monkeypatch.setattr(source, "estimate_disparity", failing)
+    broken = ViewDisparities(small, "estimate", device="cpu")
+    broken.prefetch((0, 1))
+    with pytest.raises(LfsamError, match="the estimate failed"):
+        broken.get((0, 1))
+
+
 def test_cli_disparity_view(tmp_path, capsys):
     from lfsam.cli.main import main
 

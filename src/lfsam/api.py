@@ -396,6 +396,7 @@ def segment(
         progress=run.progress,
     )
     predictor.set_lightfield(lightfield, disparity=disparity)
+    predictor.prefetch_disparity()  # estimated while the reference views are encoded
     if objects is None:
         LightFieldMaskGenerator(predictor, run.references).generate()
     else:

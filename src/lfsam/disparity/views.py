@@ -10,6 +10,8 @@ resolves the disparity of each view at most once, from any source
 from __future__ import annotations
 
 import os
+import threading
+from concurrent.futures import Future
 
 import numpy as np
 
@@ -54,17 +56,47 @@ class ViewDisparities:
         self._spec, self._name = load_disparity_spec(spec, lightfield)
         self._cache: dict[tuple[int, int], tuple[np.ndarray, str, np.ndarray | None]] = {}
         self._carried: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+        self._pending: dict[tuple[int, int], Future] = {}
+        self._lock = threading.Lock()
+
+    def prefetch(self, view: tuple[int, int] | None = None) -> None:
+        """Start resolving ``view``'s disparity (default the center's) in a thread, for a
+        caller that knows it will ask for it: an estimate then runs beside what the caller does
+        first (encoding a view, a video model's memory), and :meth:`get` waits for it. The
+        same array as without; an error is raised by the call that asks for it."""
+        key = resolve_view(self.lightfield.grid_shape, view)
+        with self._lock:
+            if key in self._cache or key in self._pending:
+                return
+            future: Future = Future()
+            self._pending[key] = future
+
+        def work() -> None:
+            try:
+                future.set_result(self._compute(key))
+            except BaseException as exc:  # handed to the caller that asks for this view
+                future.set_exception(exc)
+
+        threading.Thread(target=work, name=f"lfsam-disparity-{key}", daemon=True).start()
+
+    def _compute(self, key: tuple[int, int]) -> tuple[np.ndarray, str, np.ndarray | None]:
+        disparity, source, holes = resolve_view_disparity(
+            self._spec, self.lightfield, view=key, device=self.device, name=self._name
+        )
+        disparity = np.array(disparity, dtype=np.float32)
+        disparity.flags.writeable = False
+        return disparity, source, holes
 
     def _resolve(self, view: tuple[int, int] | None) -> tuple[np.ndarray, str, np.ndarray | None]:
         key = resolve_view(self.lightfield.grid_shape, view)
-        if key not in self._cache:
-            disparity, source, holes = resolve_view_disparity(
-                self._spec, self.lightfield, view=key, device=self.device, name=self._name
-            )
-            disparity = np.array(disparity, dtype=np.float32)
-            disparity.flags.writeable = False
-            self._cache[key] = (disparity, source, holes)
-        return self._cache[key]
+        with self._lock:
+            found, pending = self._cache.get(key), self._pending.get(key)
+        if found is not None:
+            return found
+        found = pending.result() if pending is not None else self._compute(key)
+        with self._lock:
+            self._pending.pop(key, None)
+            return self._cache.setdefault(key, found)
 
     @property
     def estimated(self) -> bool:
