@@ -396,7 +396,7 @@ def segment(
         progress=run.progress,
     )
     predictor.set_lightfield(lightfield, disparity=disparity)
-    predictor.prefetch_disparity()  # estimated while the reference views are encoded
+    predictor.engine.disparities.prefetch()  # estimated while the reference views are encoded
     if objects is None:
         LightFieldMaskGenerator(predictor, run.references).generate()
     else:

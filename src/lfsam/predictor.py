@@ -124,19 +124,6 @@ class LightFieldPredictor:
         self._table = ObjectTable()
         self._labels_cache = {}
 
-    def prefetch_disparity(self, view: tuple[int, int] | None = None) -> None:
-        """Start resolving ``view``'s disparity (default the center's) in a thread, for a caller
-        that will segment objects next (a batch run, a video frame): the estimate runs beside
-        the first encodes, and the pipeline waits for it where it needs it
-        (:meth:`lfsam.disparity.views.ViewDisparities.prefetch`; the same result).
-
-        Raises
-        ------
-        LfsamError
-            No light field set.
-        """
-        self.engine.disparities.prefetch(view)
-
     def set_refine_views(self, setting: str | int) -> None:
         """Refine ``"all"`` views, ``"sparse"`` or N of them from now on (docs/design.md
         section 3.7), e.g. ``"all"`` to finish the views a sparse pass filled."""

@@ -284,7 +284,8 @@ class OnlineTracker:
             memory_budget_mb=options.run.memory_budget_mb, progress=False,
         )
         predictor.set_lightfield(lf, disparity=self.disparity)
-        predictor.prefetch_disparity()  # estimated while the frame's center view is encoded
+        # the center's disparity estimated while the frame's center view is encoded
+        predictor.engine.disparities.prefetch()
         first_auto = index == 0 and (self.auto or bool(self.texts))
         find = functools.partial(self._find_first, lf=lf)
         if self._memory is not None:
