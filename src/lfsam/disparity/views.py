@@ -63,7 +63,8 @@ class ViewDisparities:
         """Start resolving ``view``'s disparity (default the center's) in a thread, for a
         caller that knows it will ask for it: an estimate then runs beside what the caller does
         first (encoding a view, a video model's memory), and :meth:`get` waits for it. The
-        same array as without; an error is raised by the call that asks for it."""
+        same array as without; an error is raised by the call that asks for it (docs/design.md
+        section 8)."""
         key = resolve_view(self.lightfield.grid_shape, view)
         with self._lock:
             if key in self._cache or key in self._pending:

@@ -172,8 +172,8 @@ class VideoPoses:
                 ) -> tuple[SegmentationResult, LightField, list[ViewData]]:
         """A frame's views as the tracker takes them, their disparity estimated or read; it
         touches no state of the session, so the next frame's can be made while one is
-        registered (:func:`poses_of_video`). ``frame``: its number in messages (default the
-        next one to register).
+        registered (:func:`poses_of_video`; docs/design.md section 12, "Depth per frame").
+        ``frame``: its number in messages (default the next one to register).
 
         Raises
         ------
