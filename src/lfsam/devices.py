@@ -13,6 +13,8 @@ views the SAM 2 image encoder takes at once (docs/design.md section 3, "efficien
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import torch
 
@@ -27,6 +29,8 @@ __all__ = [
     "default_encode_batch_size",
     "default_prompt_batch_size",
     "resolve_device",
+    "thread_share",
+    "threads_of",
     "view_workers",
 ]
 
@@ -160,3 +164,33 @@ def view_workers(device: torch.device) -> int:
     a core idle), as many as torch's threads allow; one on a GPU, which runs one view's work at
     once."""
     return max(1, min(2, torch.get_num_threads())) if device.type == "cpu" else 1
+
+
+def thread_share(streams: int, device: torch.device) -> int:
+    """torch's intra-op threads for each of ``streams`` threads that compute at once on
+    ``device`` (docs/design.md section 3.2): on the CPU the process's threads split between
+    them (at least one each), so that they do not take turns on the same cores; elsewhere
+    torch's own setting."""
+    total = torch.get_num_threads()
+    if device.type != "cpu" or streams <= 1:
+        return total
+    return max(1, total // streams)
+
+
+@contextmanager
+def threads_of(count: int) -> Iterator[None]:
+    """Run the block with ``count`` torch intra-op threads in the calling thread, then put its
+    own back (docs/design.md section 3.2).
+
+    With OpenMP (torch's CPU builds) the count is the calling thread's own: other threads keep
+    theirs. Threads that compute beside each other each take their :func:`thread_share`.
+    """
+    before = torch.get_num_threads()
+    if count == before:
+        yield
+        return
+    torch.set_num_threads(count)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)

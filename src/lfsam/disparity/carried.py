@@ -30,7 +30,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import torch
 
-from lfsam.devices import view_workers
+from lfsam.devices import thread_share, threads_of, view_workers
 from lfsam.disparity.center_warp import warp_center_disparity
 from lfsam.disparity.epi import resolve_device
 from lfsam.disparity.methods import estimate_disparity
@@ -174,9 +174,15 @@ def estimate_views(
         span, first = estimate(wanted[0], None)
         out = {wanted[0]: first}
         rest = list(dict.fromkeys(view for view in wanted[1:] if view != wanted[0]))
-        with ThreadPoolExecutor(max_workers=view_workers(resolve_device(device))) as pool:
-            for view, (_, found) in zip(rest, pool.map(lambda v: estimate(v, span), rest),
-                                        strict=True):
+        workers = view_workers(resolve_device(device))
+        share = thread_share(workers, resolve_device(device))
+
+        def estimate_rest(view: tuple[int, int]):
+            with threads_of(share):  # each view at its share of torch's threads
+                return estimate(view, span)
+
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            for view, (_, found) in zip(rest, pool.map(estimate_rest, rest), strict=True):
                 out[view] = found
         return out
     center = tuple(int(x) for x in lightfield.center)

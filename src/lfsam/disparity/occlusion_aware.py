@@ -56,7 +56,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import torch
 
-from lfsam.devices import view_workers
+from lfsam.devices import thread_share, threads_of, view_workers
 from lfsam.disparity.aggregation import aggregate_costs
 from lfsam.disparity.confidence import (
     combine_confidence,
@@ -198,10 +198,10 @@ def _full_cross(views: LightField | np.ndarray, offsets: np.ndarray) -> bool:
     return in_row == t_count - 1 and in_column == s_count - 1
 
 
-def _without_grad(function, *args, **kwargs):
+def _without_grad(threads, function, *args, **kwargs):
     """``function(*args, **kwargs)`` without autograd (a thread does not inherit the caller's
-    ``torch.no_grad``)."""
-    with torch.no_grad():
+    ``torch.no_grad``), at ``threads`` torch threads (:func:`lfsam.devices.thread_share`)."""
+    with torch.no_grad(), threads_of(threads):
         return function(*args, **kwargs)
 
 
@@ -402,16 +402,20 @@ def estimate_disparity_occlusion_aware(
         # the wide scale and the structure tensor do not depend on the fine scale: they run
         # beside it (threads; on a CPU one estimate's many small operations leave a core idle),
         # each giving what it gives alone
+        # each of the streams at its share of torch's threads (on 2 cores: one each)
+        share = thread_share(1 + int(fused) + int(two_scales), views_around.device)
         with ThreadPoolExecutor(max_workers=view_workers(views_around.device)) as pool:
             tensor_job = pool.submit(
-                _without_grad, estimate_disparity_structure_tensor, views, (lo, hi),
+                _without_grad, share, estimate_disparity_structure_tensor, views, (lo, hi),
                 device=views_around.device, view=reference,
             ) if fused else None
             wide_job = pool.submit(
-                _without_grad, _wide_scale, views_around, wide_feature_radius, feature_eps,
-                hypotheses, scale_options,
+                _without_grad, share, _wide_scale, views_around, wide_feature_radius,
+                feature_eps, hypotheses, scale_options,
             ) if two_scales else None
-            disparity, confidence = _estimate_one_scale(views_around, hypotheses, **scale_options)
+            with threads_of(share):
+                disparity, confidence = _estimate_one_scale(views_around, hypotheses,
+                                                            **scale_options)
             fine = None
             if wide_job is not None:
                 wide_disparity, wide_confidence = wide_job.result()
