@@ -7,7 +7,10 @@ everywhere and a wrong one gives the same one-line :class:`~lfsam.errors.LfsamEr
 ``auto`` (the default, also ``None``) picks CUDA, then MPS, then the CPU.
 
 What depends on the device is decided here too: :func:`default_encode_batch_size`, the number of
-views the SAM 2 image encoder takes at once (docs/design.md section 3, "efficiency facts").
+views the SAM 2 image encoder takes at once (docs/design.md section 3, "efficiency facts"), and on
+a CPU how many views are worked on at a time (:func:`view_workers`) and how torch's threads are
+shared between threads that compute beside each other (:func:`thread_share`, :func:`threads_of`;
+docs/design.md section 3.2).
 """
 
 from __future__ import annotations
