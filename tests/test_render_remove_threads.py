@@ -51,3 +51,26 @@ def test_an_error_in_one_view_stops_the_removal(scene, monkeypatch):
         remove.remove_objects(views, masks, disparity)
     # the views not started never are (map cancels them)
     assert len(calls) < masks.shape[0] * masks.shape[1] - 5
+
+
+
+def test_removal_shows_progress_over_the_background_disparities_then_the_fills(scene,
+                                                                               monkeypatch):
+    import lfsam.render.background_disparity as background
+
+    views, masks, disparity = scene
+    bars = []
+
+    def recording(iterable, **kwargs):
+        bars.append((kwargs["desc"], kwargs["disable"]))
+        return iterable
+
+    monkeypatch.setattr(background, "tqdm", recording)
+    monkeypatch.setattr(remove, "tqdm", recording)
+    with_bars = remove.remove_objects(views, masks, disparity, progress=True)
+    # shown (None: where the output is a terminal), the background disparities first
+    assert bars == [("background disparity", None), ("removing", None)]
+    bars.clear()
+    without = remove.remove_objects(views, masks, disparity)
+    assert bars == [("background disparity", True), ("removing", True)]
+    np.testing.assert_array_equal(with_bars[0], without[0])

@@ -18,6 +18,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 from scipy.ndimage import distance_transform_edt
+from tqdm import tqdm
 
 from lfsam.devices import resolve_device, view_workers
 from lfsam.disparity import warp_center_disparity
@@ -223,6 +224,7 @@ def rim_surfaces(disparity: np.ndarray, mask: np.ndarray, grown: int = GAP,
 def view_backgrounds(
     center: np.ndarray, masks: np.ndarray, offsets: torch.Tensor,
     device: str | torch.device | None = None, *, with_surfaces: bool = False,
+    progress: bool = False,
 ) -> torch.Tensor | tuple[torch.Tensor, list[tuple[np.ndarray, np.ndarray]]]:
     """The background disparity of every view: the center's disparity carried into the view
     (:func:`lfsam.disparity.warp_center_disparity`: z-buffer, disocclusions filled from the
@@ -242,6 +244,8 @@ def view_backgrounds(
         Where the warps run.
     with_surfaces : bool
         Also return each view's rim surfaces (:func:`rim_surfaces`).
+    progress : bool
+        Show a progress bar over the views.
 
     Returns
     -------
@@ -273,7 +277,9 @@ def view_backgrounds(
         return filled, (planes, near)
 
     with ThreadPoolExecutor(max_workers=view_workers(resolve_device(device))) as pool:
-        done = list(pool.map(one, range(len(pairs))))
+        done = list(tqdm(pool.map(one, range(len(pairs))), total=len(pairs),
+                         desc="background disparity", unit="view",
+                         disable=not progress or None, leave=False))
     out = [filled for filled, _ in done]
     surfaces = [surface for _, surface in done]
     depth = torch.from_numpy(np.stack(out))

@@ -220,7 +220,7 @@ def remove_objects(
     device : str or torch.device, optional
         Where to compute (default CPU).
     progress : bool
-        Show a progress bar over the views.
+        Show progress bars over the views (their background disparities, then their fills).
 
     Returns
     -------
@@ -242,7 +242,7 @@ def remove_objects(
     hit = dilate(torch.from_numpy(np.stack([masks[s, t] for s, t in chosen])), grow)
     own = np.stack([masks[s, t] for s, t in chosen])
     depth, surfaces = view_backgrounds(disparity, own, offsets, device=device,
-                                       with_surfaces=True)
+                                       with_surfaces=True, progress=progress)
     images = views_tensor(views, chosen, torch.device("cpu"))
     # The nearest surface within a pixel of each sample: a ray grazing a nearer object's
     # (anti-aliased) edge does not count as seeing the surface behind.
