@@ -174,8 +174,9 @@ def estimate_views(
         span, first = estimate(wanted[0], None)
         out = {wanted[0]: first}
         rest = list(dict.fromkeys(view for view in wanted[1:] if view != wanted[0]))
-        workers = view_workers(resolve_device(device))
-        share = thread_share(workers, resolve_device(device))
+        target = resolve_device(device)
+        workers = view_workers(target)
+        share = thread_share(workers, target)
 
         def estimate_rest(view: tuple[int, int]):
             with threads_of(share):  # each view at its share of torch's threads

@@ -401,8 +401,8 @@ def estimate_disparity_occlusion_aware(
         two_scales = wide_feature_radius is not None and wide_feature_radius != feature_radius
         # the wide scale and the structure tensor do not depend on the fine scale: they run
         # beside it (threads; on a CPU one estimate's many small operations leave a core idle),
-        # each giving what it gives alone
-        # each of the streams at its share of torch's threads (on 2 cores: one each)
+        # each giving what it gives alone, each stream at its share of torch's threads (on 2
+        # cores: one each)
         share = thread_share(1 + int(fused) + int(two_scales), views_around.device)
         with ThreadPoolExecutor(max_workers=view_workers(views_around.device)) as pool:
             tensor_job = pool.submit(
