@@ -8,7 +8,8 @@ object's own) and the planes of the surfaces the object's rim shows in that view
 (:func:`~lfsam.render.background_disparity.rim_surfaces`). A candidate ``d`` of a pixel of view
 ``(s, t)`` is seen by view ``(s', t')`` at ``(u - d (s' - s), v - d (t' - t))``: that view's
 colour there counts if its ray misses the objects (none of the four bilinear neighbours masked;
-where no ray does, a bilinear keep weight above :data:`LOOSE`) and the view sees that surface
+where no ray does, a bilinear keep weight above :data:`LOOSE`; a ray's colour is that of its
+neighbours off the objects themselves: normalised convolution) and the view sees that surface
 there (the nearest background disparity within a pixel of the sample within
 :data:`DEPTH_TOLERANCE` of it, so another object in front, or its anti-aliased edge, does not
 count). Of the candidates seen there, the nearest is taken (a z-buffer), and its colours are
@@ -60,8 +61,9 @@ def _gather(sources, n, ys, xs, d, offsets, sigma):
     """Colours of target view ``n``'s pixels ``(ys, xs)`` seen at background disparity ``d``
     by the other views, how many rays saw each, and which a ray refutes.
 
-    ``sources`` is ``(N, 5, U, V)``: RGB, keep weight (clear of the grown masks) and (nearest)
-    background disparity of every view.
+    ``sources`` is ``(N, 6, U, V)``: RGB times the share off the objects themselves, the keep
+    weight (1 clear of the grown masks, 0 on them), the (nearest) background disparity and
+    that share (1 off the objects' own masks, 0 on them) of every view.
     """
     _, _, height, width = sources.shape
     rel = (offsets - offsets[n]).float()  # (N, 2): source minus target
@@ -90,7 +92,10 @@ def _gather(sources, n, ys, xs, d, offsets, sigma):
     # Relative to the nearest view that sees the pixel: no underflow however far it is.
     weight = valid * torch.exp((nearest.clamp(max=1e9)[None] - dist2[:, None]) / (2 * sigma**2))
     total = weight.sum(0)
-    colour = torch.einsum("mcp,mp->cp", sampled[:, :3], weight) / total.clamp_min(1e-12)
+    # Colours are stored times the share off the objects themselves: a ray's colour is that
+    # of its neighbours off the objects (normalised convolution), never the objects' own.
+    rays = sampled[:, :3] / sampled[:, 5:6].clamp_min(1e-6)
+    colour = torch.einsum("mcp,mp->cp", rays, weight) / total.clamp_min(1e-12)
     return colour, valid.sum(0), refuted.any(0)
 
 
@@ -247,7 +252,9 @@ def remove_objects(
     # The nearest surface within a pixel of each sample: a ray grazing a nearer object's
     # (anti-aliased) edge does not count as seeing the surface behind.
     nearest = F.max_pool2d(depth[:, None], 3, stride=1, padding=1)
-    sources = torch.cat([images, (~hit).float()[:, None], nearest], dim=1).to(device)
+    off = (~torch.from_numpy(own)).float()[:, None]  # off the objects themselves
+    sources = torch.cat([images * off, (~hit).float()[:, None], nearest, off],
+                        dim=1).to(device)
     # How deep inside its grown mask each pixel of each view lies (0 outside).
     inside = torch.from_numpy(np.stack([distance_transform_edt(h) for h in hit.numpy()]))
     inside = inside.float().to(device)
