@@ -30,11 +30,15 @@ tracker's seconds per object per frame (points, features, registration: beyond s
 disparity); ``lost``: pairs without a pose where the box shows in some view (``no mask``: of
 those, where the segmentation gave it no pixel); ``not started``: pairs before a box's first
 pose where it shows (a partly covered box waits until it pins a pose). Boxes are matched to the
-oracle's objects by the first frame they show in.
+oracle's objects by the first frame they show in. The segmentation itself is scored per
+seed and run as ``bench_tracking.py`` scores its videos (issue 64's segmentation targets):
+the (box, frame, view) triples where the box shows at least 100 pixels, the share of them lost
+(IoU below 0.5) and their mean IoU, identity switches, and each return's latency in frames.
 
 Run::
 
     python benchmarks/bench_poses.py [--seeds 4,5,6] [--oracle-jitter 0,1,2]
+        [--crossing | --leaving]
         [--work /tmp/bench_poses] [--estimate-views carried|corners|center|all]
         [--estimate light|own]
         [--skip-estimate] [--skip-default]
@@ -62,10 +66,15 @@ from lfsam.synth.rigid import box_surface_points
 from lfsam.video import read_video
 from lfsam.video.io.result import load_video_result
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_tracking import score as track_score  # the video tracker's scores
+
 LFSAM = [sys.executable, "-m", "lfsam.cli.main"]
 
 #: Seeds the tracker was tuned (100) or developed (1-3) on: never reported as held out.
 DEVELOPMENT_SEEDS = frozenset({1, 2, 3, 100})
+#: A box counts as shown in a view from this many pixels (issue 64's returns: 100).
+SHOWN_PIXELS = 100
 
 
 def _run(args: list[str]) -> float:
@@ -75,16 +84,17 @@ def _run(args: list[str]) -> float:
     return time.perf_counter() - start
 
 
-def prepare(seed: int, work: Path, jitter: int = 0, crossing: bool = False
-            ) -> tuple[Path, Path]:
-    """The video of ``seed`` (``crossing``: with a box crossing in front of the others, ``lfsam
-    synth --rigid --crossing``) and its oracle segmentation, answers off by up to ``jitter``
-    pixels (``--oracle-jitter``: what a real segmenter's boundary gives), both cached."""
-    video = work / (f"rigid_{seed}_crossing" if crossing else f"rigid_{seed}")
+def prepare(seed: int, work: Path, jitter: int = 0, scene: str = "") -> tuple[Path, Path]:
+    """The video of ``seed`` (``scene``: "" the boxes alone, "crossing" with a box crossing in
+    front of them, ``lfsam synth --rigid --crossing``, "leaving" with a box that leaves the
+    view and comes back, ``--leaving``) and its oracle segmentation, answers off by up to
+    ``jitter`` pixels (``--oracle-jitter``: what a real segmenter's boundary gives), both
+    cached."""
+    video = work / (f"rigid_{seed}_{scene}" if scene else f"rigid_{seed}")
     result = Path(f"{video}_result" if jitter == 0 else f"{video}_result_j{jitter}")
     if not video.exists():
         _run([*LFSAM, "synth", str(video), "--rigid", "--seed", str(seed),
-              *(["--crossing"] if crossing else [])])
+              *([f"--{scene}"] if scene else [])])
     if not result.exists():
         _run([*LFSAM, "segment", str(video), "--auto", "--model", "oracle", "--disparity", "gt",
               "--oracle-jitter", str(jitter), "--out", str(result)])
@@ -159,6 +169,26 @@ def summary(name: str, scored: list[dict], seconds: list[float] | None = None) -
     if seconds:
         line += f"  {np.mean(seconds):.3f} s/object/frame (max {np.max(seconds):.3f})"
     print(line)
+
+
+def segmentation_line(tracked: dict) -> str:
+    """The video tracker's scores of the boxes (``bench_tracking.score``: triples where a box
+    shows at least :data:`SHOWN_PIXELS` pixels in a view; a return's latency counts from the
+    first frame it shows that many in some view)."""
+    lost = tracked["lost"] / max(tracked["visible"], 1)
+    iou = tracked["iou_sum"] / max(tracked["visible"], 1)
+    return (f"{tracked['visible']} visible (box, frame, view) triples, lost {100 * lost:.2f} % "
+            f"(IoU < 0.5), mean IoU {iou:.4f}, identity switches {tracked['switches']} "
+            f"(shown {tracked['shown_switches']}), returns {tracked['returns']}: latencies "
+            f"{tracked['latencies']} frames, never found {tracked['never']}")
+
+
+def merged(tracks: list[dict]) -> dict:
+    """The scores of several videos together."""
+    out = {key: sum(t[key] for t in tracks) for key in
+           ("visible", "lost", "iou_sum", "switches", "shown_switches", "returns", "never")}
+    out["latencies"] = [lat for t in tracks for lat in t["latencies"]]
+    return out
 
 
 def table(name: str, scored: dict) -> None:
@@ -239,11 +269,13 @@ def _statuses(document: dict, mapping: dict[int, int]) -> str:
     return ", ".join(f"{n} {status}" for status, n in sorted(counts.items()))
 
 
-def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict) -> None:
+def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict,
+             segmentations: dict) -> None:
     """Every run of one seed's video segmented with the oracle's ``jitter``."""
     work = Path(args.work)
-    video_path, result_path = prepare(seed, work, jitter, args.crossing)
-    tag = ("" if jitter == 0 else f" j{jitter}") + (" crossing" if args.crossing else "")
+    scene = "crossing" if args.crossing else "leaving" if args.leaving else ""
+    video_path, result_path = prepare(seed, work, jitter, scene)
+    tag = ("" if jitter == 0 else f" j{jitter}") + (f" {scene}" if scene else "")
     out = work / f"poses_{seed}{tag.replace(' ', '_')}.json"
     command = _run([*LFSAM, "poses", str(result_path), "--lightfield", str(video_path),
                     "--disparity", "gt", "--json", str(out)])
@@ -258,6 +290,11 @@ def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict) -> None:
               if not (lf.labels == label).any()}
     maskless = {(label, k) for k in range(len(frames)) for obj, label in mapping.items()
                 if (label, k) not in hidden and not (result.frame(k).labels == obj).any()}
+    tracked = track_score(frames, [result.frame(k).labels for k in range(len(frames))],
+                          mapping, SHOWN_PIXELS)
+    segmentations.setdefault(tag.strip() or "boxes", []).append(tracked)
+    print(f"seed {seed}, oracle jitter {jitter}: segmentation "
+          + segmentation_line(tracked))
     document = json.loads(out.read_text())
     scored = score(_motions(document, mapping), truth, hidden, maskless)
     runs.setdefault(f"gt{tag}", []).append(scored)
@@ -325,6 +362,9 @@ def main() -> None:
     parser.add_argument("--crossing", action="store_true",
                         help="the videos with a box crossing in front of the others (`lfsam "
                              "synth --rigid --crossing`: poses through 3D occlusions, issue 64)")
+    parser.add_argument("--leaving", action="store_true",
+                        help="the videos with a box that leaves the view and comes back (`lfsam "
+                             "synth --rigid --leaving`: tracks and poses across a gap, issue 64)")
     parser.add_argument("--work", default="/tmp/bench_poses")
     parser.add_argument("--estimate", choices=("light", "own"), default="light",
                         help="each view's estimate: the light settings (`lfsam poses`' default) "
@@ -338,13 +378,16 @@ def main() -> None:
     Path(args.work).mkdir(parents=True, exist_ok=True)
     runs: dict[str, list] = {}
     seconds: dict[str, list[float]] = {}
+    segmentations: dict[str, list[dict]] = {}
     for jitter in (int(j) for j in args.oracle_jitter.split(",")):
         for seed in (int(s) for s in args.seeds.split(",")):
-            run_seed(seed, jitter, args, runs, seconds)
+            run_seed(seed, jitter, args, runs, seconds, segmentations)
     held_out = all(int(s) not in DEVELOPMENT_SEEDS for s in args.seeds.split(","))
     print(f"summary ({'held-out ' if held_out else ''}seeds {args.seeds}):")
     for name, scored in runs.items():
         summary(name, scored, seconds.get(name))
+    for name, tracks in segmentations.items():
+        print(f"segmentation {name:<15} {segmentation_line(merged(tracks))}")
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ from lfsam.errors import LfsamError
 from lfsam.fileutil import check_writable
 from lfsam.io import WRITE_FORMATS, resolve_output, write_lightfield
 from lfsam.synth import generate_scene, generate_scene_without
-from lfsam.synth.rigid import generate_rigid_video
+from lfsam.synth.rigid import LEAVING_GAP, generate_rigid_video
 from lfsam.video.io.synth import generate_video, write_video_frames
 
 __all__ = ["register", "run"]
@@ -69,6 +69,7 @@ examples:
   lfsam synth boxes --rigid --seed 7                   # 3 boxes, 10 frames of 7x7 x 240x320
   lfsam synth small --rigid --frames 3 --grid 5x5 --size 120x160 --objects 1
   lfsam synth crossing --rigid --crossing --seed 7     # a fourth box crosses in front
+  lfsam synth leaving --rigid --leaving --seed 7       # a fourth box leaves and comes back
 """
 
 
@@ -132,18 +133,22 @@ def _run_rigid(args: argparse.Namespace) -> int:
         )
     if args.objects < 1:
         raise LfsamError("--rigid needs --objects of at least 1 box")
+    if args.leaving and args.frames < LEAVING_GAP + 4:
+        raise LfsamError(f"--leaving needs at least {LEAVING_GAP + 4} frames (the box is out "
+                         f"for {LEAVING_GAP}); got --frames {args.frames}")
     check_writable(args.out, folder=True, option="OUT")
     frames = generate_rigid_video(
         boxes=args.objects, frames=args.frames, grid=args.grid, size=args.size, seed=args.seed,
-        supersample=args.supersample, crossing=args.crossing,
+        supersample=args.supersample, crossing=args.crossing, leaving=args.leaving,
     )
     settings = {"seed": args.seed, "objects": args.objects, "frames": args.frames,
-                "rigid": True, "crossing": bool(args.crossing)}
+                "rigid": True, "crossing": bool(args.crossing), "leaving": bool(args.leaving)}
     out = write_video_frames(frames, args.out, meta=settings)
     print(
         f"wrote {out}: {args.frames} frames of {args.grid[0]} x {args.grid[1]} views of "
         f"{args.size[0]} x {args.size[1]}, seed {args.seed}, {args.objects} rigid boxes"
         + (" and one crossing in front of them" if args.crossing else "")
+        + (" and one that leaves the view and comes back" if args.leaving else "")
         + " (poses in each frame's lfsam_scene.json, meta.rigid)"
     )
     return 0
@@ -166,8 +171,9 @@ def run(args: argparse.Namespace) -> int:
     """Generate the scene (or with ``--frames``, the video; ``--rigid``, the boxes) and write
     it."""
     _defaults(args)
-    if args.crossing and not args.rigid:
-        raise LfsamError("--crossing adds a box to a --rigid video; add --rigid")
+    for flag, given in (("--crossing", args.crossing), ("--leaving", args.leaving)):
+        if given and not args.rigid:
+            raise LfsamError(f"{flag} adds a box to a --rigid video; add --rigid")
     if args.without and (args.rigid or args.frames is not None):
         raise LfsamError("--without renders one scene without objects; not with --frames, --rigid")
     if args.rigid:
@@ -305,6 +311,13 @@ def register(subparsers) -> None:
         action="store_true",
         help="with --rigid: one more box (the last label) crosses the view 35 cm nearer, "
         "turning, in front of the others, which it covers in turn (poses through occlusions)",
+    )
+    parser.add_argument(
+        "--leaving",
+        action="store_true",
+        help="with --rigid: one more box (the next label) 20 cm nearer leaves the view past "
+        "its left or right edge, is out of every view for 3 frames in the middle of the video "
+        "and comes back, turning all the while (tracks and poses across a gap; needs 7 frames)",
     )
     parser.add_argument(
         "--hard",

@@ -35,6 +35,8 @@ from lfsam.lightfield import LightField
 from lfsam.synth.textures import GRAY_PHOTOS, PHOTOS, make_texture
 
 __all__ = [
+    "LEAVING_DEPTH",
+    "LEAVING_GAP",
     "RIGID_CAMERA",
     "RigidBox",
     "RigidScene",
@@ -166,13 +168,17 @@ def _corners(box: RigidBox, frame: int) -> np.ndarray:
 
 
 def _fits(boxes: list[RigidBox], camera: Camera, size: tuple[int, int], margin_px: float,
-          gap_m: float) -> bool:
+          gap_m: float, away: dict[int, list[int]] | None = None) -> bool:
     """Every corner inside the center view (``margin_px`` in), and no box within ``gap_m`` of
-    another (surface points of one tested against the other's slabs) in any frame."""
+    another (surface points of one tested against the other's slabs) in any frame. ``away``:
+    per label, the frames its box may be partly or wholly outside the view."""
     cx, cy = camera.principal_point(size)
     samples = [box_surface_points(b.size_m, 0.01) for b in boxes]
+    away = away or {}
     for frame in range(boxes[0].poses.shape[0]):
         for box in boxes:
+            if frame in away.get(box.label, ()):
+                continue
             corners = _corners(box, frame)
             u = corners[:, 1] / corners[:, 2] * camera.focal_px + cy
             v = corners[:, 0] / corners[:, 2] * camera.focal_px + cx
@@ -221,6 +227,51 @@ def _crossing_box(rng: np.random.Generator, label: int, frames: int, z: float, c
     return RigidBox(label, edges, np.stack(poses), [])
 
 
+#: How much nearer than the other boxes (metres) the box of ``rigid_scenes(leaving=True)``
+#: moves, and the frames it spends wholly outside every view.
+LEAVING_DEPTH = 0.2
+LEAVING_GAP = 3
+
+
+def _leaving_box(rng: np.random.Generator, label: int, frames: int, z: float, camera: Camera,
+                 size: tuple[int, int], grid: tuple[int, int], box_size_m: tuple[float, float],
+                 turn_deg: tuple[float, float]) -> RigidBox:
+    """A box at depth ``z`` that starts inside the view, moves out past its left or right edge,
+    stays out of every view for :data:`LEAVING_GAP` frames and comes back in the way it left,
+    turning about an axis of its own all the while. It starts and ends with its centre within
+    0.4 of the half width from the middle (its bounding sphere inside the view), and is out at
+    frames ``(frames - LEAVING_GAP) // 2`` on."""
+    edges = rng.uniform(*box_size_m, size=3)
+    radius = 0.5 * float(np.linalg.norm(edges))
+    half_width = (size[1] / 2) / camera.focal_px * z
+    # Out of every view: the bounding sphere past the center view's edge, plus the widest
+    # view's parallax (its pinhole up to reach b away, its sensor shifted by f b / z0 a step).
+    reach = max(grid) // 2
+    parallax_m = reach * abs(float(disparity_from_depth(z, camera))) / camera.focal_px * z
+    outside = half_width + radius / math.cos(math.atan(half_width / z)) + parallax_m + 0.01
+    inside = rng.uniform(0.1, 0.4) * half_width
+    side = 1.0 if rng.uniform() < 0.5 else -1.0
+    going = (frames - LEAVING_GAP) // 2  # frames spent going out (and at least as many back)
+    first_out = going
+    xs = np.empty(frames)
+    xs[:going] = np.linspace(inside, outside, going + 1)[:going]
+    xs[first_out:first_out + LEAVING_GAP] = outside
+    back = frames - (first_out + LEAVING_GAP)
+    xs[first_out + LEAVING_GAP:] = np.linspace(outside, inside, back + 1)[1:]
+    y = rng.uniform(-0.03, 0.03)
+    axis = rng.normal(size=3)
+    rotation = _random_rotation(rng)
+    poses = []
+    for frame in range(frames):
+        if frame:
+            rotation = rotation @ rotation_about(axis, math.radians(rng.uniform(*turn_deg)))
+        pose = np.eye(4)
+        pose[:3, :3] = rotation
+        pose[:3, 3] = (side * xs[frame], y, z)
+        poses.append(pose)
+    return RigidBox(label, edges, np.stack(poses), [])
+
+
 def rigid_scenes(
     *,
     boxes: int = 3,
@@ -236,6 +287,7 @@ def rigid_scenes(
     background_z_m: float = 1.6,
     texels: int = FACE_TEXELS,
     crossing: bool = False,
+    leaving: bool = False,
 ) -> RigidScene:
     """A random video of rigid boxes (module docstring).
 
@@ -243,6 +295,12 @@ def rigid_scenes(
     turns as the others do while it crosses the view from one side to the other at
     :data:`CROSSING_DEPTH` nearer than ``distance_m``, in front of the others: each of them is
     partly or wholly covered for some frames, in some views more than in others.
+
+    With ``leaving`` (issue 64: tracks and poses across a long gap) one more box, the next
+    label, :data:`LEAVING_DEPTH` nearer than ``distance_m``, starts inside the view, moves out
+    past its left or right edge, is outside every view for :data:`LEAVING_GAP` frames in the
+    middle of the video and comes back in, turning all the while (it needs at least
+    ``LEAVING_GAP + 4`` frames).
 
     Each box: edges uniform in ``box_size_m``, a random orientation, its centre about
     ``distance_m`` away, side by side across the view; every frame it turns by an angle uniform
@@ -257,6 +315,9 @@ def rigid_scenes(
     """
     if boxes < 1 or frames < 1:
         raise LfsamError(f"need at least one box and one frame, got {boxes} and {frames}")
+    if leaving and frames < LEAVING_GAP + 4:
+        raise LfsamError(f"a box that leaves and comes back needs at least {LEAVING_GAP + 4} "
+                         f"frames, got {frames}; use more --frames")
     rng = np.random.default_rng([seed, 43])
     z = distance_m
     half_width = (size[1] / 2) / camera.focal_px * z
@@ -287,7 +348,13 @@ def rigid_scenes(
         if crossing:
             found.append(_crossing_box(rng, boxes + 2, frames, z - CROSSING_DEPTH, camera,
                                        size, box_size_m, turn_deg))
-        if _fits(found, camera, size, parallax, 0.005):
+        away: dict[int, list[int]] = {}
+        if leaving:
+            box = _leaving_box(rng, len(found) + 2, frames, z - LEAVING_DEPTH, camera,
+                                    size, grid, box_size_m, turn_deg)
+            found.append(box)
+            away[box.label] = list(range(frames))  # it leaves the view by design
+        if _fits(found, camera, size, parallax, 0.005, away):
             break
     else:
         raise LfsamError(
