@@ -23,6 +23,7 @@ from lfsam.poses.rim import RimOptions, covered_share, trusted_labels
 from lfsam.spatial import MIN_CONFIDENCE, object_points
 from lfsam.spatial.features import ViewFeatures, match_features, view_features
 from lfsam.spatial.registration import (
+    IcpResult,
     estimate_normals,
     icp,
     plane_conditioning,
@@ -107,6 +108,11 @@ class PoseOptions:
         Points pin a motion where :func:`~lfsam.spatial.registration.plane_conditioning` is
         at least this: a fit joins the model only then, and an object starts only then while
         it is partly covered and growing.
+    grow_uncovered : bool
+        An uncertain fit that explains under ``uncertain_inliers`` of the points while its
+        inliers pin all six directions and fit as the object's own fits do adds the frame's
+        points to the model (the rest is new surface: an object coming out from behind
+        another); False keeps every uncertain fit out of the model.
     covered_start, still_growing : float
         An object not yet tracked waits while more than ``covered_start`` of the ring around
         its center-view mask lies nearer than it (:func:`lfsam.poses.rim.covered_share`), its
@@ -138,6 +144,7 @@ class PoseOptions:
     uncertain_inliers: float = 0.5
     prior_weight: float = 0.0001
     pinned: float = 0.02
+    grow_uncovered: bool = True
     covered_start: float = 0.1
     still_growing: float = 1.1
     rim: RimOptions | None = field(default_factory=RimOptions)
@@ -453,6 +460,13 @@ class PoseTracker:
             len(track.rmses) >= 2
             and found.rmse > max(opts.uncertain_rmse * float(np.median(track.rmses)),
                                  opts.uncertain_floor_m))
+        if opts.grow_uncovered and self._uncovered(track, found):
+            # The part it explains pins the motion and fits as the object's own fits do: the
+            # rest is surface the model never held (an object coming out from behind another).
+            # It stays ``uncertain``, but its points join the model.
+            joined = np.concatenate([track.model, transform(to_model, xyz)])
+            (joined,) = voxel_downsample(joined, opts.voxel_m)
+            track.model, track.normals, track.tree = self._model(joined)
         # A poor fit is uncertain even on the frame an object comes back in: "found again"
         # promises a pose as good as "tracked".
         status = "uncertain" if poor else "found again" if track.lost else "tracked"
@@ -474,6 +488,18 @@ class PoseTracker:
         pose = motion @ track.result.first_pose
         return FramePose(self.frame, status, motion, pose, found.inliers, found.rmse, len(xyz),
                          matches, 0.0)
+
+    def _uncovered(self, track: _Track, found: IcpResult) -> bool:
+        """Whether a fit explains only part of the frame's points because the rest is new
+        surface (docs/design.md section 12, "Poses through occlusions"): it explains under
+        ``uncertain_inliers`` of them, its inliers pin all six directions (``pinned``) and fit
+        within ``uncertain_rmse`` times the object's typical fit (``uncertain_floor_m`` before
+        it has one). Points pulled off by what is not the object fit several times worse."""
+        opts = self.options
+        typical = opts.uncertain_rmse * float(np.median(track.rmses)) if track.rmses else 0.0
+        return (found.inliers < opts.uncertain_inliers
+                and found.conditioning >= opts.pinned
+                and found.rmse <= max(typical, opts.uncertain_floor_m))
 
     def add_frame(self, views: Sequence[ViewData], frame: int | None = None,
                   grid: np.ndarray | None = None) -> list[FramePose]:
