@@ -125,15 +125,22 @@ def match_ids(result_labels: np.ndarray, gt_labels: np.ndarray, boxes) -> dict[i
 
 def score(motions: dict[int, dict[int, np.ndarray | None]], truth: list[dict],
           hidden: set[tuple[int, int]] = frozenset(),
-          maskless: set[tuple[int, int]] = frozenset()) -> dict:
+          maskless: set[tuple[int, int]] = frozenset(), boxes=()) -> dict:
     """ADD shares and rotation errors per (box, frame after the box's first); the motions are
-    from the box's first frame. ``hidden``: (box, frame) pairs where the box shows in no view,
-    left out (no pose is the right answer there). ``unstarted``: the (box, frame) pairs before
-    the box's first pose where it shows in some view (the tracker waits while a partly covered
-    box shows too little to pin a pose: docs/design.md section 12). ``maskless``: (box, frame)
-    pairs where the segmentation gave the box no pixel although it shows: a pose lost there
-    is the segmentation's (counted apart as ``no mask``)."""
+    from the box's first frame. Every frame after the box's first pose where it shows counts:
+    a frame the tracker gave no entry (an object whose segmentation never found it again) is
+    lost, as a ``lost`` entry is. ``hidden``: (box, frame) pairs where the box shows in no
+    view, left out (no pose is the right answer there). ``unstarted``: the (box, frame) pairs
+    before the box's first pose where it shows in some view (the tracker waits while a partly
+    covered box shows too little to pin a pose: docs/design.md section 12), and every such
+    pair of a box in ``boxes`` without any pose. ``maskless``: (box, frame) pairs where the
+    segmentation gave the box no pixel although it shows: a pose lost there is the
+    segmentation's (counted apart as ``no mask``)."""
     rows, unstarted = [], []
+    for label in boxes:
+        if label not in motions:
+            unstarted += [(label, k) for k in range(len(truth))
+                          if label in truth[k] and (label, k) not in hidden]
     for label, per_frame in motions.items():
         first = min(per_frame)
         unstarted += [(label, k) for k in range(first)
@@ -141,9 +148,10 @@ def score(motions: dict[int, dict[int, np.ndarray | None]], truth: list[dict],
         pose0, size = truth[first][label]
         model = transform(pose0, box_surface_points(size))
         diameter = float(np.linalg.norm(size))
-        for frame, motion in sorted(per_frame.items()):
-            if frame == first or (label, frame) in hidden:
+        for frame in range(first + 1, len(truth)):
+            if label not in truth[frame] or (label, frame) in hidden:
                 continue
+            motion = per_frame.get(frame)
             true = truth[frame][label][0] @ np.linalg.inv(pose0)
             if motion is None:
                 rows.append((label, frame, np.nan, np.nan))
@@ -286,6 +294,7 @@ def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict,
     for k in reversed(range(len(frames))):  # each box by the first frame it shows in
         mapping.update(match_ids(result.frame(k).labels[frames[k].center],
                                  frames[k].labels[frames[k].center], truth[k]))
+    boxes = sorted(set(mapping.values()))
     hidden = {(label, k) for k, lf in enumerate(frames) for label in truth[k]
               if not (lf.labels == label).any()}
     maskless = {(label, k) for k in range(len(frames)) for obj, label in mapping.items()
@@ -296,7 +305,7 @@ def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict,
     print(f"seed {seed}, oracle jitter {jitter}: segmentation "
           + segmentation_line(tracked))
     document = json.loads(out.read_text())
-    scored = score(_motions(document, mapping), truth, hidden, maskless)
+    scored = score(_motions(document, mapping), truth, hidden, maskless, boxes)
     runs.setdefault(f"gt{tag}", []).append(scored)
     per_object = [f["seconds"] for o in document["objects"] if o["id"] in mapping
                   for f in o["frames"]]
@@ -311,12 +320,12 @@ def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict,
                                 str(video_path), "--json", str(default_out)])
         document = json.loads(default_out.read_text())
         runs.setdefault(f"default{tag}", []).append(
-            score(_motions(document, mapping), truth, hidden, maskless))
+            score(_motions(document, mapping), truth, hidden, maskless, boxes))
         print(f"  `lfsam poses` with its defaults (estimated disparity, corners): command "
               f"{default_command:.1f} s (target <= 60 s); {_statuses(document, mapping)}")
         table("defaults: estimated disparity, views corners", runs[f"default{tag}"][-1])
     runs.setdefault(f"baseline gt{tag}", []).append(
-        score(baseline(frames, result, mapping, "gt"), truth, hidden, maskless))
+        score(baseline(frames, result, mapping, "gt"), truth, hidden, maskless, boxes))
     if args.skip_estimate:
         return
     start = time.perf_counter()
@@ -337,7 +346,7 @@ def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict,
     objects = tracker.objects
     motions = {mapping[o.object_id]: {f.frame: f.motion for f in o.frames}
                for o in objects if o.object_id in mapping}
-    scored = score(motions, truth, hidden, maskless)
+    scored = score(motions, truth, hidden, maskless, boxes)
     runs.setdefault(f"estimate{tag}", []).append(scored)
     per_object = [f.seconds for o in objects if o.object_id in mapping for f in o.frames]
     seconds.setdefault(f"estimate{tag}", []).extend(per_object)
@@ -350,7 +359,8 @@ def run_seed(seed: int, jitter: int, args, runs: dict, seconds: dict,
     table(f"estimated disparity, views {args.estimate_views}", scored)
     center = [estimates[k][lf.center] for k, lf in enumerate(frames)]
     runs.setdefault(f"baseline estimate{tag}", []).append(
-        score(baseline(frames, result, mapping, "estimate", center), truth, hidden, maskless))
+        score(baseline(frames, result, mapping, "estimate", center), truth, hidden, maskless,
+              boxes))
 
 
 def main() -> None:

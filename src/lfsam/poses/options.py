@@ -59,9 +59,9 @@ class PoseOptions:
         it is partly covered and growing.
     grow_uncovered : bool
         An uncertain fit that explains under ``uncertain_inliers`` of the points while its
-        inliers pin all six directions and fit as the object's own fits do adds the frame's
-        points to the model (the rest is new surface: an object coming out from behind
-        another); False keeps every uncertain fit out of the model.
+        inliers pin all six directions and fit within ``uncertain_floor_m`` and as the object's
+        own fits do adds the frame's points to the model (the rest is new surface: an object
+        coming out from behind another); False keeps every uncertain fit out of the model.
     covered_start, still_growing : float
         An object not yet tracked waits while more than ``covered_start`` of the ring around
         its center-view mask lies nearer than it (:func:`lfsam.poses.rim.covered_share`), its

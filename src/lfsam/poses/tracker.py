@@ -405,13 +405,16 @@ class PoseTracker:
         """Whether a fit explains only part of the frame's points because the rest is new
         surface (docs/design.md section 12, "Poses through occlusions"): it explains under
         ``uncertain_inliers`` of them, its inliers pin all six directions (``pinned``) and fit
-        within ``uncertain_rmse`` times the object's typical fit (``uncertain_floor_m`` before
-        it has one). Points pulled off by what is not the object fit several times worse."""
+        within ``uncertain_floor_m`` and within ``uncertain_rmse`` times the object's typical
+        fit. Points pulled off by what is not the object fit several times worse."""
         opts = self.options
-        typical = opts.uncertain_rmse * float(np.median(track.rmses)) if track.rmses else 0.0
+        typical = (opts.uncertain_rmse * float(np.median(track.rmses)) if track.rmses
+                   else float("inf"))
+        # Points noisier than the floor (estimated depth: about a millimetre) fit a wrong pose
+        # as well as the right one, so their fit cannot vouch for new surface.
         return (found.inliers < opts.uncertain_inliers
                 and found.conditioning >= opts.pinned
-                and found.rmse <= max(typical, opts.uncertain_floor_m))
+                and found.rmse <= min(typical, opts.uncertain_floor_m))
 
     def add_frame(self, views: Sequence[ViewData], frame: int | None = None,
                   grid: np.ndarray | None = None) -> list[FramePose]:
