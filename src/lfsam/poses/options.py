@@ -12,7 +12,7 @@ __all__ = ["PoseOptions"]
 
 @dataclass(frozen=True)
 class PoseOptions:
-    """Settings of :class:`PoseTracker` (module docstring).
+    """Settings of :class:`lfsam.poses.PoseTracker` (:mod:`lfsam.poses.tracker`).
 
     Attributes
     ----------
@@ -23,7 +23,8 @@ class PoseOptions:
     min_inliers : float
         A registration explaining less than this share of the points is refused (``lost``).
     keyframe_deg, keyframe_inliers : float
-        When to add the frame's points to the object's model (module docstring).
+        When to add the frame's points to the object's model (docs/design.md section 12,
+        "Keyframes").
     ransac_m : float
         Inlier distance of feature pairs in RANSAC (metres).
     min_matches : int

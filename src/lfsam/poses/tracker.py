@@ -376,9 +376,7 @@ class PoseTracker:
             # The part it explains pins the motion and fits as the object's own fits do: the
             # rest is surface the model never held (an object coming out from behind another).
             # It stays ``uncertain``, but its points join the model.
-            joined = np.concatenate([track.model, transform(to_model, xyz)])
-            (joined,) = voxel_downsample(joined, opts.voxel_m)
-            track.model, track.normals, track.tree = self._model(joined)
+            self._join(track, transform(to_model, xyz))
         # A poor fit is uncertain even on the frame an object comes back in: "found again"
         # promises a pose as good as "tracked".
         status = "uncertain" if poor else "found again" if track.lost else "tracked"
@@ -392,14 +390,17 @@ class PoseTracker:
         turned = rotation_error_deg(motion, track.key_motion)
         if not poor and found.conditioning >= opts.pinned and (
                 turned > opts.keyframe_deg or found.inliers < opts.keyframe_inliers):
-            joined = np.concatenate([track.model, transform(to_model, xyz)])
-            (joined,) = voxel_downsample(joined, opts.voxel_m)
-            track.model, track.normals, track.tree = self._model(joined)
+            self._join(track, transform(to_model, xyz))
             track.key_motion = motion
             track.key_features = current
         pose = motion @ track.result.first_pose
         return FramePose(self.frame, status, motion, pose, found.inliers, found.rmse, len(xyz),
                          matches, 0.0)
+
+    def _join(self, track: _Track, xyz: np.ndarray) -> None:
+        """Add points (model coordinates) to the object's model, voxel by voxel."""
+        (joined,) = voxel_downsample(np.concatenate([track.model, xyz]), self.options.voxel_m)
+        track.model, track.normals, track.tree = self._model(joined)
 
     def _uncovered(self, track: _Track, found: IcpResult) -> bool:
         """Whether a fit explains only part of the frame's points because the rest is new

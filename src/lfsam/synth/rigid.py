@@ -168,16 +168,15 @@ def _corners(box: RigidBox, frame: int) -> np.ndarray:
 
 
 def _fits(boxes: list[RigidBox], camera: Camera, size: tuple[int, int], margin_px: float,
-          gap_m: float, away: dict[int, list[int]] | None = None) -> bool:
+          gap_m: float, may_leave: frozenset[int] = frozenset()) -> bool:
     """Every corner inside the center view (``margin_px`` in), and no box within ``gap_m`` of
-    another (surface points of one tested against the other's slabs) in any frame. ``away``:
-    per label, the frames its box may be partly or wholly outside the view."""
+    another (surface points of one tested against the other's slabs) in any frame; the boxes
+    labelled in ``may_leave`` are exempt from the first test (they leave the view by design)."""
     cx, cy = camera.principal_point(size)
     samples = [box_surface_points(b.size_m, 0.01) for b in boxes]
-    away = away or {}
     for frame in range(boxes[0].poses.shape[0]):
         for box in boxes:
-            if frame in away.get(box.label, ()):
+            if box.label in may_leave:
                 continue
             corners = _corners(box, frame)
             u = corners[:, 1] / corners[:, 2] * camera.focal_px + cy
@@ -197,6 +196,22 @@ def _fits(boxes: list[RigidBox], camera: Camera, size: tuple[int, int], margin_p
     return True
 
 
+def _turning(rng: np.random.Generator, centres: np.ndarray,
+             turn_deg: tuple[float, float]) -> np.ndarray:
+    """Poses ``(frames, 4, 4)`` of a box at ``centres`` ``(frames, 3)`` that starts at a random
+    orientation and turns every frame by an angle uniform in ``turn_deg`` about an axis of its
+    own."""
+    axis = rng.normal(size=3)
+    rotation = _random_rotation(rng)
+    poses = np.tile(np.eye(4), (len(centres), 1, 1))
+    for frame, centre in enumerate(centres):
+        if frame:
+            rotation = rotation @ rotation_about(axis, math.radians(rng.uniform(*turn_deg)))
+        poses[frame, :3, :3] = rotation
+        poses[frame, :3, 3] = centre
+    return poses
+
+
 #: How much nearer than the other boxes (metres) the crossing box of ``rigid_scenes(crossing=
 #: True)`` moves.
 CROSSING_DEPTH = 0.35
@@ -213,18 +228,8 @@ def _crossing_box(rng: np.random.Generator, label: int, frames: int, z: float, c
     side = 1.0 if rng.uniform() < 0.5 else -1.0
     xs = np.linspace(-side * reach, side * reach, frames)
     y = rng.uniform(-0.03, 0.03)
-    axis = rng.normal(size=3)
-    poses = []
-    rotation = _random_rotation(rng)
-    for frame in range(frames):
-        if frame:
-            turn = rotation_about(axis, math.radians(rng.uniform(*turn_deg)))
-            rotation = rotation @ turn
-        pose = np.eye(4)
-        pose[:3, :3] = rotation
-        pose[:3, 3] = (xs[frame], y, z)
-        poses.append(pose)
-    return RigidBox(label, edges, np.stack(poses), [])
+    centres = np.stack([xs, np.full(frames, y), np.full(frames, z)], axis=1)
+    return RigidBox(label, edges, _turning(rng, centres, turn_deg), [])
 
 
 #: How much nearer than the other boxes (metres) the box of ``rigid_scenes(leaving=True)``
@@ -252,24 +257,13 @@ def _leaving_box(rng: np.random.Generator, label: int, frames: int, z: float, ca
     inside = rng.uniform(0.1, 0.4) * half_width
     side = 1.0 if rng.uniform() < 0.5 else -1.0
     going = (frames - LEAVING_GAP) // 2  # frames spent going out (and at least as many back)
-    first_out = going
-    xs = np.empty(frames)
-    xs[:going] = np.linspace(inside, outside, going + 1)[:going]
-    xs[first_out:first_out + LEAVING_GAP] = outside
-    back = frames - (first_out + LEAVING_GAP)
-    xs[first_out + LEAVING_GAP:] = np.linspace(outside, inside, back + 1)[1:]
+    back = frames - going - LEAVING_GAP
+    xs = np.concatenate([np.linspace(inside, outside, going + 1)[:going],
+                         np.full(LEAVING_GAP, outside),
+                         np.linspace(outside, inside, back + 1)[1:]])
     y = rng.uniform(-0.03, 0.03)
-    axis = rng.normal(size=3)
-    rotation = _random_rotation(rng)
-    poses = []
-    for frame in range(frames):
-        if frame:
-            rotation = rotation @ rotation_about(axis, math.radians(rng.uniform(*turn_deg)))
-        pose = np.eye(4)
-        pose[:3, :3] = rotation
-        pose[:3, 3] = (side * xs[frame], y, z)
-        poses.append(pose)
-    return RigidBox(label, edges, np.stack(poses), [])
+    centres = np.stack([side * xs, np.full(frames, y), np.full(frames, z)], axis=1)
+    return RigidBox(label, edges, _turning(rng, centres, turn_deg), [])
 
 
 def rigid_scenes(
@@ -348,13 +342,11 @@ def rigid_scenes(
         if crossing:
             found.append(_crossing_box(rng, boxes + 2, frames, z - CROSSING_DEPTH, camera,
                                        size, box_size_m, turn_deg))
-        away: dict[int, list[int]] = {}
         if leaving:
-            box = _leaving_box(rng, len(found) + 2, frames, z - LEAVING_DEPTH, camera,
-                                    size, grid, box_size_m, turn_deg)
-            found.append(box)
-            away[box.label] = list(range(frames))  # it leaves the view by design
-        if _fits(found, camera, size, parallax, 0.005, away):
+            found.append(_leaving_box(rng, len(found) + 2, frames, z - LEAVING_DEPTH, camera,
+                                      size, grid, box_size_m, turn_deg))
+        if _fits(found, camera, size, parallax, 0.005,
+                 frozenset({found[-1].label}) if leaving else frozenset()):
             break
     else:
         raise LfsamError(
